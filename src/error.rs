@@ -1,0 +1,96 @@
+//! Error types: one top-level [`Error`] wrapping the four families of the
+//! architecture map (`ConfigError`, `ModelError`, `SolveError`, `IoError`).
+//! Library code never panics on user input; it returns one of these.
+
+use thiserror::Error;
+
+/// A case file or command-line value that is malformed or non-physical.
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum ConfigError {
+    /// A numeric key outside its allowed interval.
+    #[error("{key} = {value} is out of range: allowed {range} ({unit})")]
+    OutOfRange { key: String, value: f64, range: String, unit: String },
+    /// A key the schema does not know, or a value of the wrong type or form.
+    #[error("{0}")]
+    Invalid(String),
+    /// A combination of keys that cannot hold together.
+    #[error("{key}: {message}")]
+    Inconsistent { key: String, message: String },
+}
+
+impl ConfigError {
+    pub fn invalid(msg: impl Into<String>) -> Self {
+        ConfigError::Invalid(msg.into())
+    }
+    pub fn inconsistent(key: impl Into<String>, message: impl Into<String>) -> Self {
+        ConfigError::Inconsistent { key: key.into(), message: message.into() }
+    }
+}
+
+/// A physical model left its domain of validity (e.g. a neck larger than the smaller particle).
+#[derive(Debug, Error, Clone, PartialEq)]
+#[error("model error{}: {message}", context.as_ref().map(|c| format!(" ({c})")).unwrap_or_default())]
+pub struct ModelError {
+    pub message: String,
+    /// Where it happened: contact id, time, state.
+    pub context: Option<String>,
+}
+
+impl ModelError {
+    pub fn new(message: impl Into<String>) -> Self {
+        ModelError { message: message.into(), context: None }
+    }
+    pub fn with_context(mut self, context: impl Into<String>) -> Self {
+        let c = context.into();
+        self.context = Some(match self.context.take() {
+            Some(old) => format!("{c}; {old}"),
+            None => c,
+        });
+        self
+    }
+}
+
+/// A linear or nonlinear solve that failed (not SPD, no convergence, non-finite result).
+#[derive(Debug, Error, Clone, PartialEq)]
+#[error("solver error in {stage}: {message}{}", if residuals.is_empty() { String::new() } else { format!(" (residual history: {residuals:.3e?})") })]
+pub struct SolveError {
+    pub stage: String,
+    pub message: String,
+    /// Residual history, newest last.
+    pub residuals: Vec<f64>,
+}
+
+impl SolveError {
+    pub fn new(stage: impl Into<String>, message: impl Into<String>) -> Self {
+        SolveError { stage: stage.into(), message: message.into(), residuals: Vec::new() }
+    }
+}
+
+/// Reading or writing a file failed.
+#[derive(Debug, Error)]
+#[error("{path}: {message}")]
+pub struct IoError {
+    pub path: String,
+    pub message: String,
+}
+
+impl IoError {
+    pub fn new(path: impl AsRef<std::path::Path>, message: impl std::fmt::Display) -> Self {
+        IoError { path: path.as_ref().display().to_string(), message: message.to_string() }
+    }
+}
+
+/// Any sinterdem error.
+#[derive(Debug, Error)]
+pub enum Error {
+    #[error("configuration error: {0}")]
+    Config(#[from] ConfigError),
+    #[error("{0}")]
+    Model(#[from] ModelError),
+    #[error("{0}")]
+    Solve(#[from] SolveError),
+    #[error("i/o error: {0}")]
+    Io(#[from] IoError),
+}
+
+pub type Result<T, E = Error> = std::result::Result<T, E>;

@@ -1,0 +1,17 @@
+//! # sinterdem
+//!
+//! A coupled thermo-mechanical simulator of powder sintering. One time step of a packing run
+//! (see `docs/architecture.md` of the design notes):
+//! 1. topology: new contacts by cell-list search,
+//! 2. heat: implicit pipe network, `(C/Δt + L) T^{n+1} = C/Δt T^n + b` ([`heat`]),
+//! 3. diffusion: the 7-DOF contact ODE at each contact's temperature,
+//! 4. mechanics: bonded quasi-static equilibrium,
+//! 5. correction of the contact state, 6. step control, 7. output.
+//!
+//! Modules are named for the physics or numerical job they do.
+
+pub mod error;
+pub mod profile;
+pub mod units;
+
+pub use error::{ConfigError, Error, ModelError, Result, SolveError};

@@ -1,0 +1,34 @@
+//! Physical constants (SI) and small helpers shared by the models.
+
+/// Boltzmann constant k_B [J/K].
+pub const BOLTZMANN: f64 = 1.380649e-23;
+/// Molar gas constant R [J/(mol·K)].
+pub const GAS_CONSTANT: f64 = 8.314462618;
+/// Stefan–Boltzmann constant σ [W/(m²·K⁴)].
+pub const STEFAN_BOLTZMANN: f64 = 5.670374419e-8;
+/// 0 °C in kelvin.
+pub const ZERO_CELSIUS: f64 = 273.15;
+
+/// Arrhenius law `D = D0·exp(−Q/(R·T))` (seven-dof-model.md M9): `d0` [m²/s], `q` [J/mol], `t` [K].
+#[inline]
+pub fn arrhenius(d0: f64, q: f64, t: f64) -> f64 {
+    d0 * (-q / (GAS_CONSTANT * t)).exp()
+}
+
+/// Volume of a sphere of radius `r` [m] → [m³].
+#[inline]
+pub fn sphere_volume(r: f64) -> f64 {
+    4.0 / 3.0 * std::f64::consts::PI * r * r * r
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    #[test]
+    fn arrhenius_matches_definition() {
+        // Copper surface diffusion at 1293 K (seven-dof-model.md §14): D_s ≈ 7.9e-9 m²/s.
+        let d = arrhenius(7.0e6, 370e3, 1293.0);
+        assert!((d / 7.9e-9 - 1.0).abs() < 0.02, "{d}");
+        assert_eq!(arrhenius(2.0, 0.0, 300.0), 2.0);
+    }
+}
