@@ -52,7 +52,7 @@ impl ModelError {
 
 /// A linear or nonlinear solve that failed (not SPD, no convergence, non-finite result).
 #[derive(Debug, Error, Clone, PartialEq)]
-#[error("solver error in {stage}: {message}{}", if residuals.is_empty() { String::new() } else { format!(" (residual history: {residuals:.3e?})") })]
+#[error("solver error in {stage}: {message}{}", if residuals.is_empty() { String::new() } else { format!(" (residual history: {})", residuals.iter().map(|r| format!("{r:.3e}")).collect::<Vec<_>>().join(", ")) })]
 pub struct SolveError {
     pub stage: String,
     pub message: String,

@@ -10,7 +10,9 @@
 //!
 //! Modules are named for the physics or numerical job they do.
 
+pub mod config;
 pub mod error;
+pub mod particles;
 pub mod profile;
 pub mod units;
 

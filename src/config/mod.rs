@@ -1,0 +1,106 @@
+//! Case files: TOML in SI units. Parse → validate → build (architecture map, "Errors and input").
+//!
+//! - [`load_case`] reads a file into a `toml::Value` and applies `--set key.path=value` overrides;
+//! - every typed section derives `Deserialize` with `deny_unknown_fields`, so unknown keys are rejected
+//!   with their name ([`from_value`] turns serde's message into a [`ConfigError`]);
+//! - every numeric key is checked against one declarative range table ([`ranges`]) with [`check`],
+//!   whose error names key, value, allowed range and unit.
+
+pub mod ranges;
+
+use crate::error::{ConfigError, IoError, Error};
+use serde::de::DeserializeOwned;
+use std::path::Path;
+
+/// Reads a TOML case file and applies the command-line overrides (`key.path=value`).
+pub fn load_case(path: &Path, overrides: &[String]) -> Result<toml::Value, Error> {
+    let text = std::fs::read_to_string(path).map_err(|e| IoError::new(path, e))?;
+    let mut value: toml::Value = text
+        .parse::<toml::Table>()
+        .map(toml::Value::Table)
+        .map_err(|e| ConfigError::invalid(format!("{}: {}", path.display(), e.message())))?;
+    for o in overrides {
+        apply_override(&mut value, o)?;
+    }
+    Ok(value)
+}
+
+/// Applies one `key.path=value` override. The value is parsed as TOML (number, bool, string,
+/// array); a bare word that is not valid TOML is taken as a string. Array elements are addressed
+/// by index (`profiles.0.hold_time=60`).
+pub fn apply_override(root: &mut toml::Value, assignment: &str) -> Result<(), ConfigError> {
+    let (path, raw) = assignment
+        .split_once('=')
+        .ok_or_else(|| ConfigError::invalid(format!("--set {assignment}: expected key.path=value")))?;
+    let path = path.trim();
+    let raw = raw.trim();
+    let new: toml::Value = match format!("v = {raw}").parse::<toml::Table>() {
+        Ok(mut t) => t.remove("v").unwrap(),
+        Err(_) => toml::Value::String(raw.to_string()),
+    };
+    let keys: Vec<&str> = path.split('.').collect();
+    if keys.iter().any(|k| k.is_empty()) {
+        return Err(ConfigError::invalid(format!("--set {assignment}: empty key in path")));
+    }
+    let mut cur = root;
+    for (i, k) in keys.iter().enumerate() {
+        let last = i + 1 == keys.len();
+        cur = match cur {
+            toml::Value::Table(t) => {
+                if last {
+                    t.insert(k.to_string(), new);
+                    return Ok(());
+                }
+                t.entry(k.to_string()).or_insert_with(|| toml::Value::Table(toml::Table::new()))
+            }
+            toml::Value::Array(a) => {
+                let idx: usize = k.parse().map_err(|_| {
+                    ConfigError::invalid(format!("--set {assignment}: \"{k}\" must be an array index"))
+                })?;
+                let len = a.len();
+                let slot = a.get_mut(idx).ok_or_else(|| {
+                    ConfigError::invalid(format!("--set {assignment}: index {idx} out of bounds (length {len})"))
+                })?;
+                if last {
+                    *slot = new;
+                    return Ok(());
+                }
+                slot
+            }
+            _ => {
+                return Err(ConfigError::invalid(format!(
+                    "--set {assignment}: \"{}\" is not a table",
+                    keys[..i].join(".")
+                )));
+            }
+        };
+    }
+    Ok(())
+}
+
+/// Deserialises a typed section, turning serde's message (unknown field, wrong type) into a
+/// [`ConfigError`] that names the key.
+pub fn from_value<T: DeserializeOwned>(value: toml::Value, section: &str) -> Result<T, ConfigError> {
+    T::deserialize(value).map_err(|e| {
+        let msg = e.to_string();
+        let msg = msg.trim().replace('\n', " ");
+        if section.is_empty() {
+            ConfigError::invalid(msg)
+        } else {
+            ConfigError::invalid(format!("[{section}] {msg}"))
+        }
+    })
+}
+
+/// Checks `value` of `key` against the range table entry for `key` (see [`ranges::lookup`]).
+pub fn check(key: &str, value: f64) -> Result<f64, ConfigError> {
+    let r = ranges::lookup(key).ok_or_else(|| {
+        ConfigError::invalid(format!("internal: key {key} has no entry in the range table"))
+    })?;
+    r.check(key, value)
+}
+
+/// Checks an optional value (None passes).
+pub fn check_opt(key: &str, value: Option<f64>) -> Result<Option<f64>, ConfigError> {
+    value.map(|v| check(key, v)).transpose()
+}

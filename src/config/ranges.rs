@@ -1,0 +1,137 @@
+//! The one declarative range table: every numeric case-file key, its allowed interval and SI unit.
+//! Keys are written as in the case file with array/table indices replaced by `*`
+//! (e.g. `materials.*.density`). `docs/case-file.md` is checked against this table by a test.
+
+use crate::error::ConfigError;
+
+/// An allowed interval. `lo_open`/`hi_open` make an end exclusive.
+#[derive(Debug, Clone, Copy)]
+pub struct Range {
+    pub key: &'static str,
+    pub lo: f64,
+    pub hi: f64,
+    pub lo_open: bool,
+    pub hi_open: bool,
+    pub unit: &'static str,
+    pub meaning: &'static str,
+}
+
+impl Range {
+    pub fn contains(&self, v: f64) -> bool {
+        if !v.is_finite() && !(v.is_infinite() && v > 0.0 && self.hi.is_infinite()) {
+            return false;
+        }
+        let lo_ok = if self.lo_open { v > self.lo } else { v >= self.lo };
+        let hi_ok = if self.hi_open { v < self.hi } else { v <= self.hi };
+        lo_ok && hi_ok
+    }
+
+    pub fn describe(&self) -> String {
+        let fmt = |x: f64| if x.is_infinite() { "inf".to_string() } else { format!("{x}") };
+        format!(
+            "{}{}, {}{}",
+            if self.lo_open { "(" } else { "[" },
+            fmt(self.lo),
+            fmt(self.hi),
+            if self.hi_open { ")" } else { "]" }
+        )
+    }
+
+    pub fn check(&self, key: &str, v: f64) -> Result<f64, ConfigError> {
+        if self.contains(v) {
+            Ok(v)
+        } else {
+            Err(ConfigError::OutOfRange {
+                key: key.to_string(),
+                value: v,
+                range: self.describe(),
+                unit: self.unit.to_string(),
+            })
+        }
+    }
+}
+
+const INF: f64 = f64::INFINITY;
+
+/// `[lo, hi]` closed.
+const fn c(key: &'static str, lo: f64, hi: f64, unit: &'static str, meaning: &'static str) -> Range {
+    Range { key, lo, hi, lo_open: false, hi_open: false, unit, meaning }
+}
+/// `(lo, hi]`: strictly positive quantities.
+const fn p(key: &'static str, lo: f64, hi: f64, unit: &'static str, meaning: &'static str) -> Range {
+    Range { key, lo, hi, lo_open: true, hi_open: false, unit, meaning }
+}
+
+/// The table. Add a row for every new numeric key.
+pub static TABLE: &[Range] = &[
+    // time stepping
+    p("time.end", 0.0, 1e9, "s", "simulated end time"),
+    p("time.dt", 0.0, 1e7, "s", "time step (initial step where adaptive)"),
+    p("time.dt_min", 0.0, 1e7, "s", "smallest step the step control may take"),
+    p("time.dt_max", 0.0, 1e7, "s", "largest step the step control may take"),
+    // output
+    c("output.snapshots", 0.0, 1e5, "1", "number of VTU/HDF5 snapshots, evenly spaced in time"),
+    c("output.series_every", 1.0, 1e9, "1", "write a series row every this many steps"),
+    c("output.checkpoint_every", 0.0, 1e9, "1", "write a checkpoint every this many steps (0: never)"),
+    // materials
+    p("materials.*.density", 0.0, 1e5, "kg/m^3", "mass density rho"),
+    p("materials.*.heat_capacity", 0.0, 1e5, "J/(kg K)", "specific heat capacity c"),
+    p("materials.*.conductivity", 0.0, 1e4, "W/(m K)", "thermal conductivity kappa"),
+    p("materials.*.young_modulus", 0.0, 1e13, "Pa", "Young's modulus E"),
+    c("materials.*.poisson_ratio", -0.99, 0.4999, "1", "Poisson's ratio nu"),
+    c("materials.*.emissivity", 0.0, 1.0, "1", "total hemispherical emissivity"),
+    // particles
+    p("particles.radius", 0.0, 1.0, "m", "particle radius"),
+    p("particles.radius_2", 0.0, 1.0, "m", "second particle radius of a pair"),
+    c("particles.overlap", 0.0, 0.6, "1", "initial overlap h relative to the smaller radius"),
+    c("particles.initial_temperature", 1.0, 1e4, "K", "initial temperature of every particle"),
+    // thermal
+    p("thermal.conductance_factor", 0.0, 100.0, "1", "c_K of K_i = c_K kappa pi a (heat-network.md eq. 43)"),
+    p("thermal.contact_conductance", 0.0, INF, "W/K", "interface conductance K_c in series (eq. 8)"),
+    c("thermal.furnace.convection_coefficient", 0.0, 1e6, "W/(m^2 K)", "convective heat transfer coefficient h_c"),
+    c("thermal.furnace.emissivity", 0.0, 1.0, "1", "emissivity used for radiation to the furnace walls"),
+    c("thermal.furnace.exposure", 0.0, 1.0, "1", "fraction of an exposed particle's sphere area facing the furnace"),
+    c("thermal.radiation_tolerance", 1e-15, 1e-3, "1", "radiation Newton stop: max|dT| <= tol * max T"),
+    c("thermal.volumetric.*.power_density", -1e15, 1e15, "W/m^3", "volumetric heat generation q'''"),
+    c("conductivity.temperature_difference", 1e-6, 1e4, "K", "T_hot - T_cold of the effective-conductivity solve"),
+    c("conductivity.layer_fraction", 0.0, 0.5, "1", "thickness of each Dirichlet layer as a fraction of the extent"),
+];
+
+/// Looks up `key`, matching `*` against any one path segment.
+pub fn lookup(key: &str) -> Option<&'static Range> {
+    TABLE.iter().find(|r| pattern_matches(r.key, key))
+}
+
+fn pattern_matches(pattern: &str, key: &str) -> bool {
+    let mut p = pattern.split('.');
+    let mut k = key.split('.');
+    loop {
+        match (p.next(), k.next()) {
+            (None, None) => return true,
+            (Some(a), Some(b)) if a == "*" || a == b => continue,
+            _ => return false,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    #[test]
+    fn lookup_matches_wildcards_and_reports_range() {
+        let r = lookup("materials.copper.density").unwrap();
+        assert_eq!(r.unit, "kg/m^3");
+        let e = r.check("materials.copper.density", -1.0).unwrap_err().to_string();
+        assert!(e.contains("materials.copper.density") && e.contains("(0, 100000]") && e.contains("kg/m^3"), "{e}");
+        assert!(lookup("materials.copper").is_none());
+        assert!(r.check("x", f64::NAN).is_err());
+    }
+    #[test]
+    fn keys_are_unique() {
+        for (i, a) in TABLE.iter().enumerate() {
+            for b in &TABLE[i + 1..] {
+                assert_ne!(a.key, b.key);
+            }
+        }
+    }
+}
