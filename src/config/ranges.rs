@@ -97,9 +97,13 @@ pub static TABLE: &[Range] = &[
     c("conductivity.layer_fraction", 0.0, 0.5, "1", "thickness of each Dirichlet layer as a fraction of the extent"),
 ];
 
-/// Looks up `key`, matching `*` against any one path segment.
+/// Every range table of the crate: this file's [`TABLE`] and the models' own tables
+/// (a model module may keep its keys beside its code and register the table here).
+pub static TABLES: &[&[Range]] = &[TABLE];
+
+/// Looks up `key` in [`TABLES`], matching `*` against any one path segment.
 pub fn lookup(key: &str) -> Option<&'static Range> {
-    TABLE.iter().find(|r| pattern_matches(r.key, key))
+    TABLES.iter().flat_map(|t| t.iter()).find(|r| pattern_matches(r.key, key))
 }
 
 fn pattern_matches(pattern: &str, key: &str) -> bool {
@@ -128,8 +132,9 @@ mod tests {
     }
     #[test]
     fn keys_are_unique() {
-        for (i, a) in TABLE.iter().enumerate() {
-            for b in &TABLE[i + 1..] {
+        let all: Vec<&Range> = TABLES.iter().flat_map(|t| t.iter()).collect();
+        for (i, a) in all.iter().enumerate() {
+            for b in &all[i + 1..] {
                 assert_ne!(a.key, b.key);
             }
         }
