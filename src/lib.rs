@@ -11,6 +11,7 @@
 //! Modules are named for the physics or numerical job they do.
 
 pub mod config;
+pub mod contacts;
 pub mod error;
 pub mod particles;
 pub mod profile;
