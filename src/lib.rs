@@ -13,6 +13,7 @@
 pub mod config;
 pub mod contacts;
 pub mod error;
+pub mod heat;
 pub mod linsolve;
 pub mod neck;
 pub mod particles;
