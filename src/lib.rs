@@ -14,10 +14,13 @@ pub mod config;
 pub mod contacts;
 pub mod error;
 pub mod heat;
+pub mod io;
 pub mod linsolve;
+pub mod material;
 pub mod neck;
 pub mod particles;
 pub mod profile;
+pub mod scene;
 pub mod units;
 
 pub use error::{ConfigError, Error, ModelError, Result, SolveError};
