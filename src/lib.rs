@@ -12,7 +12,9 @@
 
 pub mod config;
 pub mod error;
+pub mod models;
 pub mod particles;
+pub mod plot;
 pub mod profile;
 pub mod units;
 

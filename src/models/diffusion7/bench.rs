@@ -1,0 +1,1 @@
+//! Work-precision benchmark of the pair runs.
