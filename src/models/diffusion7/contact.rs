@@ -85,7 +85,8 @@ pub fn initial_state(r_a: f64, r_b: f64, d_ab: f64, eps: f64, eta: f64) -> Resul
     }
     // (I1)
     let d_a = (d_ab * d_ab + r_a * r_a - r_b * r_b) / (2.0 * d_ab);
-    let d_b = d_ab - d_a;
+    // the same formula for B (= d_AB − d_A up to round-off) keeps equal pairs exactly symmetric
+    let d_b = (d_ab * d_ab + r_b * r_b - r_a * r_a) / (2.0 * d_ab);
     // (I2)
     let r_c = (r_a * r_a - d_a * d_a).max(0.0).sqrt();
     let a0 = r_c + eps * r_a.min(r_b);
