@@ -301,7 +301,7 @@ impl Plot {
         }
         let (ax, xt) = Axis::fit(xlo, xhi, self.log_x);
         let (ay, yt) = Axis::fit(ylo, yhi, self.log_y);
-        let (left, right, top, bottom) = (110i64, w - 30, 50i64, h - 80);
+        let (left, right, top, bottom) = (136i64, w - 30, 50i64, h - 80);
         let black = [0, 0, 0];
         let grid = [225, 225, 225];
         let px = |x: f64| left as f64 + ax.frac(x) * (right - left) as f64;
@@ -352,13 +352,26 @@ impl Plot {
         // title and labels
         cv.text(w / 2 - text_width(&self.title, 2) / 2, 14, &self.title, 2, black);
         cv.text((left + right) / 2 - text_width(&self.x_label, 2) / 2, h - 36, &self.x_label, 2, black);
-        cv.text_vertical(12, (top + bottom) / 2 + text_width(&self.y_label, 2) / 2, &self.y_label, 2, black);
+        cv.text_vertical(8, (top + bottom) / 2 + text_width(&self.y_label, 2) / 2, &self.y_label, 2, black);
         // legend
         let named: Vec<(usize, &Series)> = self.series.iter().enumerate().filter(|(_, s)| !s.name.is_empty()).collect();
         if !named.is_empty() {
             let lw = named.iter().map(|(_, s)| text_width(&s.name, 2)).max().unwrap_or(0) + 60;
             let lh = named.len() as i64 * 22 + 10;
-            let (lx, ly) = (left + 12, top + 12);
+            // the corner of the plot area that hides the fewest points
+            let corners = [(left + 12, top + 12), (right - 12 - lw, top + 12), (left + 12, bottom - 12 - lh), (right - 12 - lw, bottom - 12 - lh)];
+            let hidden = |(cx, cy): (i64, i64)| {
+                self.series
+                    .iter()
+                    .flat_map(|s| s.points.iter())
+                    .filter(|&&(x, y)| ax.ok(x) && ay.ok(y))
+                    .filter(|&&(x, y)| {
+                        let (qx, qy) = (px(x), py(y));
+                        qx >= (cx - 6) as f64 && qx <= (cx + lw + 6) as f64 && qy >= (cy - 6) as f64 && qy <= (cy + lh + 6) as f64
+                    })
+                    .count()
+            };
+            let (lx, ly) = corners.iter().copied().min_by_key(|&c| hidden(c)).unwrap_or(corners[0]);
             cv.rect(lx, ly, lx + lw, ly + lh, [250, 250, 250]);
             cv.rect(lx, ly, lx + lw, ly, [160, 160, 160]);
             cv.rect(lx, ly + lh, lx + lw, ly + lh, [160, 160, 160]);

@@ -126,3 +126,14 @@ fn bad_pair_cases_are_rejected_clearly() {
     let e = parse_pair_case(&c).unwrap_err().to_string();
     assert!(e.contains("calibrated_min_temperature"), "{e}");
 }
+
+/// Writes the full copper run (as `sinterdem run cases/pair-copper.toml --out DIR` will) to
+/// `$SINTERDEM_PAIR_OUT` (default `target/pair-copper`):
+/// `cargo test --release --test diffusion7_pair -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn pair_copper_full_output() {
+    let out = std::env::var("SINTERDEM_PAIR_OUT").unwrap_or_else(|_| "target/pair-copper".into());
+    let s = run_pair_case(&copper_case(&[]), Path::new(&out), true).unwrap();
+    println!("{}", serde_json::to_string_pretty(&s).unwrap());
+}
