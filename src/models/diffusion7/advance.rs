@@ -175,11 +175,16 @@ where
         let (ta, tb) = (temp.at(a), temp.at(b));
         let tmid = temp.at(0.5 * (a + b));
         let params = mats.params_at(tmid);
+        let last = std::cell::Cell::new(y);
         let ctx = |e: ModelError| {
-            e.with_context(format!("contact interval [{a:.6e}, {b:.6e}] s, T = {ta:.2} to {tb:.2} K"))
+            e.with_context(format!(
+                "contact interval [{a:.6e}, {b:.6e}] s, T = {ta:.2} to {tb:.2} K; last accepted state: {}",
+                super::contact::diagnose(&last.get())
+            ))
         };
         let mut cb = |tau: f64, yy: &[f64; 7]| {
             let t = tau + tc;
+            last.set(*yy);
             on_step(t, yy, temp.at(t));
         };
         y = if ta == tb {

@@ -112,6 +112,28 @@ pub fn initial_state(r_a: f64, r_b: f64, d_ab: f64, eps: f64, eta: f64) -> Resul
         .with_context(ctx()))
 }
 
+/// A sentence on where a state stands relative to the model's domain (for error messages): neck
+/// radius against the smaller cap, how much of each sphere is cut away, tangency.
+pub fn diagnose(y: &[f64; 7]) -> String {
+    let rmin = y[1].min(y[4]);
+    let mut s = format!("y1/min(R_A, R_B) = {:.4}", y[0] / rmin);
+    if y[0] >= 0.9 * rmin {
+        s.push_str(" (the neck has reached the size of the smaller particle: it is being absorbed, the two-cap geometry no longer applies)");
+    }
+    for (k, (r, c, d)) in [(y[1], y[2], y[3]), (y[4], y[5], y[6])].into_iter().enumerate() {
+        let p = d - c;
+        if p < 0.0 {
+            s.push_str(&format!("; side {} has more than a hemisphere cut away (p/R = {:.3})", if k == 0 { "A" } else { "B" }, p / r));
+        }
+    }
+    if let Some(th) = tangency(y) {
+        if th[0].max(th[1]) > 0.9 {
+            s.push_str(&format!("; cone near tangency (theta = {:.3}, {:.3})", th[0], th[1]));
+        }
+    }
+    s
+}
+
 /// Tangency ratios θ of both sides (monitoring, §2.2); `None` if the state is inadmissible.
 pub fn tangency(y: &[f64; 7]) -> Option<[f64; 2]> {
     sides(y).ok().map(|(a, b): (Side, Side)| [a.theta(), b.theta()])
