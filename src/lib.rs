@@ -11,8 +11,12 @@
 //! Modules are named for the physics or numerical job they do.
 
 pub mod config;
+pub mod contacts;
 pub mod error;
+pub mod heat;
+pub mod linsolve;
 pub mod models;
+pub mod neck;
 pub mod particles;
 pub mod plot;
 pub mod profile;

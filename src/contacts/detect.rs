@@ -1,0 +1,147 @@
+//! Neighbour search: a uniform cell list giving all pairs of spheres whose gap is below a margin,
+//! in O(N) for packings of bounded size ratio (architecture map, stage 1 "Topology").
+//!
+//! The cell edge is the largest sphere diameter plus the margin, so any touching pair lies in the
+//! same or adjacent cells. Cells are sorted (counting sort by linear cell index), so the result
+//! is deterministic and independent of thread count.
+
+use nalgebra::Vector3;
+
+/// All pairs `(i, j)`, `i < j`, with `|x_i − x_j| < r_i + r_j + margin`, sorted lexicographically.
+/// `margin` [m] ≥ 0 lets a caller find pairs that are about to touch.
+pub fn touching_pairs(position: &[Vector3<f64>], radius: &[f64], margin: f64) -> Vec<(u32, u32)> {
+    let n = position.len();
+    if n < 2 {
+        return Vec::new();
+    }
+    let r_max = radius.iter().copied().fold(0.0, f64::max);
+    let cell = (2.0 * r_max + margin).max(f64::MIN_POSITIVE);
+    let mut lo = Vector3::repeat(f64::INFINITY);
+    let mut hi = Vector3::repeat(f64::NEG_INFINITY);
+    for x in position {
+        lo = lo.inf(x);
+        hi = hi.sup(x);
+    }
+    // Cells per axis: floor(extent / cell) so that every cell edge is at least `cell`, capped so
+    // that the grid never has more than ~64 N cells (sparse clouds).
+    let cap = (64.0 * n as f64).cbrt().ceil();
+    let mut dims = [1usize; 3];
+    let mut size = [f64::INFINITY; 3];
+    for a in 0..3 {
+        let ext = hi[a] - lo[a];
+        let m = (ext / cell).floor().clamp(1.0, cap);
+        dims[a] = m as usize;
+        if m > 1.0 {
+            size[a] = ext / m;
+        }
+    }
+    let index_of = |x: &Vector3<f64>| -> [usize; 3] {
+        let mut c = [0usize; 3];
+        for a in 0..3 {
+            c[a] = if size[a].is_finite() {
+                (((x[a] - lo[a]) / size[a]) as usize).min(dims[a] - 1)
+            } else {
+                0
+            };
+        }
+        c
+    };
+    let ncell = dims[0] * dims[1] * dims[2];
+    let lin = |c: [usize; 3]| (c[2] * dims[1] + c[1]) * dims[0] + c[0];
+    // counting sort of particles by cell
+    let mut start = vec![0u32; ncell + 1];
+    let cells: Vec<usize> = position.iter().map(|x| lin(index_of(x))).collect();
+    for &c in &cells {
+        start[c + 1] += 1;
+    }
+    for k in 0..ncell {
+        start[k + 1] += start[k];
+    }
+    let mut fill = start.clone();
+    let mut order = vec![0u32; n];
+    for (i, &c) in cells.iter().enumerate() {
+        order[fill[c] as usize] = i as u32;
+        fill[c] += 1;
+    }
+    let mut pairs = Vec::new();
+    for i in 0..n {
+        let ci = index_of(&position[i]);
+        for dz in -1i64..=1 {
+            for dy in -1i64..=1 {
+                for dx in -1i64..=1 {
+                    let c = [ci[0] as i64 + dx, ci[1] as i64 + dy, ci[2] as i64 + dz];
+                    if (0..3).any(|a| c[a] < 0 || c[a] >= dims[a] as i64) {
+                        continue;
+                    }
+                    let l = lin([c[0] as usize, c[1] as usize, c[2] as usize]);
+                    for &j in &order[start[l] as usize..start[l + 1] as usize] {
+                        let j = j as usize;
+                        if j <= i {
+                            continue;
+                        }
+                        let reach = radius[i] + radius[j] + margin;
+                        if (position[i] - position[j]).norm_squared() < reach * reach {
+                            pairs.push((i as u32, j as u32));
+                        }
+                    }
+                }
+            }
+        }
+    }
+    pairs.sort_unstable();
+    pairs
+}
+
+/// Brute-force O(N²) reference for [`touching_pairs`] (tests and debugging).
+pub fn touching_pairs_brute(position: &[Vector3<f64>], radius: &[f64], margin: f64) -> Vec<(u32, u32)> {
+    let mut pairs = Vec::new();
+    for i in 0..position.len() {
+        for j in i + 1..position.len() {
+            let reach = radius[i] + radius[j] + margin;
+            if (position[i] - position[j]).norm_squared() < reach * reach {
+                pairs.push((i as u32, j as u32));
+            }
+        }
+    }
+    pairs
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A small deterministic generator (xorshift) so the test needs no extra crate.
+    fn rng(seed: &mut u64) -> f64 {
+        *seed ^= *seed << 13;
+        *seed ^= *seed >> 7;
+        *seed ^= *seed << 17;
+        (*seed >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    #[test]
+    fn cell_list_equals_brute_force_on_random_packings() {
+        let mut s = 0x9E3779B97F4A7C15u64;
+        for (n, spread, box_len) in [(200, 0.5, 10.0), (1000, 0.1, 20.0), (50, 0.9, 3.0), (400, 0.0, 1e-3)] {
+            let base = if box_len < 1.0 { 5e-5 } else { 0.6 };
+            let pos: Vec<_> = (0..n)
+                .map(|_| Vector3::new(rng(&mut s), rng(&mut s), rng(&mut s) * 0.3) * box_len)
+                .collect();
+            let rad: Vec<_> = (0..n).map(|_| base * (1.0 + spread * (2.0 * rng(&mut s) - 1.0))).collect();
+            for margin in [0.0, 0.05 * base] {
+                let a = touching_pairs(&pos, &rad, margin);
+                let b = touching_pairs_brute(&pos, &rad, margin);
+                assert_eq!(a, b, "n = {n}");
+                if margin == 0.0 && box_len > 1.0 {
+                    assert!(!a.is_empty());
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn degenerate_inputs() {
+        assert!(touching_pairs(&[], &[], 0.0).is_empty());
+        let p = vec![Vector3::zeros(); 3];
+        assert_eq!(touching_pairs(&p, &[1.0; 3], 0.0), vec![(0, 1), (0, 2), (1, 2)]);
+    }
+}

@@ -1,0 +1,3 @@
+//! Contacts between particles: the neighbour search ([`detect`]) and the contact store.
+
+pub mod detect;

@@ -1,0 +1,8 @@
+//! The heat network (heat-network.md): conductance of a pipe, the implicit network step, and the
+//! effective conductivity of a compact.
+
+pub mod conductance;
+pub mod network;
+
+pub use conductance::{Conductance, ConductanceLaw, PipeConductance};
+pub use network::{Furnace, HeatNetwork, HeatSources, HeatStepInfo, Scheme};
