@@ -108,3 +108,13 @@ fn e14b_phase_switches_and_invariants() {
     let full = run_pair(&e.spec(FULL_START).unwrap(), false, false).unwrap();
     assert!(full.contact.shrinkage() >= run.contact.shrinkage() * 0.999);
 }
+
+/// Writes the 28 final states (as `sinterdem titanium --out DIR` will) to `$SINTERDEM_TI_OUT`
+/// (default `target/titanium`): `cargo test --release --test diffusion7_titanium -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn titanium_all_output() {
+    let out = std::env::var("SINTERDEM_TI_OUT").unwrap_or_else(|_| "target/titanium".into());
+    run_all_titanium(Path::new(&out), TRUNCATED_START, None).unwrap();
+    println!("{}", std::fs::read_to_string(Path::new(&out).join("titanium.csv")).unwrap());
+}
