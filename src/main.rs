@@ -71,6 +71,18 @@ enum Command {
         #[command(flatten)]
         case: CaseArgs,
     },
+    /// Run the 28 titanium heating schedules (cases/titanium) as pairs; writes titanium.csv.
+    Titanium {
+        /// Output directory.
+        #[arg(long, default_value = "out/titanium")]
+        out: PathBuf,
+        /// Heat from 313 K instead of truncating the heating branch below 793 K.
+        #[arg(long)]
+        full: bool,
+        /// Use one common particle diameter [m] instead of each experiment's own.
+        #[arg(long)]
+        diameter: Option<f64>,
+    },
     /// Benchmarks (print figures; not tests).
     Bench {
         #[command(subcommand)]
@@ -88,6 +100,12 @@ enum Bench {
         /// Repetitions per size (median reported).
         #[arg(long, default_value_t = 3)]
         repeat: usize,
+    },
+    /// Work-precision diagram of the 7-DOF pair integrators (copper and E14B titanium).
+    Pair {
+        /// Output directory for work_precision.csv and the PNG diagrams.
+        #[arg(long, default_value = "out/bench-pair")]
+        out: PathBuf,
     },
 }
 
@@ -111,7 +129,7 @@ fn base_dir(case: &Path) -> PathBuf {
 }
 
 fn unknown_kind(kind: &str) -> Error {
-    sinterdem::ConfigError::invalid(format!("kind = \"{kind}\": expected heat")).into()
+    sinterdem::ConfigError::invalid(format!("kind = \"{kind}\": expected heat or pair")).into()
 }
 
 fn main() -> ExitCode {
@@ -139,6 +157,10 @@ fn real_main(cli: Cli) -> Result<(), Error> {
                     let prep = sinterdem::heat::run::prepare(value, &base_dir(&case.case))?;
                     sinterdem::heat::run::run(prep, &out, !quiet, &mut log)?;
                 }
+                "pair" => {
+                    let s = sinterdem::models::diffusion7::pair::run_pair_case(&value, &out, !quiet)?;
+                    log(&format!("done: {s:?}"));
+                }
                 k => return Err(unknown_kind(k)),
             }
             Ok(())
@@ -155,8 +177,20 @@ fn real_main(cli: Cli) -> Result<(), Error> {
                         prep.pipes.pairs.len()
                     );
                 }
+                "pair" => {
+                    sinterdem::models::diffusion7::pair::check_pair_case(&value)?;
+                    println!("{}: ok (pair case)", case.case.display());
+                }
                 k => return Err(unknown_kind(k)),
             }
+            Ok(())
+        }
+        Command::Titanium { out, full, diameter } => {
+            use sinterdem::models::diffusion7::titanium;
+            sinterdem::io::ensure_dir(&out)?;
+            let start = if full { titanium::FULL_START } else { titanium::TRUNCATED_START };
+            let results = titanium::run_all_titanium(&out, start, diameter)?;
+            eprintln!("{} titanium cases written to {}", results.len(), out.join("titanium.csv").display());
             Ok(())
         }
         Command::Neck { r1, r2, overlap, kappa, kappa2, conductance, factor, contact_conductance } => {
@@ -189,6 +223,12 @@ fn real_main(cli: Cli) -> Result<(), Error> {
         }
         Command::Bench { which } => match which {
             Bench::Heat { particles, repeat } => sinterdem::heat::bench::bench_heat(&particles, repeat.max(1)),
+            Bench::Pair { out } => {
+                sinterdem::io::ensure_dir(&out)?;
+                let table = sinterdem::models::diffusion7::bench::bench_pair(&out)?;
+                println!("{table}");
+                Ok(())
+            }
         },
     }
 }

@@ -329,8 +329,8 @@ pub fn run_pair(spec: &PairSpec, record: bool, progress: bool) -> Result<PairRun
     let mut stats = OdeStats::default();
     let every = spec.series_every.max(1) as u64;
     let mut count: u64 = 0;
-    let mut next_report = 0.1;
     let end = spec.end_time;
+    let bar = crate::io::progress::Progress::new(end, progress);
     let start = std::time::Instant::now();
     let res = advance(&mut contact, &mats, &path, 0.0, end, &spec.solver, &mut stats, |t, y, temp| {
         count += 1;
@@ -341,13 +341,11 @@ pub fn run_pair(spec: &PairSpec, record: bool, progress: bool) -> Result<PairRun
             states.push(*y);
             temps.push(temp);
         }
-        if progress && t >= next_report * end {
-            eprintln!("pair: t = {t:.4e} s ({:.0} %), T = {temp:.1} K, y1/R = {:.5}", 100.0 * t / end, y[0] / spec.radius_a.min(spec.radius_b));
-            while next_report * end <= t {
-                next_report += 0.1;
-            }
+        if count % 64 == 0 || t >= end {
+            bar.set(t, &format!("T = {temp:.1} K, y1/R = {:.5}", y[0] / spec.radius_a.min(spec.radius_b)));
         }
     });
+    bar.finish();
     let wall_seconds = start.elapsed().as_secs_f64();
     res?;
     let mut warnings = Vec::new();
