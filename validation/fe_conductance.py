@@ -167,7 +167,12 @@ def build_mesh(blocks: Sequence[Block], scale: float) -> MeshTri2:
         tris.append(np.stack([v00, v10, v11]))
         mids.append((v00, v10, P[2 * I + 1, 2 * J]))
         mids.append((v10, v11, P[2 * I + 2, 2 * J + 1]))
-        mids.append((v00, v11, P[2 * I + 1, 2 * J + 1]))
+        # diagonal mid-point; in the collapsed first row the diagonal is the
+        # ray C -> (s1, t_{j+1}), whose mid-point is at (s_1/2, t_{j+1})
+        diag = P[2 * I + 1, 2 * J + 1]
+        if b.collapsed_s0:
+            diag = np.where((I == 0)[:, None], P[2 * I + 1, 2 * J + 2], diag)
+        mids.append((v00, v11, diag))
         keep = ~((I == 0) & b.collapsed_s0)            # (v00, v11, v01)
         tris.append(np.stack([v00, v11, v01])[:, keep])
         mids.append((v11[keep], v01[keep], P[2 * I + 1, 2 * J + 2][keep]))
