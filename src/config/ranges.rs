@@ -140,3 +140,13 @@ mod tests {
         }
     }
 }
+
+/// The range tables as a Markdown table (key, allowed range, unit, meaning), for
+/// `docs/case-file.md` (`sinterdem keys` prints it; a test keeps the document in step).
+pub fn markdown() -> String {
+    let mut s = String::from("| key | allowed | unit | meaning |\n|---|---|---|---|\n");
+    for r in TABLES.iter().flat_map(|t| t.iter()) {
+        s.push_str(&format!("| `{}` | {} | {} | {} |\n", r.key, r.describe(), r.unit, r.meaning));
+    }
+    s
+}
