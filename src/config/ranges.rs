@@ -51,15 +51,21 @@ impl Range {
     }
 }
 
-const INF: f64 = f64::INFINITY;
+/// +∞ for open-ended ranges.
+pub const INF: f64 = f64::INFINITY;
 
 /// `[lo, hi]` closed.
-const fn c(key: &'static str, lo: f64, hi: f64, unit: &'static str, meaning: &'static str) -> Range {
+pub const fn c(key: &'static str, lo: f64, hi: f64, unit: &'static str, meaning: &'static str) -> Range {
     Range { key, lo, hi, lo_open: false, hi_open: false, unit, meaning }
 }
 /// `(lo, hi]`: strictly positive quantities.
-const fn p(key: &'static str, lo: f64, hi: f64, unit: &'static str, meaning: &'static str) -> Range {
+pub const fn p(key: &'static str, lo: f64, hi: f64, unit: &'static str, meaning: &'static str) -> Range {
     Range { key, lo, hi, lo_open: true, hi_open: false, unit, meaning }
+}
+
+/// `(lo, hi)` open.
+pub const fn o(key: &'static str, lo: f64, hi: f64, unit: &'static str, meaning: &'static str) -> Range {
+    Range { key, lo, hi, lo_open: true, hi_open: true, unit, meaning }
 }
 
 /// The table. Add a row for every new numeric key.
