@@ -47,8 +47,24 @@ pub fn conductance_of(case: &Case) -> Result<Conductance, ConfigError> {
     })
 }
 
-/// Parse → validate → build (no time stepping). `base` is the case file's directory.
+/// Parse → validate → build a heat case (no time stepping). `base` is the case file's directory.
 pub fn prepare(value: toml::Value, base: &Path) -> Result<Prepared, Error> {
+    let prep = prepare_scene(value, base)?;
+    let c = &prep.case;
+    if let Some(k) = c.kind.as_deref().filter(|k| *k != "heat") {
+        return Err(ConfigError::invalid(format!("kind = \"{k}\" is not a heat case")).into());
+    }
+    for (present, key) in [(c.contacts.is_some(), "contacts"), (c.model.is_some(), "model"), (c.solver.is_some(), "solver"), (c.mechanics.is_some(), "mechanics")] {
+        if present {
+            return Err(ConfigError::inconsistent(key, "this section belongs to kind = \"compact\" cases; a heat case has a static packing").into());
+        }
+    }
+    Ok(prep)
+}
+
+/// Parse → validate → build the parts shared by heat and compact cases: scene, materials,
+/// heat sources and the initial contact pipes.
+pub fn prepare_scene(value: toml::Value, base: &Path) -> Result<Prepared, Error> {
     let case: Case = from_value(value, "")?;
     config::check("time.end", case.time.end)?;
     config::check("time.dt", case.time.dt)?;
