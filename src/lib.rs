@@ -13,6 +13,8 @@
 pub mod config;
 pub mod contacts;
 pub mod error;
+pub mod explicit;
+pub mod packing;
 pub mod particles;
 pub mod profile;
 pub mod units;
