@@ -55,7 +55,14 @@ fn linear_spring_dashpot_restitution_matches_closed_form() {
         let e_exact = (-eta * tc).exp();
         assert!((law.restitution(m_red) - e_exact).abs() < 1e-14);
         let (e, dur, _) = collide(law, 0.1, 0.002, 0.0);
-        assert!((e - e_exact).abs() < 2e-3 * e_exact.max(0.1), "gamma {gamma}: e = {e}, exact {e_exact}");
+        // the viscous force uses the half-step velocity, first order in Δt: at Δt = t_c/500 the
+        // error is ≈ 1e-3 (in units of the impact speed) and shrinks with Δt
+        assert!((e - e_exact).abs() < 2e-3, "gamma {gamma}: e = {e}, exact {e_exact}");
+        if gamma == 1e-3 {
+            let (e2, _, _) = collide(law, 0.1, 0.001, 0.0);
+            let ratio = (e - e_exact).abs() / (e2 - e_exact).abs();
+            assert!(ratio > 1.5, "error must shrink with Δt, ratio {ratio}");
+        }
         assert!((dur / tc - 1.0).abs() < 0.01, "duration {dur} vs t_c {tc}");
     }
     // restitution given: γ computed per pair reproduces it

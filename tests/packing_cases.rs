@@ -12,3 +12,18 @@ fn print_copper() {
     let s = sinterdem::packing::generate_case(&load("green-copper.toml"), &out, true);
     println!("{s:#?}");
 }
+
+#[test]
+#[ignore]
+fn print_titanium() {
+    let out = std::env::temp_dir().join("sinterdem-green-titanium");
+    let s = sinterdem::packing::generate_case(&load("green-titanium.toml"), &out, true);
+    println!("{s:#?}");
+}
+
+#[test]
+fn bundled_cases_pass_the_check() {
+    for name in ["green-copper.toml", "green-titanium.toml"] {
+        sinterdem::packing::check_generate_case(&load(name)).unwrap();
+    }
+}

@@ -396,7 +396,9 @@ pub fn generate(case: &GenerateCase, progress: bool) -> Result<(Packing, Generat
     let vp: f64 = radii.iter().map(|&r| crate::units::sphere_volume(r)).sum();
     // target box (scaled)
     let shape = case.box_size;
-    let v_target = vp / case.target_solid_fraction;
+    // compaction aims slightly above the target: unloading from the compaction pressure expands
+    // the box by about the elastic strain; 2·compaction_overlap is the measured relative loss
+    let v_target = vp / (case.target_solid_fraction * (1.0 + 2.0 * proto.compaction_overlap));
     let scale = (v_target / (shape[0] * shape[1] * shape[2])).cbrt();
     let target = shape.map(|s| s * scale);
     if target.iter().any(|&l| l < 4.0 * r_max) {
@@ -481,6 +483,8 @@ pub fn generate(case: &GenerateCase, progress: bool) -> Result<(Packing, Generat
     let mut steps_compact = 0u64;
     let mut jammed_steps = 0u64;
     let mut shakes = 0u32;
+    let mut stalled = false;
+    let mut phi_at_check = 0.0;
     let mut target = target;
     for a in 0..3 {
         sim.walls[2 * a + 1].control = WallControl::Velocity;
@@ -507,6 +511,10 @@ pub fn generate(case: &GenerateCase, progress: bool) -> Result<(Packing, Generat
             if jammed_steps >= 300 && mu > 0.0 {
                 mu = if mu < 0.005 { 0.0 } else { mu * 0.6 };
                 sim.settings.friction = mu;
+                if mu == 0.0 {
+                    // without friction spin has no effect on the geometry and is never damped
+                    p.angular_velocity.iter_mut().for_each(|w| *w = V3::zeros());
+                }
                 jammed_steps = 0;
                 pr.say(format!("jammed at solid fraction {:.4}: friction lowered to {mu:.4}", vp / box_of(&sim.walls).iter().product::<f64>()));
             } else if jammed_steps >= 150 && mu == 0.0 {
@@ -515,9 +523,14 @@ pub fn generate(case: &GenerateCase, progress: bool) -> Result<(Packing, Generat
                 // explores denser configurations under the same pressure
                 jammed_steps = 0;
                 shakes += 1;
-                if shakes > 200 {
-                    let phi = vp / box_of(&sim.walls).iter().product::<f64>();
-                    pr.say(format!("still jammed at solid fraction {phi:.4} after 200 shakes: accepting it"));
+                let phi = vp / box_of(&sim.walls).iter().product::<f64>();
+                if shakes % 20 == 0 {
+                    // stalled: less than 1e-3 gained over the last 20 shakes
+                    stalled = phi - phi_at_check < 1e-3;
+                    phi_at_check = phi;
+                }
+                if stalled {
+                    pr.say(format!("still jammed at solid fraction {phi:.4} after {shakes} shakes: accepting it"));
                     target = box_of(&sim.walls);
                     lambda = 1.0;
                     continue;
@@ -556,6 +569,9 @@ pub fn generate(case: &GenerateCase, progress: bool) -> Result<(Packing, Generat
         (0..3).map(|a| sim.walls[2 * a + 1].pressure()).sum::<f64>() / 3.0
     ));
     // 4. unload and relax
+    if mu == 0.0 {
+        p.angular_velocity.iter_mut().for_each(|w| *w = V3::zeros());
+    }
     let ke_tol = proto.kinetic_energy_rel * n as f64;
     let ov_tol = proto.max_overlap_rel;
     let mut steps_relax = 0u64;
