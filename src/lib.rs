@@ -14,9 +14,17 @@ pub mod config;
 pub mod contacts;
 pub mod error;
 pub mod explicit;
+pub mod heat;
+pub mod io;
+pub mod linsolve;
+pub mod material;
+pub mod models;
+pub mod neck;
 pub mod packing;
 pub mod particles;
+pub mod plot;
 pub mod profile;
+pub mod scene;
 pub mod units;
 
 pub use error::{ConfigError, Error, ModelError, Result, SolveError};

@@ -6,6 +6,7 @@
 //! - every numeric key is checked against one declarative range table ([`ranges`]) with [`check`],
 //!   whose error names key, value, allowed range and unit.
 
+pub mod case;
 pub mod ranges;
 
 use crate::error::{ConfigError, IoError, Error};

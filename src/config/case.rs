@@ -1,0 +1,349 @@
+//! The typed case file of a packing run (`kind = "heat"`, the default). See docs/case-file.md for
+//! every key with default, unit and range.
+
+use crate::heat::{ConductanceLaw, Scheme};
+use crate::material::MaterialSpec;
+use crate::profile::ProfileSpec;
+use serde::{Deserialize, Serialize};
+
+/// The whole case.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Case {
+    /// What to run: "heat" (default). Other kinds are dispatched before this struct is read.
+    #[serde(default)]
+    pub kind: Option<String>,
+    /// Free text shown in the log.
+    #[serde(default)]
+    pub title: Option<String>,
+    pub time: TimeSpec,
+    #[serde(default)]
+    pub output: OutputSpec,
+    pub materials: Vec<MaterialSpec>,
+    pub particles: ParticlesSpec,
+    #[serde(default)]
+    pub thermal: ThermalSpec,
+    /// Settings of `sinterdem conductivity` (and of the conductivity analyses of a compact run).
+    #[serde(default)]
+    pub conductivity: ConductivitySpec,
+    /// Contacts of a compact run (`kind = "compact"`).
+    pub contacts: Option<ContactsSpec>,
+    /// 7-DOF path factors (`kind = "compact"`; same keys as a pair case).
+    pub model: Option<crate::models::diffusion7::material::PathFactors>,
+    /// 7-DOF integrator (`kind = "compact"`; same keys as a pair case).
+    pub solver: Option<crate::models::diffusion7::advance::SolverOptions>,
+    /// Bonded mechanics (`kind = "compact"`).
+    pub mechanics: Option<MechanicsSpec>,
+}
+
+/// New contacts and their initial 7-DOF state.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ContactsSpec {
+    /// Search for newly touching pairs during the run (default true).
+    #[serde(default = "yes")]
+    pub detect_new: bool,
+    /// Search every this many steps (default 1).
+    #[serde(default = "one")]
+    pub detect_every: f64,
+    /// Initial neck excess ε of (I2) [1] (default 0.01).
+    #[serde(default = "eps")]
+    pub epsilon: f64,
+    /// Initial cone parameter η of (I2) [1] (default 0.1).
+    #[serde(default = "eta")]
+    pub eta: f64,
+    /// Neck radius feeding the conductance: "volume_conserving" (default, from the centre
+    /// distance) or "seven_dof" (y1).
+    #[serde(default = "vc")]
+    pub neck: String,
+}
+
+impl Default for ContactsSpec {
+    fn default() -> Self {
+        ContactsSpec { detect_new: true, detect_every: 1.0, epsilon: eps(), eta: eta(), neck: vc() }
+    }
+}
+
+fn eps() -> f64 {
+    0.01
+}
+fn eta() -> f64 {
+    0.1
+}
+fn vc() -> String {
+    "volume_conserving".into()
+}
+
+/// Bonded quasi-static mechanics settings.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct MechanicsSpec {
+    /// Constrain particles touching the principal planes x = 0, y = 0, z = 0 (default true).
+    #[serde(default = "yes")]
+    pub constrain_planes: bool,
+    /// A particle touches a plane when its centre is within `plane_margin·r` of it (default 1.01).
+    #[serde(default = "margin")]
+    pub plane_margin: f64,
+    /// Linear solver: "auto" (default), "cholesky" or "cg".
+    #[serde(default = "auto")]
+    pub solver: String,
+}
+
+impl Default for MechanicsSpec {
+    fn default() -> Self {
+        MechanicsSpec { constrain_planes: true, plane_margin: margin(), solver: auto() }
+    }
+}
+
+fn margin() -> f64 {
+    1.01
+}
+fn auto() -> String {
+    "auto".into()
+}
+
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct TimeSpec {
+    /// Simulated end time [s].
+    pub end: f64,
+    /// Time step [s].
+    pub dt: f64,
+    /// Heat scheme: backward_euler, crank_nicolson, bdf2 (default).
+    #[serde(default)]
+    pub scheme: Scheme,
+    /// Compact runs: step-control strategy 1 (global) or 2 (per-contact subdivision, default).
+    pub strategy: Option<f64>,
+    /// Compact runs: largest global step [s] (default 10 s strategy 2, 100 s strategy 1).
+    pub dt_max: Option<f64>,
+    /// Compact runs: smallest global step [s] (default 1e-12 s).
+    pub dt_min: Option<f64>,
+    /// Compact runs: growth/shrink factor α (default 1.5).
+    pub alpha: Option<f64>,
+    /// Strategy 2: grow when fewer than this fraction of contacts subdivided (default 0.05).
+    pub grow_below: Option<f64>,
+    /// Strategy 2: shrink when more than this fraction subdivided (default 0.15).
+    pub shrink_above: Option<f64>,
+}
+
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSpec {
+    /// Number of snapshots (VTU + HDF5) evenly spaced in time, the initial state included (default 5).
+    #[serde(default = "default_snapshots")]
+    pub snapshots: f64,
+    /// A series row every this many steps (default 1).
+    #[serde(default = "one")]
+    pub series_every: f64,
+    /// Write VTU/PVD snapshots (default true).
+    #[serde(default = "yes")]
+    pub vtu: bool,
+    /// Write HDF5 (default true; needs the `h5` build feature).
+    #[serde(default = "yes")]
+    pub hdf5: bool,
+    /// Compact runs: write a checkpoint every this many steps (0: only at the end).
+    #[serde(default)]
+    pub checkpoint_every: f64,
+    /// Compact runs: times [s] at which the effective conductivity of the compact is computed.
+    #[serde(default)]
+    pub conductivity_at: Vec<f64>,
+}
+
+impl Default for OutputSpec {
+    fn default() -> Self {
+        OutputSpec { snapshots: default_snapshots(), series_every: 1.0, vtu: true, hdf5: true, checkpoint_every: 0.0, conductivity_at: Vec::new() }
+    }
+}
+
+fn default_snapshots() -> f64 {
+    5.0
+}
+fn one() -> f64 {
+    1.0
+}
+fn yes() -> bool {
+    true
+}
+
+/// Where the particles come from.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ParticlesSpec {
+    /// "lattice", "pair" or "file".
+    pub source: String,
+    /// Lattice type: "sc", "bcc", "fcc".
+    pub lattice: Option<String>,
+    /// Lattice cells per axis.
+    pub cells: Option<[u32; 3]>,
+    /// Particle radius [m] (lattice, pair).
+    pub radius: Option<f64>,
+    /// Second radius of a pair [m] (default: `radius`).
+    pub radius_2: Option<f64>,
+    /// Overlap h relative to the smaller radius [1] (lattice nearest neighbours, pair).
+    #[serde(default)]
+    pub overlap: f64,
+    /// Packing file (CSV x,y,z,r[,material][,temperature]) relative to the case file.
+    pub file: Option<String>,
+    /// Material name for every particle (default: the first material).
+    pub material: Option<String>,
+    /// Initial temperature [K] (default 293.15).
+    pub initial_temperature: Option<f64>,
+}
+
+/// A set of particles.
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct RegionSpec {
+    /// A face of the packing's bounding box: "x-", "x+", "y-", "y+", "z-", "z+": particles whose
+    /// sphere comes within `depth` of it.
+    pub face: Option<String>,
+    /// Depth for `face` [m] (default: the mean radius).
+    pub depth: Option<f64>,
+    /// Axis-aligned box `[[xmin, ymin, zmin], [xmax, ymax, zmax]]` containing the centres [m].
+    #[serde(rename = "box")]
+    pub bbox: Option<[[f64; 3]; 2]>,
+    /// A layer of centres `from ≤ x_axis ≤ to` [m].
+    pub layer: Option<LayerSpec>,
+    /// Explicit particle indices (0-based, file order).
+    pub particles: Option<Vec<u32>>,
+    /// Every particle.
+    pub all: Option<bool>,
+}
+
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct LayerSpec {
+    pub axis: String,
+    pub from: f64,
+    pub to: f64,
+}
+
+/// Particles held at a prescribed temperature.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct FixedSpec {
+    pub region: RegionSpec,
+    pub profile: ProfileSpec,
+}
+
+/// Volumetric heat generation in a region.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct VolumetricSpec {
+    pub region: RegionSpec,
+    /// q‴ [W/m³].
+    pub power_density: f64,
+}
+
+/// The furnace atmosphere.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct FurnaceSpec {
+    /// Furnace temperature history (gas and walls).
+    pub profile: ProfileSpec,
+    /// Separate wall temperature history for radiation (default: `profile`).
+    pub wall_profile: Option<ProfileSpec>,
+    /// h_c [W/(m²·K)] (default 0).
+    #[serde(default)]
+    pub convection_coefficient: f64,
+    /// ε [1] (default 0).
+    #[serde(default)]
+    pub emissivity: f64,
+    /// Fraction of an exposed particle's sphere area that sees the furnace [1] (default 0.5).
+    #[serde(default = "half")]
+    pub exposure: f64,
+    /// Which particles are exposed (default: the six faces of the bounding box, one mean radius deep).
+    pub exposed: Option<RegionSpec>,
+}
+
+fn half() -> f64 {
+    0.5
+}
+
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ThermalSpec {
+    /// "network" (default) or "isothermal" (every particle at the furnace profile; no heat solve).
+    #[serde(default = "network")]
+    pub mode: String,
+    /// "linear" (default, c_K κ π a) or "fe_fit".
+    #[serde(default)]
+    pub conductance: ConductanceLaw,
+    /// c_K of the linear law (default 1.064).
+    #[serde(default = "ck")]
+    pub conductance_factor: f64,
+    /// Interface conductance in series [W/K] (default none).
+    pub contact_conductance: Option<f64>,
+    /// Radiation Newton tolerance (default 1e-9).
+    #[serde(default = "rad_tol")]
+    pub radiation_tolerance: f64,
+    /// Contact temperature: "arithmetic" (default) or "harmonic".
+    #[serde(default = "arith")]
+    pub contact_temperature: String,
+    #[serde(default)]
+    pub fixed: Vec<FixedSpec>,
+    #[serde(default)]
+    pub volumetric: Vec<VolumetricSpec>,
+    pub furnace: Option<FurnaceSpec>,
+}
+
+impl Default for ThermalSpec {
+    fn default() -> Self {
+        ThermalSpec {
+            mode: network(),
+            conductance: ConductanceLaw::Linear,
+            conductance_factor: ck(),
+            contact_conductance: None,
+            radiation_tolerance: rad_tol(),
+            contact_temperature: arith(),
+            fixed: Vec::new(),
+            volumetric: Vec::new(),
+            furnace: None,
+        }
+    }
+}
+
+fn network() -> String {
+    "network".into()
+}
+fn ck() -> f64 {
+    1.064
+}
+fn rad_tol() -> f64 {
+    1e-9
+}
+fn arith() -> String {
+    "arithmetic".into()
+}
+
+/// `sinterdem conductivity` settings.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ConductivitySpec {
+    /// "faces" (default: two opposite layers held at fixed temperatures, per axis) or "periodic"
+    /// (imposed mean gradient; needs a lattice).
+    #[serde(default = "faces")]
+    pub boundary: String,
+    /// Axes to compute ("x", "y", "z"; default all).
+    #[serde(default = "xyz")]
+    pub axes: Vec<String>,
+    /// T_hot − T_cold [K] (default 1).
+    #[serde(default = "one")]
+    pub temperature_difference: f64,
+    /// Dirichlet layer thickness as a fraction of the extent along the axis; default: one mean
+    /// radius (particles whose sphere touches the face).
+    pub layer_fraction: Option<f64>,
+}
+
+impl Default for ConductivitySpec {
+    fn default() -> Self {
+        ConductivitySpec { boundary: faces(), axes: xyz(), temperature_difference: 1.0, layer_fraction: None }
+    }
+}
+
+fn faces() -> String {
+    "faces".into()
+}
+fn xyz() -> Vec<String> {
+    vec!["x".into(), "y".into(), "z".into()]
+}

@@ -1,0 +1,320 @@
+//! Effective conductivity of a compact (heat-network.md "Effective conductivity of a compact").
+//!
+//! - **faces**: two opposite layers of particles held at `T_hot` and `T_cold` (Dirichlet), steady
+//!   state `L T = b` on the rest; components without a Dirichlet node are removed;
+//!   `κ_eff = (Q/A)/((T_hot − T_cold)/L_D)` with Q the heat leaving the hot layer (checked against
+//!   the heat entering the cold one), A the bounding-box cross-section, L_D the distance between
+//!   the layers' mean centre coordinates.
+//! - **periodic**: a periodic box with an imposed mean gradient G: `T_i = G·x_i + θ_i`, θ periodic,
+//!   `(L θ)_i = Σ_j K_ij G·b_ij` (b_ij the minimum-image branch vector), one node pinned per
+//!   component; the mean heat flux `q̄ = (1/V) Σ_pipes K_ij (T_i − T_j) b_ij = −κ_eff G` gives the
+//!   full tensor. For Bravais lattices it reproduces K/D (SC), √3 K/D (BCC), 2√2 K/D (FCC).
+
+use crate::error::{Error, SolveError};
+use crate::heat::Conductance;
+use crate::linsolve::{SpdPattern, set_parallelism_for};
+use crate::material::Material;
+use crate::particles::Particles;
+use crate::scene::{self, Pipes};
+use nalgebra::{Matrix3, Vector3};
+
+/// Result of one axis of the faces method.
+#[derive(Debug, Clone, Copy, serde::Serialize)]
+pub struct AxisResult {
+    pub axis: usize,
+    /// Heat leaving the hot layer [W].
+    pub q_hot: f64,
+    /// Heat entering the cold layer [W].
+    pub q_cold: f64,
+    /// Cross-section [m²].
+    pub area: f64,
+    /// Distance between the Dirichlet layers [m].
+    pub length: f64,
+    /// κ_eff along the axis [W/(m·K)].
+    pub kappa: f64,
+    /// Particles removed as floating (no conducting path to a Dirichlet layer).
+    pub floating: usize,
+    pub hot_particles: usize,
+    pub cold_particles: usize,
+}
+
+fn components(n: usize, pipes: &[[u32; 2]], k: &[f64]) -> Vec<u32> {
+    // union-find over pipes with positive conductance
+    let mut parent: Vec<u32> = (0..n as u32).collect();
+    fn find(p: &mut [u32], mut x: u32) -> u32 {
+        while p[x as usize] != x {
+            p[x as usize] = p[p[x as usize] as usize];
+            x = p[x as usize];
+        }
+        x
+    }
+    for (e, &[i, j]) in pipes.iter().enumerate() {
+        if k[e] > 0.0 {
+            let (a, b) = (find(&mut parent, i), find(&mut parent, j));
+            if a != b {
+                parent[a.max(b) as usize] = a.min(b);
+            }
+        }
+    }
+    (0..n as u32).map(|i| find(&mut parent, i)).collect()
+}
+
+/// Solves `A x = b` for a weighted graph Laplacian restricted to `unknown` nodes (others fixed at
+/// `fixed_value`), returning the full vector.
+fn steady(n: usize, pipes: &[[u32; 2]], k: &[f64], is_unknown: &[bool], values: &mut [f64], extra_rhs: &[f64]) -> Result<(), SolveError> {
+    let mut local = vec![u32::MAX; n];
+    let mut m = 0u32;
+    for i in 0..n {
+        if is_unknown[i] {
+            local[i] = m;
+            m += 1;
+        }
+    }
+    let m = m as usize;
+    if m == 0 {
+        return Ok(());
+    }
+    let mut entries: Vec<(u32, u32)> = (0..m as u32).map(|l| (l, l)).collect();
+    let mut vals = vec![0.0; m];
+    let mut rhs = vec![0.0; m];
+    for i in 0..n {
+        if is_unknown[i] {
+            rhs[local[i] as usize] += extra_rhs[i];
+        }
+    }
+    for (e, &[i, j]) in pipes.iter().enumerate() {
+        let (li, lj) = (local[i as usize], local[j as usize]);
+        let kk = k[e];
+        if kk == 0.0 || i == j {
+            continue;
+        }
+        if li != u32::MAX {
+            vals[li as usize] += kk;
+            if lj == u32::MAX {
+                rhs[li as usize] += kk * values[j as usize];
+            }
+        }
+        if lj != u32::MAX {
+            vals[lj as usize] += kk;
+            if li == u32::MAX {
+                rhs[lj as usize] += kk * values[i as usize];
+            }
+        }
+        if li != u32::MAX && lj != u32::MAX {
+            entries.push((li.max(lj), li.min(lj)));
+            vals.push(-kk);
+        }
+    }
+    set_parallelism_for(m);
+    let pat = SpdPattern::new(m, &entries)?;
+    let f = pat.factorize(&vals)?;
+    f.solve_in_place(&pat, &mut rhs)?;
+    for i in 0..n {
+        if local[i] != u32::MAX {
+            values[i] = rhs[local[i] as usize];
+        }
+    }
+    Ok(())
+}
+
+/// The faces method along `axis` (0, 1, 2). `depth` [m]: particles whose sphere comes within it
+/// of a face of the bounding box form that face's Dirichlet layer.
+pub fn faces(p: &Particles, pipes: &Pipes, axis: usize, depth: f64, delta_t: f64) -> Result<AxisResult, Error> {
+    let n = p.len();
+    let (lo, hi) = p.bounding_box();
+    let hot: Vec<bool> = (0..n).map(|i| p.position[i][axis] - p.radius[i] <= lo[axis] + depth).collect();
+    let cold: Vec<bool> = (0..n).map(|i| p.position[i][axis] + p.radius[i] >= hi[axis] - depth && !hot[i]).collect();
+    let (nh, nc) = (hot.iter().filter(|&&h| h).count(), cold.iter().filter(|&&c| c).count());
+    if nh == 0 || nc == 0 {
+        return Err(SolveError::new("effective conductivity", format!("axis {axis}: a Dirichlet layer is empty (hot {nh}, cold {nc})")).into());
+    }
+    let comp = components(n, &pipes.pairs, &pipes.conductance);
+    let mut anchored = vec![false; n];
+    for i in 0..n {
+        if hot[i] || cold[i] {
+            anchored[comp[i] as usize] = true;
+        }
+    }
+    let (t_hot, t_cold) = (delta_t, 0.0);
+    let mut temps: Vec<f64> = (0..n).map(|i| if hot[i] { t_hot } else if cold[i] { t_cold } else { 0.5 * delta_t }).collect();
+    let unknown: Vec<bool> = (0..n).map(|i| !hot[i] && !cold[i] && anchored[comp[i] as usize]).collect();
+    let floating = (0..n).filter(|&i| !anchored[comp[i] as usize]).count();
+    steady(n, &pipes.pairs, &pipes.conductance, &unknown, &mut temps, &vec![0.0; n])?;
+    let (mut q_hot, mut q_cold) = (0.0, 0.0);
+    for (e, &[i, j]) in pipes.pairs.iter().enumerate() {
+        let (i, j) = (i as usize, j as usize);
+        let q = pipes.conductance[e] * (temps[i] - temps[j]); // i → j
+        if hot[i] && !hot[j] {
+            q_hot += q;
+        }
+        if hot[j] && !hot[i] {
+            q_hot -= q;
+        }
+        if cold[j] && !cold[i] {
+            q_cold += q;
+        }
+        if cold[i] && !cold[j] {
+            q_cold -= q;
+        }
+    }
+    if (q_hot - q_cold).abs() > 1e-8 * q_hot.abs().max(1e-300) {
+        return Err(SolveError::new("effective conductivity", format!("axis {axis}: heat out of the hot layer {q_hot:e} W differs from heat into the cold layer {q_cold:e} W")).into());
+    }
+    let mean = |sel: &[bool]| {
+        let (s, c) = (0..n).filter(|&i| sel[i]).fold((0.0, 0usize), |(s, c), i| (s + p.position[i][axis], c + 1));
+        s / c as f64
+    };
+    let length = mean(&cold) - mean(&hot);
+    let ext = hi - lo;
+    let area = ext[(axis + 1) % 3] * ext[(axis + 2) % 3];
+    let kappa = (q_hot / area) / (delta_t / length);
+    Ok(AxisResult { axis, q_hot, q_cold, area, length, kappa, floating, hot_particles: nh, cold_particles: nc })
+}
+
+/// Pipes of a periodic box: contacts with minimum-image branch vectors `b_ij = x_j + s − x_i`.
+pub fn periodic_pipes(p: &Particles, bbox: Vector3<f64>, materials: &[Material], law: &Conductance) -> Result<(Pipes, Vec<Vector3<f64>>), Error> {
+    let n = p.len();
+    let r_max = p.radius.iter().copied().fold(0.0, f64::max);
+    if (0..3).any(|a| bbox[a] < 3.0 * 2.0 * r_max) {
+        return Err(SolveError::new("periodic pipes", "the periodic box must be at least three particle diameters wide along each axis").into());
+    }
+    // originals plus the images of particles within one diameter of a face
+    let mut pos = p.position.clone();
+    let mut rad = p.radius.clone();
+    let mut origin: Vec<(u32, Vector3<f64>)> = (0..n as u32).map(|i| (i, Vector3::zeros())).collect();
+    for i in 0..n {
+        for sx in -1i32..=1 {
+            for sy in -1i32..=1 {
+                for sz in -1i32..=1 {
+                    if sx == 0 && sy == 0 && sz == 0 {
+                        continue;
+                    }
+                    let s = Vector3::new(sx as f64 * bbox.x, sy as f64 * bbox.y, sz as f64 * bbox.z);
+                    let x = p.position[i] + s;
+                    let reach = 2.0 * r_max;
+                    if (0..3).all(|a| x[a] >= -reach && x[a] <= bbox[a] + reach) {
+                        pos.push(x);
+                        rad.push(p.radius[i]);
+                        origin.push((i as u32, s));
+                    }
+                }
+            }
+        }
+    }
+    let mut pairs = Vec::new();
+    let mut branch = Vec::new();
+    for (a, b) in crate::contacts::detect::touching_pairs(&pos, &rad, 0.0) {
+        let (a, b) = (a as usize, b as usize);
+        // keep pipes seen from an original particle a < n to a partner with larger original index
+        if a >= n {
+            continue;
+        }
+        let (j, _) = origin[b];
+        if (j as usize) <= a {
+            continue;
+        }
+        pairs.push([a as u32, j]);
+        branch.push(pos[b] - pos[a]);
+    }
+    let pipes = scene::pipes_from_pairs(pairs, &branch, p, materials, law)?;
+    Ok((pipes, branch))
+}
+
+/// The full tensor by the periodic method [W/(m·K)].
+pub fn periodic(p: &Particles, pipes: &Pipes, branch: &[Vector3<f64>], bbox: Vector3<f64>) -> Result<Matrix3<f64>, Error> {
+    let n = p.len();
+    let comp = components(n, &pipes.pairs, &pipes.conductance);
+    let volume = bbox.x * bbox.y * bbox.z;
+    let mut kappa = Matrix3::zeros();
+    for axis in 0..3 {
+        let g = Vector3::ith(axis, 1.0); // K/m
+        let mut rhs = vec![0.0; n];
+        for (e, &[i, j]) in pipes.pairs.iter().enumerate() {
+            let f = pipes.conductance[e] * g.dot(&branch[e]);
+            rhs[i as usize] += f;
+            rhs[j as usize] -= f;
+        }
+        // pin the first node of each component (θ = 0)
+        let unknown: Vec<bool> = (0..n).map(|i| comp[i] as usize != i).collect();
+        let mut theta = vec![0.0; n];
+        steady(n, &pipes.pairs, &pipes.conductance, &unknown, &mut theta, &rhs)?;
+        let mut q = Vector3::zeros();
+        for (e, &[i, j]) in pipes.pairs.iter().enumerate() {
+            let dt_ij = -g.dot(&branch[e]) + theta[i as usize] - theta[j as usize]; // T_i − T_j
+            q += pipes.conductance[e] * dt_ij * branch[e];
+        }
+        q /= volume;
+        kappa.set_column(axis, &(-q));
+    }
+    Ok(kappa)
+}
+
+/// `sinterdem conductivity CASE`: the tensor [W/(m·K)] and κ_eff/κ as JSON.
+pub fn run_case(value: toml::Value, base: &std::path::Path) -> Result<serde_json::Value, Error> {
+    use crate::config;
+    use crate::error::ConfigError;
+    let prep = crate::heat::run::prepare(value, base)?;
+    let spec = &prep.case.conductivity;
+    let dt = config::check("conductivity.temperature_difference", spec.temperature_difference)?;
+    let p = &prep.scene.particles;
+    let kappa_mat = prep.scene.materials[0].conductivity;
+    let axes: Vec<usize> = spec
+        .axes
+        .iter()
+        .map(|a| match a.as_str() {
+            "x" => Ok(0),
+            "y" => Ok(1),
+            "z" => Ok(2),
+            o => Err(ConfigError::invalid(format!("conductivity.axes: \"{o}\" (x, y or z)"))),
+        })
+        .collect::<Result<_, _>>()?;
+    let mut out = serde_json::Map::new();
+    let tensor = match spec.boundary.as_str() {
+        "faces" => {
+            let depth = match config::check_opt("conductivity.layer_fraction", spec.layer_fraction)? {
+                Some(f) => {
+                    let (lo, hi) = p.bounding_box();
+                    axes.iter().map(|&a| f * (hi[a] - lo[a])).collect::<Vec<_>>()
+                }
+                None => vec![0.5 * p.mean_radius(); axes.len()],
+            };
+            let mut t = Matrix3::zeros();
+            let mut details = Vec::new();
+            for (k, &a) in axes.iter().enumerate() {
+                let r = faces(p, &prep.pipes, a, depth[k], dt)?;
+                t[(a, a)] = r.kappa;
+                details.push(serde_json::to_value(r).unwrap());
+            }
+            out.insert("axes".into(), serde_json::Value::Array(details));
+            t
+        }
+        "periodic" => {
+            let bbox = prep.scene.periodic_box.ok_or_else(|| ConfigError::inconsistent("conductivity.boundary", "\"periodic\" needs a periodic box (particles.source = \"lattice\")"))?;
+            let (pipes, branch) = periodic_pipes(p, bbox, &prep.scene.materials, &prep.conductance)?;
+            out.insert("periodic_contacts".into(), pipes.pairs.len().into());
+            periodic(p, &pipes, &branch, bbox)?
+        }
+        o => return Err(ConfigError::invalid(format!("conductivity.boundary = \"{o}\": expected faces or periodic")).into()),
+    };
+    let rows: Vec<Vec<f64>> = (0..3).map(|i| (0..3).map(|j| tensor[(i, j)]).collect()).collect();
+    let ratio: Vec<Vec<f64>> = rows.iter().map(|r| r.iter().map(|v| v / kappa_mat).collect()).collect();
+    out.insert("boundary".into(), spec.boundary.clone().into());
+    out.insert("kappa_eff_W_per_mK".into(), serde_json::to_value(rows).unwrap());
+    out.insert("kappa_eff_over_kappa".into(), serde_json::to_value(ratio).unwrap());
+    out.insert("kappa_material_W_per_mK".into(), kappa_mat.into());
+    out.insert("particles".into(), p.len().into());
+    out.insert("contacts".into(), prep.pipes.pairs.len().into());
+    if let Some((lat, d)) = prep.scene.lattice {
+        // closed forms of heat-network.md for the pipe conductance of the lattice's nearest neighbours
+        let r = p.radius[0];
+        let neck = crate::neck::solve(r, r, 2.0 * r - d)?;
+        let kp = prep.conductance.pipe(kappa_mat, kappa_mat, r, r, neck.a).pair;
+        let f = match lat {
+            crate::scene::Lattice::SimpleCubic => 1.0,
+            crate::scene::Lattice::BodyCentred => 3f64.sqrt(),
+            crate::scene::Lattice::FaceCentred => 2.0 * 2f64.sqrt(),
+        };
+        out.insert("lattice_closed_form_W_per_mK".into(), (f * kp / d).into());
+    }
+    Ok(serde_json::Value::Object(out))
+}

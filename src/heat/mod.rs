@@ -1,0 +1,11 @@
+//! The heat network (heat-network.md): conductance of a pipe, the implicit network step, and the
+//! effective conductivity of a compact.
+
+pub mod bench;
+pub mod conductance;
+pub mod conductivity;
+pub mod network;
+pub mod run;
+
+pub use conductance::{Conductance, ConductanceLaw, PipeConductance};
+pub use network::{Furnace, HeatNetwork, HeatSources, HeatStepInfo, Scheme};

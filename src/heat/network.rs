@@ -1,0 +1,406 @@
+//! The implicit pipe-network heat solve (heat-network.md "Balance per particle", eqs. 1–3).
+//!
+//! Per free particle i (Dirichlet particles follow their heating profile):
+//! `C_i dT_i/dt = f_i(T, t) = Σ_j K_ij (T_j − T_i) + h_c A_i (T_gas − T_i) + εσA_i (T_wall⁴ − T_i⁴) + Q_i`.
+//! Every scheme is written as `M_i T_i^{n+1} − w f_i(T^{n+1}, t^{n+1}) = r_i`:
+//! - backward Euler: `M = C/Δt`, `w = 1`, `r = C/Δt T^n`;
+//! - Crank–Nicolson: `M = C/Δt`, `w = ½`, `r = C/Δt T^n + ½ f(T^n, t^n)`;
+//! - BDF2 (variable step, ω = Δt_n/Δt_{n−1}): `M = a0 C/Δt`, `w = 1`, `r = −C (a1 T^n + a2 T^{n−1})/Δt`,
+//!   `a0 = (1+2ω)/(1+ω)`, `a1 = −(1+ω)`, `a2 = ω²/(1+ω)`; its first step is backward Euler.
+//!
+//! Radiation is linearised about the iterate T* (diagonal `+4εσA T*³`, right-hand side
+//! `+εσA (T_wall⁴ + 3T*⁴)`) and iterated until `max|ΔT| ≤ tol·max T` (at most 20 iterations).
+//! The matrix `M + w(L + diag)` is SPD for any network; its factor is reused while the values are
+//! unchanged (fixed network, constant Δt, no radiation).
+//!
+//! Energy: each step reports the heat that entered the free particles through Dirichlet pipes,
+//! convection, radiation and volumetric sources, `Δt [w g(T^{n+1}) + (1−w) g(T^n)]`, and the
+//! scheme's stored-heat change `Σ C (a0 T^{n+1} + a1 T^n + a2 T^{n−1})` (`Σ C ΔT` for one-step
+//! schemes); their difference is the discrete energy-balance residual (round-off).
+
+use crate::error::SolveError;
+use crate::linsolve::{SpdFactor, SpdPattern, SolveInfo, set_parallelism_for};
+use crate::profile::Profile;
+use crate::units::STEFAN_BOLTZMANN;
+use serde::{Deserialize, Serialize};
+use std::time::Instant;
+
+/// Time integration scheme of the heat network.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Scheme {
+    /// First order, L-stable.
+    BackwardEuler,
+    /// Second order, A-stable (not L-stable: stiff modes oscillate at large Δt).
+    CrankNicolson,
+    /// Second order, L-stable-like damping; variable step.
+    #[default]
+    Bdf2,
+}
+
+impl Scheme {
+    /// Global order of accuracy.
+    pub fn order(self) -> u32 {
+        match self {
+            Scheme::BackwardEuler => 1,
+            _ => 2,
+        }
+    }
+}
+
+/// Furnace atmosphere exchanging heat with exposed particles.
+#[derive(Debug, Clone)]
+pub struct Furnace {
+    /// Gas temperature for convection [K].
+    pub gas: Profile,
+    /// Wall temperature for radiation [K].
+    pub wall: Profile,
+    /// Convective coefficient h_c [W/(m²·K)].
+    pub convection: f64,
+    /// Emissivity ε [1].
+    pub emissivity: f64,
+}
+
+/// Everything about the heat problem that does not change with the contact topology.
+#[derive(Debug, Clone, Default)]
+pub struct HeatSources {
+    /// For each particle: index into `profiles` if its temperature is prescribed, else `None`.
+    pub fixed: Vec<Option<u32>>,
+    /// Heating profiles of the Dirichlet regions.
+    pub profiles: Vec<Profile>,
+    /// Exposed area A_i^exp per particle [m²] (0: not exposed).
+    pub exposed_area: Vec<f64>,
+    /// Volumetric heat generation per particle, Q_i = q‴ V_i [W].
+    pub power: Vec<f64>,
+    /// The furnace, if any particle is exposed.
+    pub furnace: Option<Furnace>,
+}
+
+/// Per-step report.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct HeatStepInfo {
+    /// Heat into the free particles over the step [J].
+    pub heat_in: f64,
+    /// Scheme's stored-heat change over the step [J].
+    pub stored_change: f64,
+    /// Plain Σ C_i (T_i^{n+1} − T_i^n) over free particles [J].
+    pub stored_change_plain: f64,
+    /// Radiation Newton iterations (1 without radiation).
+    pub iterations: u32,
+    /// Whether the factor of the previous step was reused.
+    pub reused_factor: bool,
+    /// Assembly wall time [s].
+    pub assemble_seconds: f64,
+    /// Last solve's report.
+    pub solve: SolveInfo,
+    /// Symbolic analysis wall time spent in this step (topology change) [s].
+    pub symbolic_seconds: f64,
+}
+
+/// Local error estimate for adaptive stepping is not part of this struct: the scheme's order is
+/// verified by the convergence tests; see docs/heat-model.md.
+pub struct HeatNetwork {
+    capacity: Vec<f64>,
+    sources: HeatSources,
+    scheme: Scheme,
+    radiation_tol: f64,
+    // topology
+    pipes: Vec<[u32; 2]>,
+    free: Vec<u32>,
+    local: Vec<u32>,
+    pipe_entry: Vec<u32>,
+    pattern: Option<SpdPattern>,
+    factor: Option<SpdFactor>,
+    // history for BDF2
+    prev: Option<(Vec<f64>, f64)>,
+}
+
+const NONE: u32 = u32::MAX;
+
+impl HeatNetwork {
+    /// `capacity`: C_i = m_i c [J/K] per particle.
+    pub fn new(capacity: Vec<f64>, sources: HeatSources, scheme: Scheme, radiation_tol: f64) -> Self {
+        let n = capacity.len();
+        let mut s = sources;
+        s.fixed.resize(n, None);
+        s.exposed_area.resize(n, 0.0);
+        s.power.resize(n, 0.0);
+        let free: Vec<u32> = (0..n as u32).filter(|&i| s.fixed[i as usize].is_none()).collect();
+        let mut local = vec![NONE; n];
+        for (k, &i) in free.iter().enumerate() {
+            local[i as usize] = k as u32;
+        }
+        HeatNetwork {
+            capacity,
+            sources: s,
+            scheme,
+            radiation_tol,
+            pipes: Vec::new(),
+            free,
+            local,
+            pipe_entry: Vec::new(),
+            pattern: None,
+            factor: None,
+            prev: None,
+        }
+    }
+
+    pub fn scheme(&self) -> Scheme {
+        self.scheme
+    }
+
+    pub fn sources(&self) -> &HeatSources {
+        &self.sources
+    }
+
+    /// Number of unknowns (free particles).
+    pub fn unknowns(&self) -> usize {
+        self.free.len()
+    }
+
+    /// Whether particle `i` follows a prescribed profile.
+    pub fn is_fixed(&self, i: usize) -> bool {
+        self.sources.fixed[i].is_some()
+    }
+
+    fn has_radiation(&self) -> bool {
+        self.sources.furnace.as_ref().is_some_and(|f| f.emissivity > 0.0)
+            && self.sources.exposed_area.iter().any(|&a| a > 0.0)
+    }
+
+    /// Sets the pipes `(i, j)`; the sparsity pattern and symbolic factorisation are rebuilt only
+    /// when the list differs from the current one.
+    pub fn set_topology(&mut self, pipes: &[[u32; 2]]) -> Result<f64, SolveError> {
+        if self.pattern.is_some() && pipes == self.pipes.as_slice() {
+            return Ok(0.0);
+        }
+        self.pipes = pipes.to_vec();
+        let nf = self.free.len();
+        let mut entries: Vec<(u32, u32)> = (0..nf as u32).map(|k| (k, k)).collect();
+        self.pipe_entry = vec![NONE; pipes.len()];
+        for (p, &[i, j]) in pipes.iter().enumerate() {
+            let (li, lj) = (self.local[i as usize], self.local[j as usize]);
+            if li != NONE && lj != NONE && li != lj {
+                self.pipe_entry[p] = entries.len() as u32;
+                entries.push((li.max(lj), li.min(lj)));
+            }
+        }
+        set_parallelism_for(nf);
+        let pat = SpdPattern::new(nf, &entries)?;
+        let secs = pat.symbolic_seconds;
+        self.pattern = Some(pat);
+        self.factor = None;
+        Ok(secs)
+    }
+
+    /// Sets Dirichlet particles to their profile at time `t` [s].
+    pub fn apply_fixed(&self, t: f64, temps: &mut [f64]) {
+        for (i, f) in self.sources.fixed.iter().enumerate() {
+            if let Some(p) = f {
+                temps[i] = self.sources.profiles[*p as usize].temperature(t);
+            }
+        }
+    }
+
+    /// f_i(T, t) for every free particle (local order), and g = the heat into the free set [W].
+    fn rates(&self, temps: &[f64], t: f64, conductance: &[f64], out: &mut [f64]) -> f64 {
+        out.iter_mut().for_each(|v| *v = 0.0);
+        let mut g = 0.0;
+        for (p, &[i, j]) in self.pipes.iter().enumerate() {
+            let k = conductance[p];
+            let (li, lj) = (self.local[i as usize], self.local[j as usize]);
+            let q = k * (temps[j as usize] - temps[i as usize]); // into i
+            if li != NONE {
+                out[li as usize] += q;
+                if lj == NONE {
+                    g += q;
+                }
+            }
+            if lj != NONE {
+                out[lj as usize] -= q;
+                if li == NONE {
+                    g -= q;
+                }
+            }
+        }
+        let (tg, tw4, hc, eps) = self.furnace_at(t);
+        for (l, &i) in self.free.iter().enumerate() {
+            let i = i as usize;
+            let ti = temps[i];
+            let a = self.sources.exposed_area[i];
+            let ext = hc * a * (tg - ti) + eps * STEFAN_BOLTZMANN * a * (tw4 - ti.powi(4)) + self.sources.power[i];
+            out[l] += ext;
+            g += ext;
+        }
+        g
+    }
+
+    fn furnace_at(&self, t: f64) -> (f64, f64, f64, f64) {
+        match &self.sources.furnace {
+            Some(f) => (f.gas.temperature(t), f.wall.temperature(t).powi(4), f.convection, f.emissivity),
+            None => (0.0, 0.0, 0.0, 0.0),
+        }
+    }
+
+    /// Forgets the BDF2 history (after a rejected step or a topology change, the next step is
+    /// backward Euler).
+    pub fn reset_history(&mut self) {
+        self.prev = None;
+    }
+
+    /// Advances `temps` [K] from `t` to `t + dt` [s] with pipe conductances `conductance` [W/K]
+    /// (one per pipe of [`set_topology`](Self::set_topology)).
+    pub fn step(&mut self, t: f64, dt: f64, temps: &mut [f64], conductance: &[f64]) -> Result<HeatStepInfo, SolveError> {
+        if !(dt > 0.0 && dt.is_finite()) {
+            return Err(SolveError::new("heat step", format!("time step {dt} s is not positive")));
+        }
+        if conductance.len() != self.pipes.len() {
+            return Err(SolveError::new("heat step", format!("{} conductances for {} pipes", conductance.len(), self.pipes.len())));
+        }
+        let Some(pattern) = self.pattern.as_ref() else {
+            return Err(SolveError::new("heat step", "set_topology was not called"));
+        };
+        let t1 = t + dt;
+        let nf = self.free.len();
+        let t_old: Vec<f64> = temps.to_vec();
+        // scheme coefficients
+        let (a0, a1, a2, w, bdf_prev) = match (self.scheme, &self.prev) {
+            (Scheme::Bdf2, Some((tp, dtp))) if tp.len() == temps.len() => {
+                let om = dt / dtp;
+                ((1.0 + 2.0 * om) / (1.0 + om), -(1.0 + om), om * om / (1.0 + om), 1.0, Some(tp.clone()))
+            }
+            (Scheme::CrankNicolson, _) => (1.0, -1.0, 0.0, 0.5, None),
+            _ => (1.0, -1.0, 0.0, 1.0, None),
+        };
+        // r = storage part + explicit half for CN
+        let mut rhs0 = vec![0.0; nf];
+        for (l, &i) in self.free.iter().enumerate() {
+            let i = i as usize;
+            let c = self.capacity[i] / dt;
+            let mut r = -c * a1 * t_old[i];
+            if let Some(tp) = &bdf_prev {
+                r -= c * a2 * tp[i];
+            }
+            rhs0[l] = r;
+        }
+        let mut g_old = 0.0;
+        if w < 1.0 {
+            let mut f_old = vec![0.0; nf];
+            g_old = self.rates(&t_old, t, conductance, &mut f_old);
+            for l in 0..nf {
+                rhs0[l] += (1.0 - w) * f_old[l];
+            }
+        }
+        self.apply_fixed(t1, temps);
+        let (tg, tw4, hc, eps) = self.furnace_at(t1);
+        let radiation = self.has_radiation();
+        let ta = Instant::now();
+        // constant part of the matrix and rhs
+        let mut diag0 = vec![0.0; nf];
+        let mut vals = vec![0.0; pattern.len()];
+        let mut rhs_c = rhs0.clone();
+        for (l, &i) in self.free.iter().enumerate() {
+            let i = i as usize;
+            let a = self.sources.exposed_area[i];
+            diag0[l] = a0 * self.capacity[i] / dt + w * hc * a;
+            rhs_c[l] += w * (hc * a * tg + self.sources.power[i]);
+        }
+        for (p, &[i, j]) in self.pipes.iter().enumerate() {
+            let k = conductance[p];
+            if !(k >= 0.0 && k.is_finite()) {
+                return Err(SolveError::new("heat assembly", format!("pipe {p} ({i}–{j}) has conductance {k} W/K")));
+            }
+            let (li, lj) = (self.local[i as usize], self.local[j as usize]);
+            if li != NONE {
+                diag0[li as usize] += w * k;
+                if lj == NONE {
+                    rhs_c[li as usize] += w * k * temps[j as usize];
+                }
+            }
+            if lj != NONE {
+                diag0[lj as usize] += w * k;
+                if li == NONE {
+                    rhs_c[lj as usize] += w * k * temps[i as usize];
+                }
+            }
+            let e = self.pipe_entry[p];
+            if e != NONE {
+                vals[e as usize] -= w * k;
+            }
+        }
+        let mut info = HeatStepInfo { assemble_seconds: ta.elapsed().as_secs_f64(), ..Default::default() };
+        let mut x: Vec<f64> = self.free.iter().map(|&i| t_old[i as usize]).collect();
+        let max_iter = if radiation { 20 } else { 1 };
+        let mut history = Vec::new();
+        let mut converged = false;
+        for it in 1..=max_iter {
+            let mut b = rhs_c.clone();
+            for l in 0..nf {
+                vals[l] = diag0[l];
+            }
+            if radiation {
+                for (l, &i) in self.free.iter().enumerate() {
+                    let a = self.sources.exposed_area[i as usize];
+                    if a > 0.0 {
+                        let ts = x[l];
+                        let s = w * eps * STEFAN_BOLTZMANN * a;
+                        vals[l] += 4.0 * s * ts.powi(3);
+                        b[l] += s * (tw4 + 3.0 * ts.powi(4));
+                    }
+                }
+            }
+            let reuse = self.factor.as_ref().is_some_and(|f| f.values == vals);
+            if !reuse {
+                self.factor = Some(pattern.factorize(&vals)?);
+            }
+            info.reused_factor = reuse;
+            let f = self.factor.as_ref().unwrap();
+            info.solve = f.solve_in_place(pattern, &mut b)?;
+            if !reuse {
+                info.solve.factor_seconds = f.factor_seconds;
+            } else {
+                info.solve.factor_seconds = 0.0;
+            }
+            info.iterations = it;
+            let dmax = b.iter().zip(&x).map(|(a, c)| (a - c).abs()).fold(0.0, f64::max);
+            let tmax = b.iter().map(|v| v.abs()).fold(0.0, f64::max);
+            x = b;
+            history.push(dmax / tmax.max(1e-300));
+            if !radiation || dmax <= self.radiation_tol * tmax {
+                converged = true;
+                break;
+            }
+        }
+        if !converged {
+            return Err(SolveError { stage: "radiation Newton".into(), message: format!("no convergence in {max_iter} iterations"), residuals: history });
+        }
+        for (l, &i) in self.free.iter().enumerate() {
+            temps[i as usize] = x[l];
+        }
+        if let Some(k) = temps.iter().position(|v| !v.is_finite() || *v <= 0.0) {
+            return Err(SolveError::new("heat step", format!("particle {k} reached a non-physical temperature {} K", temps[k])));
+        }
+        // energy accounting
+        let mut f_new = vec![0.0; nf];
+        let g_new = self.rates(temps, t1, conductance, &mut f_new);
+        info.heat_in = dt * (w * g_new + (1.0 - w) * g_old);
+        let mut stored = 0.0;
+        let mut plain = 0.0;
+        for &i in &self.free {
+            let i = i as usize;
+            let c = self.capacity[i];
+            let mut s = c * (a0 * temps[i] + a1 * t_old[i]);
+            if let Some(tp) = &bdf_prev {
+                s += c * a2 * tp[i];
+            }
+            stored += s;
+            plain += c * (temps[i] - t_old[i]);
+        }
+        info.stored_change = stored;
+        info.stored_change_plain = plain;
+        if self.scheme == Scheme::Bdf2 {
+            self.prev = Some((t_old, dt));
+        }
+        Ok(info)
+    }
+}

@@ -1,0 +1,324 @@
+//! A heat run (`kind = "heat"`): a static packing whose temperatures evolve in the implicit pipe
+//! network under heating profiles, furnace exchange and volumetric sources. Writes
+//! `summary.json`, `series.csv`, snapshots (VTU/PVD, HDF5) and `log.txt`.
+
+use crate::config::case::{Case, FurnaceSpec};
+use crate::config::{self, from_value};
+use crate::error::{ConfigError, Error, IoError};
+use crate::heat::{Conductance, Furnace, HeatNetwork, HeatSources};
+use crate::io::{self, Series, Snapshot, SnapshotWriter};
+use crate::profile::Profile;
+use crate::scene::{self, Pipes, Scene};
+use serde_json::json;
+use std::path::Path;
+use std::time::Instant;
+
+/// A validated, built heat case.
+pub struct Prepared {
+    pub case: Case,
+    pub scene: Scene,
+    pub pipes: Pipes,
+    pub sources: HeatSources,
+    /// `Some(profile)` for `thermal.mode = "isothermal"`.
+    pub isothermal: Option<Profile>,
+    pub conductance: Conductance,
+}
+
+fn furnace(spec: &FurnaceSpec) -> Result<Furnace, ConfigError> {
+    let gas = Profile::from_spec(&spec.profile, "thermal.furnace.profile")?;
+    let wall = match &spec.wall_profile {
+        Some(w) => Profile::from_spec(w, "thermal.furnace.wall_profile")?,
+        None => gas.clone(),
+    };
+    Ok(Furnace {
+        gas,
+        wall,
+        convection: config::check("thermal.furnace.convection_coefficient", spec.convection_coefficient)?,
+        emissivity: config::check("thermal.furnace.emissivity", spec.emissivity)?,
+    })
+}
+
+/// The conductance model of a case.
+pub fn conductance_of(case: &Case) -> Result<Conductance, ConfigError> {
+    Ok(Conductance {
+        law: case.thermal.conductance,
+        factor: config::check("thermal.conductance_factor", case.thermal.conductance_factor)?,
+        contact: config::check_opt("thermal.contact_conductance", case.thermal.contact_conductance)?,
+    })
+}
+
+/// Parse → validate → build a heat case (no time stepping). `base` is the case file's directory.
+pub fn prepare(value: toml::Value, base: &Path) -> Result<Prepared, Error> {
+    let prep = prepare_scene(value, base)?;
+    let c = &prep.case;
+    if let Some(k) = c.kind.as_deref().filter(|k| *k != "heat") {
+        return Err(ConfigError::invalid(format!("kind = \"{k}\" is not a heat case")).into());
+    }
+    for (present, key) in [(c.contacts.is_some(), "contacts"), (c.model.is_some(), "model"), (c.solver.is_some(), "solver"), (c.mechanics.is_some(), "mechanics")] {
+        if present {
+            return Err(ConfigError::inconsistent(key, "this section belongs to kind = \"compact\" cases; a heat case has a static packing").into());
+        }
+    }
+    Ok(prep)
+}
+
+/// Parse → validate → build the parts shared by heat and compact cases: scene, materials,
+/// heat sources and the initial contact pipes.
+pub fn prepare_scene(value: toml::Value, base: &Path) -> Result<Prepared, Error> {
+    let case: Case = from_value(value, "")?;
+    config::check("time.end", case.time.end)?;
+    config::check("time.dt", case.time.dt)?;
+    config::check("output.snapshots", case.output.snapshots)?;
+    config::check("output.series_every", case.output.series_every)?;
+    config::check("thermal.radiation_tolerance", case.thermal.radiation_tolerance)?;
+    if case.output.snapshots.fract() != 0.0 || case.output.series_every.fract() != 0.0 {
+        return Err(ConfigError::invalid("output.snapshots and output.series_every must be whole numbers").into());
+    }
+    let conductance = conductance_of(&case)?;
+    let materials = crate::material::from_case(&case.materials)?;
+    let scene = scene::build(&case.particles, materials, base)?;
+    let n = scene.particles.len();
+    let th = &case.thermal;
+    let isothermal = match th.mode.as_str() {
+        "network" => None,
+        "isothermal" => {
+            let f = th.furnace.as_ref().ok_or_else(|| ConfigError::inconsistent("thermal.mode", "\"isothermal\" needs [thermal.furnace] with its profile"))?;
+            if !th.fixed.is_empty() || !th.volumetric.is_empty() || f.convection_coefficient > 0.0 || f.emissivity > 0.0 {
+                return Err(ConfigError::inconsistent(
+                    "thermal.mode",
+                    "\"isothermal\" scenes are uniform in space: remove thermal.fixed, thermal.volumetric, and furnace convection/emissivity",
+                )
+                .into());
+            }
+            Some(Profile::from_spec(&f.profile, "thermal.furnace.profile")?)
+        }
+        other => return Err(ConfigError::invalid(format!("thermal.mode = \"{other}\": expected network or isothermal")).into()),
+    };
+    if !matches!(th.contact_temperature.as_str(), "arithmetic" | "harmonic") {
+        return Err(ConfigError::invalid(format!("thermal.contact_temperature = \"{}\": expected arithmetic or harmonic", th.contact_temperature)).into());
+    }
+    let mut sources = HeatSources { fixed: vec![None; n], exposed_area: vec![0.0; n], power: vec![0.0; n], ..Default::default() };
+    for (k, f) in th.fixed.iter().enumerate() {
+        let key = format!("thermal.fixed[{k}]");
+        let prof = Profile::from_spec(&f.profile, &format!("{key}.profile"))?;
+        sources.profiles.push(prof);
+        for i in scene::select(&f.region, &scene.particles, &format!("{key}.region"))? {
+            if let Some(prev) = sources.fixed[i as usize] {
+                return Err(ConfigError::inconsistent(&key, format!("particle {i} is already held by thermal.fixed[{prev}]")).into());
+            }
+            sources.fixed[i as usize] = Some(k as u32);
+        }
+    }
+    for (k, v) in th.volumetric.iter().enumerate() {
+        let key = format!("thermal.volumetric.{k}.power_density");
+        let q = config::check(&key, v.power_density)?;
+        for i in scene::select(&v.region, &scene.particles, &format!("thermal.volumetric[{k}].region"))? {
+            sources.power[i as usize] += q * crate::units::sphere_volume(scene.particles.radius[i as usize]);
+        }
+    }
+    if let (Some(f), None) = (&th.furnace, &isothermal) {
+        let fur = furnace(f)?;
+        let exposure = config::check("thermal.furnace.exposure", f.exposure)?;
+        let exposed: Vec<u32> = match &f.exposed {
+            Some(r) => scene::select(r, &scene.particles, "thermal.furnace.exposed")?,
+            None => {
+                let mut all = Vec::new();
+                for face in ["x-", "x+", "y-", "y+", "z-", "z+"] {
+                    let r = crate::config::case::RegionSpec { face: Some(face.into()), ..Default::default() };
+                    all.extend(scene::select(&r, &scene.particles, "thermal.furnace.exposed")?);
+                }
+                all.sort_unstable();
+                all.dedup();
+                all
+            }
+        };
+        for i in exposed {
+            let r = scene.particles.radius[i as usize];
+            sources.exposed_area[i as usize] = exposure * 4.0 * std::f64::consts::PI * r * r;
+        }
+        sources.furnace = Some(fur);
+    }
+    let pipes = scene::pipes(&scene.particles, &scene.materials, &conductance)?;
+    Ok(Prepared { case, scene, pipes, sources, isothermal, conductance })
+}
+
+/// Runs a prepared heat case into `out`, returning the summary that is also written to
+/// `out/summary.json`.
+pub fn run(mut prep: Prepared, out: &Path, progress: bool, log: &mut dyn FnMut(&str)) -> Result<serde_json::Value, Error> {
+    let wall = Instant::now();
+    io::ensure_dir(out)?;
+    let case = &prep.case;
+    let end = case.time.end;
+    let dt0 = case.time.dt;
+    let p = &mut prep.scene.particles;
+    let n = p.len();
+    log(&format!(
+        "heat run: {} particles, {} contacts ({} with a/r > 0.7, conductance law extrapolated), scheme {:?}, Δt = {dt0} s, end = {end} s",
+        n,
+        prep.pipes.pairs.len(),
+        prep.pipes.extrapolated,
+        case.time.scheme
+    ));
+    let mut net = HeatNetwork::new(p.capacity.clone(), prep.sources.clone(), case.time.scheme, case.thermal.radiation_tolerance);
+    if let Some(prof) = &prep.isothermal {
+        log("thermal.mode = isothermal: the heat network solve is skipped; every particle follows the furnace profile");
+        p.temperature.iter_mut().for_each(|t| *t = prof.temperature(0.0));
+    } else {
+        let secs = net.set_topology(&prep.pipes.pairs)?;
+        log(&format!("heat network: {} unknowns, {} fixed-temperature particles; symbolic analysis {secs:.3} s", net.unknowns(), n - net.unknowns()));
+        net.apply_fixed(0.0, &mut p.temperature);
+        // neighbour search is done once: the packing is static in a heat run
+        log("static packing: neighbour search done once, mechanics and diffusion are not part of a heat run");
+    }
+    let mut series = Series::create(
+        &out.join("series.csv"),
+        &["time_s", "dt_s", "mean_temperature_K", "min_temperature_K", "max_temperature_K", "heat_in_J", "stored_heat_J", "heat_in_cumulative_J", "radiation_iterations"],
+    )?;
+    let mut snaps = SnapshotWriter::new(out, case.output.vtu, case.output.hdf5, log)?;
+    let n_snap = case.output.snapshots as usize;
+    let snap_times: Vec<f64> = match n_snap {
+        0 => vec![],
+        1 => vec![end],
+        k => (0..k).map(|i| end * i as f64 / (k - 1) as f64).collect(),
+    };
+    let mut next_snap = 0usize;
+    let stored_of = |temps: &[f64], net: &HeatNetwork, cap: &[f64]| -> f64 {
+        (0..temps.len()).filter(|&i| !net.is_fixed(i)).map(|i| cap[i] * temps[i]).sum()
+    };
+    let stored0 = stored_of(&p.temperature, &net, &p.capacity);
+    let write_snapshot = |snaps: &mut SnapshotWriter, t: f64, p: &crate::particles::Particles, pipes: &Pipes| -> Result<(), IoError> {
+        snaps.write(&Snapshot {
+            time: t,
+            position: &p.position,
+            radius: &p.radius,
+            temperature: &p.temperature,
+            contacts: &pipes.pairs,
+            contact_data: vec![("neck_radius_m", &pipes.neck), ("conductance_W_per_K", &pipes.conductance), ("overlap_m", &pipes.overlap)],
+            particle_data: vec![],
+        })
+    };
+    let stats = |t: &[f64]| {
+        let mean = t.iter().sum::<f64>() / t.len() as f64;
+        let lo = t.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = t.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        (mean, lo, hi)
+    };
+    let bar = io::progress::Progress::new(end, progress);
+    let (mut t, mut steps) = (0.0f64, 0usize);
+    let (mut heat_in, mut stored, mut stored_plain, mut scale) = (0.0, 0.0, 0.0, 0.0f64);
+    let (mut t_assemble, mut t_factor, mut t_solve, mut factorizations, mut max_resid) = (0.0, 0.0, 0.0, 0usize, 0.0f64);
+    let mut max_iters = 0u32;
+    // local error estimate (docs/heat-model.md): difference between the step's result and an
+    // explicit extrapolation from earlier steps of the same size, scaled by the scheme's error
+    // constant: BE ½|T¹ − (2T⁰ − T⁻¹)|, CN (1/11)|T¹ − P|, BDF2 (2/7)|T¹ − P|, P = 3T⁰ − 3T⁻¹ + T⁻².
+    let mut hist: Vec<Vec<f64>> = Vec::new();
+    let mut hist_dt = f64::NAN;
+    let mut max_err_est = 0.0f64;
+    // the extrapolation is not valid across a kink of a prescribed profile: restart it there
+    let mut kinks: Vec<f64> = prep.sources.profiles.iter().flat_map(|p| p.breakpoints().to_vec()).collect();
+    if let Some(f) = &prep.sources.furnace {
+        kinks.extend_from_slice(f.gas.breakpoints());
+        kinks.extend_from_slice(f.wall.breakpoints());
+    }
+    while next_snap < snap_times.len() && snap_times[next_snap] <= t + 1e-12 * end {
+        write_snapshot(&mut snaps, t, p, &prep.pipes)?;
+        next_snap += 1;
+    }
+    while t < end * (1.0 - 1e-12) {
+        let dt = dt0.min(end - t);
+        let mut iters = 0;
+        let mut hin = 0.0;
+        if let Some(prof) = &prep.isothermal {
+            let tt = prof.temperature(t + dt);
+            p.temperature.iter_mut().for_each(|v| *v = tt);
+        } else {
+            let info = net.step(t, dt, &mut p.temperature, &prep.pipes.conductance)?;
+            heat_in += info.heat_in;
+            stored += info.stored_change;
+            stored_plain += info.stored_change_plain;
+            scale += info.heat_in.abs();
+            t_assemble += info.assemble_seconds;
+            t_factor += info.solve.factor_seconds;
+            t_solve += info.solve.solve_seconds;
+            factorizations += (!info.reused_factor) as usize * info.iterations.max(1) as usize;
+            max_resid = max_resid.max(info.solve.residual);
+            iters = info.iterations;
+            max_iters = max_iters.max(iters);
+            hin = info.heat_in;
+        }
+        if prep.isothermal.is_none() {
+            if dt != hist_dt || kinks.iter().any(|&k| k > t && k <= t + dt) {
+                hist.clear();
+                hist_dt = dt;
+            }
+            let need = if case.time.scheme == crate::heat::Scheme::BackwardEuler { 2 } else { 3 };
+            if hist.len() == need {
+                let est = (0..n)
+                    .filter(|&i| !net.is_fixed(i))
+                    .map(|i| {
+                        let (y, h) = (p.temperature[i], &hist);
+                        match case.time.scheme {
+                            crate::heat::Scheme::BackwardEuler => 0.5 * (y - (2.0 * h[1][i] - h[0][i])).abs(),
+                            crate::heat::Scheme::CrankNicolson => (y - (3.0 * h[2][i] - 3.0 * h[1][i] + h[0][i])).abs() / 11.0,
+                            crate::heat::Scheme::Bdf2 => 2.0 / 7.0 * (y - (3.0 * h[2][i] - 3.0 * h[1][i] + h[0][i])).abs(),
+                        }
+                    })
+                    .fold(0.0, f64::max);
+                max_err_est = max_err_est.max(est);
+                hist.remove(0);
+            }
+            hist.push(p.temperature.clone());
+        }
+        t += dt;
+        steps += 1;
+        if steps % case.output.series_every as usize == 0 || t >= end * (1.0 - 1e-12) {
+            let (mean, lo, hi) = stats(&p.temperature);
+            series.row(&[t, dt, mean, lo, hi, hin, stored_of(&p.temperature, &net, &p.capacity), heat_in, iters as f64])?;
+        }
+        while next_snap < snap_times.len() && snap_times[next_snap] <= t + 1e-9 * dt {
+            write_snapshot(&mut snaps, t, p, &prep.pipes)?;
+            next_snap += 1;
+        }
+        bar.set(t, "");
+    }
+    bar.finish();
+    let (mean, lo, hi) = stats(&p.temperature);
+    let denom = scale.max(stored.abs()).max(1e-300);
+    let balance = if prep.isothermal.is_some() { 0.0 } else { (stored - heat_in).abs() / denom };
+    let stored_end = stored_of(&p.temperature, &net, &p.capacity);
+    let summary = json!({
+        "kind": "heat",
+        "final_time_s": t,
+        "steps": steps,
+        "wall_seconds": wall.elapsed().as_secs_f64(),
+        "particles": n,
+        "contacts": prep.pipes.pairs.len(),
+        "contacts_extrapolated": prep.pipes.extrapolated,
+        "scheme": format!("{:?}", case.time.scheme),
+        "energy_balance_rel": balance,
+        "heat_in_J": heat_in,
+        "stored_heat_change_J": stored,
+        "stored_heat_change_plain_J": stored_plain,
+        "stored_heat_J": stored_end,
+        "stored_heat_initial_J": stored0,
+        "mean_temperature_K": mean,
+        "min_temperature_K": lo,
+        "max_temperature_K": hi,
+        "factorizations": factorizations,
+        "max_radiation_iterations": max_iters,
+        "max_local_error_estimate_K": max_err_est,
+        "max_scaled_residual": max_resid,
+        "seconds_assemble": t_assemble,
+        "seconds_factorize": t_factor,
+        "seconds_solve": t_solve,
+        "snapshots": snaps.count(),
+        "hdf5": snaps.hdf5_enabled(),
+        "skipped": if prep.isothermal.is_some() { vec!["heat solve (isothermal)", "neighbour search (static packing)", "diffusion", "mechanics"] } else { vec!["neighbour search after start (static packing)", "diffusion", "mechanics"] },
+    });
+    io::write_json(&out.join("summary.json"), &summary)?;
+    log(&format!(
+        "done: {steps} steps to t = {t} s in {:.3} s; mean T = {mean:.3} K (min {lo:.3}, max {hi:.3}); energy balance residual {balance:.2e} (relative)",
+        wall.elapsed().as_secs_f64()
+    ));
+    Ok(summary)
+}

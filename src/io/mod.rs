@@ -1,0 +1,114 @@
+//! Output: time series (CSV), summaries (JSON), snapshots (VTU + PVD index, HDF5), and the
+//! terminal progress bar.
+
+pub mod hdf5;
+pub mod progress;
+pub mod vtu;
+
+use crate::error::IoError;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// Creates `dir` (and parents).
+pub fn ensure_dir(dir: &Path) -> Result<(), IoError> {
+    std::fs::create_dir_all(dir).map_err(|e| IoError::new(dir, e))
+}
+
+/// Writes pretty JSON.
+pub fn write_json(path: &Path, value: &serde_json::Value) -> Result<(), IoError> {
+    let text = serde_json::to_string_pretty(value).map_err(|e| IoError::new(path, e))?;
+    std::fs::write(path, text + "\n").map_err(|e| IoError::new(path, e))
+}
+
+/// A CSV time series written row by row (flushed at every row, so an interrupted run keeps its rows).
+pub struct Series {
+    path: PathBuf,
+    file: std::io::BufWriter<std::fs::File>,
+    columns: usize,
+}
+
+impl Series {
+    /// Creates the file and writes the header. Column names carry their unit, e.g. `time_s`.
+    pub fn create(path: &Path, header: &[&str]) -> Result<Self, IoError> {
+        let f = std::fs::File::create(path).map_err(|e| IoError::new(path, e))?;
+        let mut s = Series { path: path.to_path_buf(), file: std::io::BufWriter::new(f), columns: header.len() };
+        writeln!(s.file, "{}", header.join(",")).map_err(|e| IoError::new(path, e))?;
+        Ok(s)
+    }
+
+    /// Appends one row (full precision).
+    pub fn row(&mut self, values: &[f64]) -> Result<(), IoError> {
+        debug_assert_eq!(values.len(), self.columns);
+        let line: Vec<String> = values.iter().map(|v| format!("{v:e}")).collect();
+        writeln!(self.file, "{}", line.join(",")).map_err(|e| IoError::new(&self.path, e))?;
+        self.file.flush().map_err(|e| IoError::new(&self.path, e))
+    }
+}
+
+/// One snapshot of a packing: particles as points, contacts as lines.
+#[derive(Debug, Clone, Default)]
+pub struct Snapshot<'a> {
+    /// Simulated time [s].
+    pub time: f64,
+    /// Particle centres [m].
+    pub position: &'a [nalgebra::Vector3<f64>],
+    /// Particle radii [m].
+    pub radius: &'a [f64],
+    /// Particle temperatures [K].
+    pub temperature: &'a [f64],
+    /// Contact pairs (particle indices).
+    pub contacts: &'a [[u32; 2]],
+    /// Contact data arrays, each one value per contact: (name with unit, values).
+    pub contact_data: Vec<(&'a str, &'a [f64])>,
+    /// Extra particle data arrays: (name with unit, values).
+    pub particle_data: Vec<(&'a str, &'a [f64])>,
+}
+
+/// Writes snapshots as VTU (with PVD indexes) and HDF5 as configured.
+pub struct SnapshotWriter {
+    dir: PathBuf,
+    vtu: Option<vtu::PvdIndex>,
+    h5: Option<hdf5::H5Writer>,
+    count: usize,
+}
+
+impl SnapshotWriter {
+    /// `vtu`, `h5`: which formats. HDF5 without the `h5` build feature logs a clear message once
+    /// and is skipped.
+    pub fn new(dir: &Path, vtu: bool, h5: bool, log: &mut dyn FnMut(&str)) -> Result<Self, IoError> {
+        let vtu = if vtu { Some(vtu::PvdIndex::new(dir)) } else { None };
+        let h5 = if h5 {
+            match hdf5::H5Writer::create(&dir.join("sinterdem.h5")) {
+                Ok(w) => Some(w),
+                Err(hdf5::H5Error::Disabled) => {
+                    log(hdf5::DISABLED_MESSAGE);
+                    None
+                }
+                Err(hdf5::H5Error::Io(e)) => return Err(e),
+            }
+        } else {
+            None
+        };
+        Ok(SnapshotWriter { dir: dir.to_path_buf(), vtu, h5, count: 0 })
+    }
+
+    pub fn write(&mut self, s: &Snapshot) -> Result<(), IoError> {
+        if let Some(v) = &mut self.vtu {
+            v.write(&self.dir, self.count, s)?;
+        }
+        if let Some(h) = &mut self.h5 {
+            h.write(self.count, s)?;
+        }
+        self.count += 1;
+        Ok(())
+    }
+
+    /// Number of snapshots written.
+    pub fn count(&self) -> usize {
+        self.count
+    }
+
+    pub fn hdf5_enabled(&self) -> bool {
+        self.h5.is_some()
+    }
+}

@@ -1,0 +1,217 @@
+//! Per-contact adaptive integration of the 7-DOF ODE over a global interval `[t0, t1]` with the
+//! contact temperature varying inside it (spec §10, strategy 2's per-contact subdivision):
+//! substeps split exactly at the kinks of the temperature history and at the times it crosses a
+//! phase-transition temperature (§5.6); each piece uses the phase of its midpoint temperature, and
+//! RK stages evaluate T at their own times. Tolerance (T1): rtol relative to the state with a
+//! floor `norm_floor·R_min`. Integration runs in the contact's own time `t − t_c` (§10).
+
+use super::contact::Contact7;
+use super::kinetics::rates_with;
+use super::material::{ContactParams, Material, PathFactors};
+use crate::error::ModelError;
+use crate::models::ode::{integrate, Control, Method, OdeStats};
+use crate::profile::Profile;
+use serde::{Deserialize, Serialize};
+
+/// Integrator settings of the 7-DOF contacts (case section `[solver]`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SolverOptions {
+    /// `dopri5` (default), `rk4_doubling` or `rosenbrock4`.
+    pub method: Method,
+    /// Relative tolerance rtol (T1) [1].
+    pub rtol: f64,
+    /// Norm floor relative to the smaller initial radius (T1: 1e-4) [1].
+    pub norm_floor: f64,
+    /// Largest substep [s].
+    pub max_substep: f64,
+    /// ModelError when the proposed substep falls below this fraction of the contact age (§10: 1e-12) [1].
+    pub min_step_rel: f64,
+    /// ModelError after this many substeps in one call [1].
+    pub max_substeps: f64,
+}
+
+impl Default for SolverOptions {
+    fn default() -> Self {
+        SolverOptions { method: Method::Dopri5, rtol: 1e-6, norm_floor: 1e-4, max_substep: 1e9, min_step_rel: 1e-12, max_substeps: 2e6 }
+    }
+}
+
+impl SolverOptions {
+    /// Checks the keys against the range table (`solver.*`).
+    pub fn validate(&self) -> Result<(), crate::error::ConfigError> {
+        use crate::config::check;
+        check("solver.rtol", self.rtol)?;
+        check("solver.norm_floor", self.norm_floor)?;
+        check("solver.max_substep", self.max_substep)?;
+        check("solver.min_step_rel", self.min_step_rel)?;
+        check("solver.max_substeps", self.max_substeps)?;
+        Ok(())
+    }
+
+    fn control(&self, r_min: f64) -> Control<7> {
+        Control {
+            method: self.method,
+            rtol: self.rtol,
+            floor: [self.norm_floor * r_min; 7],
+            h_max: self.max_substep,
+            min_step_rel: self.min_step_rel,
+            max_substeps: self.max_substeps as u64,
+        }
+    }
+}
+
+/// The contact temperature over global time, piecewise linear between its kinks.
+#[derive(Debug, Clone, Copy)]
+pub enum TemperaturePath<'a> {
+    /// Constant [K].
+    Constant(f64),
+    /// Linear from `temp0` [K] at `t0` [s] to `temp1` [K] at `t1` [s] (a global step, §5.7).
+    Linear { t0: f64, temp0: f64, t1: f64, temp1: f64 },
+    /// A heating profile (its breakpoints are the kinks).
+    Profile(&'a Profile),
+}
+
+impl TemperaturePath<'_> {
+    /// T(t) [K].
+    #[inline]
+    pub fn at(&self, t: f64) -> f64 {
+        match *self {
+            TemperaturePath::Constant(v) => v,
+            TemperaturePath::Linear { t0, temp0, t1, temp1 } => {
+                if t1 == t0 { temp1 } else { temp0 + (temp1 - temp0) * (t - t0) / (t1 - t0) }
+            }
+            TemperaturePath::Profile(p) => p.temperature(t),
+        }
+    }
+
+    /// Kinks strictly inside (t0, t1) [s].
+    pub fn kinks(&self, t0: f64, t1: f64) -> Vec<f64> {
+        match self {
+            TemperaturePath::Profile(p) => p.split_points(t0, t1, None),
+            _ => Vec::new(),
+        }
+    }
+}
+
+/// The two materials of a contact and the model factors.
+#[derive(Debug, Clone, Copy)]
+pub struct PairMaterials<'a> {
+    pub a: &'a Material,
+    pub b: &'a Material,
+    pub factors: PathFactors,
+}
+
+impl PairMaterials<'_> {
+    /// Parameters of the phase pair at contact temperature `t` [K] (§5.7).
+    pub fn params_at(&self, t: f64) -> ContactParams {
+        ContactParams::new(self.a, self.a.phase_at(t), self.b, self.b.phase_at(t), self.factors)
+    }
+
+    /// Phase-transition temperatures of either side [K].
+    pub fn transitions(&self) -> Vec<f64> {
+        let mut v: Vec<f64> = self.a.transitions().chain(self.b.transitions()).collect();
+        v.sort_by(f64::total_cmp);
+        v.dedup();
+        v
+    }
+}
+
+/// Times in `(t0, t1)` where the temperature has a kink or crosses a transition [s], sorted.
+pub fn split_times(temp: &TemperaturePath, t0: f64, t1: f64, transitions: &[f64]) -> Vec<f64> {
+    let mut pts = vec![t0];
+    pts.extend(temp.kinks(t0, t1));
+    pts.push(t1);
+    let mut out = Vec::new();
+    for w in pts.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        let (ta, tb) = (temp.at(a), temp.at(b));
+        for &tc in transitions {
+            if (ta - tc) * (tb - tc) < 0.0 {
+                let s = a + (tc - ta) / (tb - ta) * (b - a);
+                if s > t0 && s < t1 {
+                    out.push(s);
+                }
+            }
+        }
+        if b < t1 {
+            out.push(b);
+        }
+    }
+    out.sort_by(f64::total_cmp);
+    out.dedup();
+    out
+}
+
+/// Advances `contact` from global time `t0` to `t1` [s] (§10 strategy 2: as many adaptive substeps as
+/// needed). `on_step(t, y, T)` is called after every accepted substep with global time [s], state [m]
+/// and contact temperature [K]. On error the contact is left unchanged.
+pub fn advance<G>(
+    contact: &mut Contact7,
+    mats: &PairMaterials,
+    temp: &TemperaturePath,
+    t0: f64,
+    t1: f64,
+    opts: &SolverOptions,
+    stats: &mut OdeStats,
+    mut on_step: G,
+) -> Result<(), ModelError>
+where
+    G: FnMut(f64, &[f64; 7], f64),
+{
+    let ctl = opts.control(contact.r_min());
+    let tc = contact.t_created;
+    let trans = mats.transitions();
+    let mut pts = vec![t0];
+    pts.extend(split_times(temp, t0, t1, &trans));
+    pts.push(t1);
+    let mut y = contact.y;
+    let mut h = contact.h_last;
+    for w in pts.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        if b <= a {
+            continue;
+        }
+        let (ta, tb) = (temp.at(a), temp.at(b));
+        let tmid = temp.at(0.5 * (a + b));
+        let params = mats.params_at(tmid);
+        let last = std::cell::Cell::new(y);
+        let ctx = |e: ModelError| {
+            e.with_context(format!(
+                "contact interval [{a:.6e}, {b:.6e}] s, T = {ta:.2} to {tb:.2} K; last accepted state: {}",
+                super::contact::diagnose(&last.get())
+            ))
+        };
+        let mut cb = |tau: f64, yy: &[f64; 7]| {
+            let t = tau + tc;
+            last.set(*yy);
+            on_step(t, yy, temp.at(t));
+        };
+        y = if ta == tb {
+            let k = params.at(ta).map_err(ctx)?;
+            let mut f = |_tau: f64, yy: &[f64; 7]| rates_with(yy, &k);
+            integrate(&mut f, a - tc, b - tc, y, &mut h, &ctl, stats, &mut cb).map_err(ctx)?
+        } else {
+            let mut f = |tau: f64, yy: &[f64; 7]| {
+                let k = params.at(temp.at(tau + tc))?;
+                rates_with(yy, &k)
+            };
+            integrate(&mut f, a - tc, b - tc, y, &mut h, &ctl, stats, &mut cb).map_err(ctx)?
+        };
+    }
+    contact.y = y;
+    contact.h_last = h;
+    Ok(())
+}
+
+/// A warning if `[t_lo, t_hi]` [K] leaves the calibrated range of `m` (spec §14).
+pub fn calibrated_range_warning(m: &Material, t_lo: f64, t_hi: f64) -> Option<String> {
+    if t_lo < m.calibrated_min_temperature || t_hi > m.calibrated_max_temperature {
+        Some(format!(
+            "contact temperature {:.1}–{:.1} K leaves the calibrated range {:.1}–{:.1} K of material \"{}\": its diffusion data are extrapolated",
+            t_lo, t_hi, m.calibrated_min_temperature, m.calibrated_max_temperature, m.name
+        ))
+    } else {
+        None
+    }
+}

@@ -1,0 +1,312 @@
+//! Building a scene from a case: particles (lattices, a pair, a packing file), regions, and the
+//! contact pipes of the heat network with their volume-conserving necks.
+
+use crate::config::case::{ParticlesSpec, RegionSpec};
+use crate::config::{self};
+use crate::error::{ConfigError, Error, ModelError};
+use crate::heat::Conductance;
+use crate::material::Material;
+use crate::particles::Particles;
+use nalgebra::Vector3;
+use std::path::Path;
+
+/// Bravais lattices for test scenes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Lattice {
+    SimpleCubic,
+    BodyCentred,
+    FaceCentred,
+}
+
+impl Lattice {
+    pub fn parse(s: &str) -> Result<Self, ConfigError> {
+        match s {
+            "sc" => Ok(Lattice::SimpleCubic),
+            "bcc" => Ok(Lattice::BodyCentred),
+            "fcc" => Ok(Lattice::FaceCentred),
+            _ => Err(ConfigError::invalid(format!("particles.lattice = \"{s}\": expected sc, bcc or fcc"))),
+        }
+    }
+
+    /// Cubic cell edge for nearest-neighbour distance `d` [m].
+    pub fn cell_edge(self, d: f64) -> f64 {
+        match self {
+            Lattice::SimpleCubic => d,
+            Lattice::BodyCentred => 2.0 * d / 3f64.sqrt(),
+            Lattice::FaceCentred => 2f64.sqrt() * d,
+        }
+    }
+
+    /// Basis positions in units of the cell edge.
+    pub fn basis(self) -> &'static [[f64; 3]] {
+        match self {
+            Lattice::SimpleCubic => &[[0.0, 0.0, 0.0]],
+            Lattice::BodyCentred => &[[0.0, 0.0, 0.0], [0.5, 0.5, 0.5]],
+            Lattice::FaceCentred => &[[0.0, 0.0, 0.0], [0.5, 0.5, 0.0], [0.5, 0.0, 0.5], [0.0, 0.5, 0.5]],
+        }
+    }
+
+    /// Largest overlap h/r for which second neighbours do not touch (heat-network.md, last paragraph).
+    pub fn max_overlap_for_nearest_neighbours(self) -> f64 {
+        match self {
+            Lattice::BodyCentred => 2.0 - 3f64.sqrt(),
+            _ => 2.0 - 2f64.sqrt(),
+        }
+    }
+}
+
+/// Particles plus what the scene knows about its geometry.
+#[derive(Debug, Clone)]
+pub struct Scene {
+    pub particles: Particles,
+    pub materials: Vec<Material>,
+    /// The periodic box of a lattice scene (cells × cell edge) [m], with its origin at 0.
+    pub periodic_box: Option<Vector3<f64>>,
+    /// Lattice type and nearest-neighbour distance D [m] for lattice scenes.
+    pub lattice: Option<(Lattice, f64)>,
+}
+
+fn material_index(materials: &[Material], name: Option<&str>, key: &str) -> Result<u16, ConfigError> {
+    match name {
+        None => Ok(0),
+        Some(n) => materials
+            .iter()
+            .position(|m| m.name == n)
+            .map(|i| i as u16)
+            .ok_or_else(|| ConfigError::invalid(format!("{key} = \"{n}\": no such material in [[materials]]"))),
+    }
+}
+
+/// Builds the particles of `spec`; `base` is the case file's directory (for `file`).
+pub fn build(spec: &ParticlesSpec, materials: Vec<Material>, base: &Path) -> Result<Scene, Error> {
+    let t0 = config::check("particles.initial_temperature", spec.initial_temperature.unwrap_or(293.15))?;
+    let mat = material_index(&materials, spec.material.as_deref(), "particles.material")?;
+    let mut p = Particles::default();
+    let push = |p: &mut Particles, x: Vector3<f64>, r: f64, m: u16, t: f64| {
+        let mm = &materials[m as usize];
+        p.push(x, r, m, mm.density, mm.heat_capacity, t);
+    };
+    let overlap = config::check("particles.overlap", spec.overlap)?;
+    let mut periodic_box = None;
+    let mut lattice = None;
+    match spec.source.as_str() {
+        "lattice" => {
+            let kind = Lattice::parse(spec.lattice.as_deref().ok_or_else(|| ConfigError::invalid("particles.lattice is required for source = \"lattice\""))?)?;
+            let r = config::check("particles.radius", spec.radius.ok_or_else(|| ConfigError::invalid("particles.radius is required"))?)?;
+            let cells = spec.cells.ok_or_else(|| ConfigError::invalid("particles.cells = [nx, ny, nz] is required for a lattice"))?;
+            if cells.iter().any(|&c| c == 0 || c > 200) {
+                return Err(ConfigError::OutOfRange { key: "particles.cells".into(), value: *cells.iter().max().unwrap() as f64, range: "[1, 200] per axis".into(), unit: "1".into() }.into());
+            }
+            if overlap >= kind.max_overlap_for_nearest_neighbours() {
+                return Err(ConfigError::inconsistent(
+                    "particles.overlap",
+                    format!("{overlap} makes second neighbours of this lattice touch (must be < {:.4})", kind.max_overlap_for_nearest_neighbours()),
+                )
+                .into());
+            }
+            let d = (2.0 - overlap) * r;
+            let e = kind.cell_edge(d);
+            for k in 0..cells[2] {
+                for j in 0..cells[1] {
+                    for i in 0..cells[0] {
+                        for b in kind.basis() {
+                            let x = Vector3::new((i as f64 + b[0]) * e, (j as f64 + b[1]) * e, (k as f64 + b[2]) * e);
+                            push(&mut p, x, r, mat, t0);
+                        }
+                    }
+                }
+            }
+            periodic_box = Some(Vector3::new(cells[0] as f64 * e, cells[1] as f64 * e, cells[2] as f64 * e));
+            lattice = Some((kind, d));
+        }
+        "pair" => {
+            let r1 = config::check("particles.radius", spec.radius.ok_or_else(|| ConfigError::invalid("particles.radius is required"))?)?;
+            let r2 = config::check("particles.radius_2", spec.radius_2.unwrap_or(r1))?;
+            let h = overlap * r1.min(r2);
+            let hmax = crate::neck::max_overlap(r1, r2);
+            if h > hmax {
+                return Err(ConfigError::inconsistent("particles.overlap", format!("h = {h:.4e} m exceeds the neck model's limit {hmax:.4e} m")).into());
+            }
+            push(&mut p, Vector3::zeros(), r1, mat, t0);
+            push(&mut p, Vector3::new(r1 + r2 - h, 0.0, 0.0), r2, mat, t0);
+        }
+        "file" => {
+            let f = spec.file.as_ref().ok_or_else(|| ConfigError::invalid("particles.file is required for source = \"file\""))?;
+            let path = base.join(f);
+            let rows = read_csv(&path)?;
+            for (k, row) in rows.iter().enumerate() {
+                let m = match &row.material {
+                    Some(name) => material_index(&materials, Some(name), &format!("{}: row {} material", path.display(), k + 1))?,
+                    None => mat,
+                };
+                let t = match row.temperature {
+                    Some(t) => config::check("particles.initial_temperature", t)?,
+                    None => t0,
+                };
+                config::check("particles.radius", row.r)?;
+                push(&mut p, row.x, row.r, m, t);
+            }
+        }
+        other => {
+            return Err(ConfigError::invalid(format!("particles.source = \"{other}\": expected lattice, pair or file")).into());
+        }
+    }
+    if p.is_empty() {
+        return Err(ConfigError::invalid("particles: the scene has no particles").into());
+    }
+    Ok(Scene { particles: p, materials, periodic_box, lattice })
+}
+
+/// One row of a packing CSV.
+#[derive(Debug, Clone)]
+pub struct CsvRow {
+    pub x: Vector3<f64>,
+    pub r: f64,
+    pub material: Option<String>,
+    pub temperature: Option<f64>,
+}
+
+/// Reads `x,y,z,r[,material][,temperature]` (header optional, `#` comments); errors name the line.
+pub fn read_csv(path: &Path) -> Result<Vec<CsvRow>, Error> {
+    let text = std::fs::read_to_string(path).map_err(|e| crate::error::IoError::new(path, e))?;
+    let mut rows = Vec::new();
+    let mut cols: Option<Vec<String>> = None;
+    for (n, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+        if cols.is_none() && fields[0].parse::<f64>().is_err() {
+            cols = Some(fields.iter().map(|s| s.to_ascii_lowercase()).collect());
+            continue;
+        }
+        let names = cols.clone().unwrap_or_else(|| {
+            ["x", "y", "z", "r", "material", "temperature"].iter().take(fields.len()).map(|s| s.to_string()).collect()
+        });
+        let bad = |why: String| ConfigError::invalid(format!("{}: line {}: {why}", path.display(), n + 1));
+        if fields.len() != names.len() {
+            return Err(bad(format!("{} fields, expected {}", fields.len(), names.len())).into());
+        }
+        let mut x = [f64::NAN; 3];
+        let mut r = f64::NAN;
+        let mut material = None;
+        let mut temperature = None;
+        for (name, f) in names.iter().zip(&fields) {
+            let num = || f.parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| bad(format!("{name} = \"{f}\" is not a finite number")));
+            match name.as_str() {
+                "x" => x[0] = num()?,
+                "y" => x[1] = num()?,
+                "z" => x[2] = num()?,
+                "r" | "radius" => r = num()?,
+                "material" => material = Some(f.to_string()),
+                "temperature" | "t" => temperature = Some(num()?),
+                other => return Err(bad(format!("unknown column \"{other}\" (x, y, z, r, material, temperature)")).into()),
+            }
+        }
+        if x.iter().any(|v| v.is_nan()) || r.is_nan() {
+            return Err(bad("x, y, z and r are required".into()).into());
+        }
+        if r <= 0.0 {
+            return Err(bad(format!("radius {r} must be positive")).into());
+        }
+        rows.push(CsvRow { x: Vector3::from(x), r, material, temperature });
+    }
+    Ok(rows)
+}
+
+/// The particles of a region, sorted. `key` names the region in errors.
+pub fn select(region: &RegionSpec, p: &Particles, key: &str) -> Result<Vec<u32>, ConfigError> {
+    let given = region.face.is_some() as u8 + region.bbox.is_some() as u8 + region.layer.is_some() as u8 + region.particles.is_some() as u8 + region.all.is_some() as u8;
+    if given != 1 {
+        return Err(ConfigError::inconsistent(key, "give exactly one of face, box, layer, particles, all"));
+    }
+    let n = p.len();
+    let axis = |s: &str| -> Result<usize, ConfigError> {
+        match s {
+            "x" => Ok(0),
+            "y" => Ok(1),
+            "z" => Ok(2),
+            _ => Err(ConfigError::invalid(format!("{key}: axis \"{s}\" (x, y or z)"))),
+        }
+    };
+    let out: Vec<u32> = if let Some(face) = &region.face {
+        if face.len() != 2 || !(face.ends_with('-') || face.ends_with('+')) {
+            return Err(ConfigError::invalid(format!("{key}.face = \"{face}\": expected x-, x+, y-, y+, z- or z+")));
+        }
+        let a = axis(&face[..1])?;
+        let depth = region.depth.unwrap_or_else(|| p.mean_radius());
+        if !(depth > 0.0 && depth.is_finite()) {
+            return Err(ConfigError::OutOfRange { key: format!("{key}.depth"), value: depth, range: "(0, inf)".into(), unit: "m".into() });
+        }
+        let (lo, hi) = p.bounding_box();
+        (0..n as u32)
+            .filter(|&i| {
+                let (x, r) = (p.position[i as usize][a], p.radius[i as usize]);
+                if face.ends_with('-') { x - r <= lo[a] + depth } else { x + r >= hi[a] - depth }
+            })
+            .collect()
+    } else if let Some(b) = &region.bbox {
+        (0..n as u32)
+            .filter(|&i| (0..3).all(|a| p.position[i as usize][a] >= b[0][a] && p.position[i as usize][a] <= b[1][a]))
+            .collect()
+    } else if let Some(l) = &region.layer {
+        let a = axis(&l.axis)?;
+        (0..n as u32).filter(|&i| p.position[i as usize][a] >= l.from && p.position[i as usize][a] <= l.to).collect()
+    } else if let Some(list) = &region.particles {
+        if let Some(&bad) = list.iter().find(|&&i| i as usize >= n) {
+            return Err(ConfigError::invalid(format!("{key}.particles: index {bad} out of range (the scene has {n} particles)")));
+        }
+        let mut v = list.clone();
+        v.sort_unstable();
+        v.dedup();
+        v
+    } else {
+        (0..n as u32).collect()
+    };
+    if out.is_empty() {
+        return Err(ConfigError::invalid(format!("{key}: the region contains no particles")));
+    }
+    Ok(out)
+}
+
+/// The contact pipes of a static network: pairs, overlaps, necks and conductances.
+#[derive(Debug, Clone, Default)]
+pub struct Pipes {
+    pub pairs: Vec<[u32; 2]>,
+    /// Overlap h = r_i + r_j − d [m].
+    pub overlap: Vec<f64>,
+    /// Neck radius a [m].
+    pub neck: Vec<f64>,
+    /// Pipe conductance K_ij [W/K].
+    pub conductance: Vec<f64>,
+    /// Pipes whose a/r_min exceeds 0.7 (the linear law is extrapolated there).
+    pub extrapolated: usize,
+}
+
+/// Pipes from explicit pairs with their branch vectors `d_ij = x_j − x_i` (periodic images allowed).
+pub fn pipes_from_pairs(pairs: Vec<[u32; 2]>, branch: &[Vector3<f64>], p: &Particles, materials: &[Material], law: &Conductance) -> Result<Pipes, ModelError> {
+    let mut out = Pipes { pairs, ..Default::default() };
+    for (k, &[i, j]) in out.pairs.iter().enumerate() {
+        let (i, j) = (i as usize, j as usize);
+        let (ri, rj) = (p.radius[i], p.radius[j]);
+        let h = ri + rj - branch[k].norm();
+        let neck = crate::neck::solve(ri, rj, h).map_err(|e| e.with_context(format!("contact {k} between particles {i} and {j}")))?;
+        let (ki, kj) = (materials[p.material[i] as usize].conductivity, materials[p.material[j] as usize].conductivity);
+        let pipe = law.pipe(ki, kj, ri, rj, neck.a);
+        if neck.a > 0.7 * ri.min(rj) {
+            out.extrapolated += 1;
+        }
+        out.overlap.push(h);
+        out.neck.push(neck.a);
+        out.conductance.push(pipe.pair);
+    }
+    Ok(out)
+}
+
+/// Pipes between all touching particles (no periodicity).
+pub fn pipes(p: &Particles, materials: &[Material], law: &Conductance) -> Result<Pipes, ModelError> {
+    let pairs: Vec<[u32; 2]> = crate::contacts::detect::touching_pairs(&p.position, &p.radius, 0.0).into_iter().map(|(i, j)| [i, j]).collect();
+    let branch: Vec<Vector3<f64>> = pairs.iter().map(|&[i, j]| p.position[j as usize] - p.position[i as usize]).collect();
+    pipes_from_pairs(pairs, &branch, p, materials, law)
+}
