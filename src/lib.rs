@@ -13,12 +13,14 @@
 pub mod config;
 pub mod contacts;
 pub mod error;
+pub mod explicit;
 pub mod heat;
 pub mod io;
 pub mod linsolve;
 pub mod material;
 pub mod models;
 pub mod neck;
+pub mod packing;
 pub mod particles;
 pub mod plot;
 pub mod profile;
