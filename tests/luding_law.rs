@@ -528,3 +528,90 @@ contact_temperature = "harmonic"
     let v: toml::Value = toml::from_str("cooling = \"sometimes\"").unwrap();
     assert!(LudingParams::from_value(v, 1e-3).is_err());
 }
+
+/// Velocity-Verlet of the relative motion of a pair, `m·δ̈ = f_ext − f_n(δ, δ̇)`, contact
+/// temperature `temp` (K), until `t_end` or until the pair separates after contact.
+/// Returns (time, δ, δ̇) samples and the final state.
+fn pair_run(
+    p: &LudingParams,
+    s: &mut LudingState,
+    m: f64,
+    f_ext: f64,
+    delta0: f64,
+    v0: f64,
+    temp: f64,
+    t0: f64,
+    dt: f64,
+    t_end: f64,
+) -> (Vec<(f64, f64, f64)>, f64) {
+    let (mut d, mut v) = (delta0, v0);
+    let mut peak = d;
+    update_stiffness(p, s, temp, t0, 0.0);
+    let mut acc = (f_ext - normal_force(p, s, d, v).total) / m;
+    let mut out = vec![(0.0, d, v)];
+    let n = (t_end / dt).round() as usize;
+    let mut touched = d > 0.0;
+    for i in 1..=n {
+        let vh = v + 0.5 * dt * acc;
+        d += vh * dt;
+        update_stiffness(p, s, temp, t0, dt);
+        acc = (f_ext - normal_force(p, s, d, vh).total) / m;
+        v = vh + 0.5 * dt * acc;
+        touched |= d > 0.0;
+        peak = peak.max(d);
+        if i % 1000 == 0 || (touched && d <= 0.0) {
+            out.push((i as f64 * dt, d, v));
+        }
+        if touched && d <= 0.0 {
+            break;
+        }
+    }
+    (out, peak)
+}
+
+#[test]
+fn cold_collision_restitution_is_sqrt_k1_over_k2() {
+    // Walton–Braun: without cohesion and damping, a head-on collision returns
+    // v_out/v_in = √(k1/k2(δ_max)), δ_max = v_in·√(m_ij/k1).
+    let spec = LudingSpec { kc: 0.0, gamma_n: 0.0, fluid_overlap: 0.01, ..LudingSpec::default() };
+    let p = LudingParams::new(&spec, R0).unwrap();
+    let m = 1e-5;
+    for v_in in [0.3, 1.0, 1.8] {
+        let mut s = LudingState::new(&p, C0 + 20.0);
+        let dt = p.contact_duration(m).unwrap() / 2000.0;
+        let (out, peak) = pair_run(&p, &mut s, m, 0.0, 0.0, v_in, C0 + 20.0, 1e3, dt, 1.0);
+        let (_, d, v_out) = *out.last().unwrap();
+        assert!(d <= 0.0 && v_out < 0.0, "did not separate");
+        let dm = v_in * (m / s.k1_t).sqrt();
+        assert!(rel(peak, dm) < 1e-3, "{peak} vs {dm}");
+        let e = (-v_out) / v_in;
+        let want = (s.k1_t / p.k2_of(peak)).sqrt();
+        assert!(want < 0.95, "k2(δ_max) should differ from k1: {want}");
+        assert!((e - want).abs() < 1e-3, "v_in {v_in}: e = {e} vs {want}");
+    }
+}
+
+#[test]
+fn confined_pair_creeps_along_the_loading_line_as_k1_relaxes() {
+    // A pair pressed by F at 140 °C (t_0 = 0.1 s): k1(T,t) relaxes down, δ_max is pushed along, and
+    // the quasi-static overlap is δ(t) = F/k1(T,t) with k1(T,t) from the closed form of eq. 11.
+    let p = params();
+    let m = 1e-5;
+    let f = 0.1;
+    let t_cold = C0 + 20.0;
+    let t_hot = C0 + 140.0;
+    let mut s = LudingState::new(&p, t_cold);
+    let k1s = s.k1_t;
+    let d0 = f / k1s;
+    normal_force(&p, &mut s, d0, 0.0);
+    let dt = p.contact_duration(m).unwrap() / 50.0;
+    let (out, _) = pair_run(&p, &mut s, m, f, d0, 0.0, t_hot, 0.1, dt, 0.5);
+    let k1_hot = p.k1_of_temperature(t_hot);
+    for &(t, d, _) in out.iter().filter(|x| x.0 >= 0.01) {
+        let k = relax(k1s, k1_hot, 0.1, t);
+        assert!(rel(d, f / k) < 2e-3, "t = {t}: δ = {d} vs F/k1(T,t) = {}", f / k);
+    }
+    let (_, d_end, _) = *out.last().unwrap();
+    assert!(d_end > 40.0 * d0, "the hot contact must creep far: {d_end} vs {d0}");
+    assert!(rel(s.delta_max, d_end) < 1e-3 && !s.is_fluid(&p));
+}
