@@ -83,6 +83,8 @@ enum Command {
         #[arg(long)]
         diameter: Option<f64>,
     },
+    /// Print every numeric case-file key with its allowed range and unit (Markdown).
+    Keys,
     /// Benchmarks (print figures; not tests).
     Bench {
         #[command(subcommand)]
@@ -219,6 +221,10 @@ fn real_main(cli: Cli) -> Result<(), Error> {
             let value = sinterdem::config::load_case(&case.case, &case.set)?;
             let v = sinterdem::heat::conductivity::run_case(value, &base_dir(&case.case))?;
             println!("{}", serde_json::to_string_pretty(&v).unwrap());
+            Ok(())
+        }
+        Command::Keys => {
+            print!("{}", sinterdem::config::ranges::markdown());
             Ok(())
         }
         Command::Bench { which } => match which {
