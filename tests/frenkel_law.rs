@@ -357,3 +357,33 @@ contact_temperature = "arithmetic"
     let e = FrenkelParams::from_value(v).unwrap_err().to_string();
     assert!(e.contains("sinter_tpye") && e.contains("[frenkel]"), "{e}");
 }
+
+
+/// The `{section}` TOML snippets of `{doc}`, each validated.
+fn doc_snippets(doc: &str, section: &str) -> Vec<toml::Value> {
+    let text = std::fs::read_to_string(doc).unwrap();
+    let mut out = Vec::new();
+    let mut rest = text.as_str();
+    while let Some(i) = rest.find("```toml\n") {
+        let body = &rest[i + 8..];
+        let j = body.find("```").unwrap();
+        let t: toml::Table = body[..j].parse().unwrap();
+        if let Some(v) = t.get(section) {
+            out.push(v.clone());
+        }
+        rest = &body[j + 3..];
+    }
+    out
+}
+
+#[test]
+fn docs_snippets_are_valid_sections() {
+    let v = doc_snippets("docs/frenkel.md", "frenkel");
+    assert_eq!(v.len(), 3);
+    let ps: Vec<FrenkelParams> = v.into_iter().map(|x| FrenkelParams::from_value(x).unwrap()).collect();
+    assert!(matches!(ps[0].rate, Rate::Constant(SinterRateSource::Viscous { .. })));
+    assert!(matches!(ps[1].rate, Rate::FrenkelArrhenius { .. }) && ps[1].contact_temperature == MeanTemperature::Harmonic);
+    assert!(matches!(ps[2].rate, Rate::BouvardMcmeeking { .. }));
+    // the first is the free-sintering example of the tests: k_s = 0.01125 1/s for R = 0.1 mm
+    assert!(rel(ps[0].sinter_rate(5e-5, 300.0), 0.01125) < 1e-12);
+}

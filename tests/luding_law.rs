@@ -615,3 +615,29 @@ fn confined_pair_creeps_along_the_loading_line_as_k1_relaxes() {
     assert!(d_end > 40.0 * d0, "the hot contact must creep far: {d_end} vs {d0}");
     assert!(rel(s.delta_max, d_end) < 1e-3 && !s.is_fluid(&p));
 }
+
+
+/// The `{section}` TOML snippets of `{doc}`, each validated.
+fn doc_snippets(doc: &str, section: &str) -> Vec<toml::Value> {
+    let text = std::fs::read_to_string(doc).unwrap();
+    let mut out = Vec::new();
+    let mut rest = text.as_str();
+    while let Some(i) = rest.find("```toml\n") {
+        let body = &rest[i + 8..];
+        let j = body.find("```").unwrap();
+        let t: toml::Table = body[..j].parse().unwrap();
+        if let Some(v) = t.get(section) {
+            out.push(v.clone());
+        }
+        rest = &body[j + 3..];
+    }
+    out
+}
+
+#[test]
+fn docs_snippet_is_a_valid_section_equal_to_the_defaults() {
+    let v = doc_snippets("docs/luding.md", "luding");
+    assert_eq!(v.len(), 1);
+    let p = LudingParams::from_value(v[0].clone(), R0).unwrap();
+    assert_eq!(p, params());
+}
