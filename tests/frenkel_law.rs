@@ -387,3 +387,30 @@ fn docs_snippets_are_valid_sections() {
     // the first is the free-sintering example of the tests: k_s = 0.01125 1/s for R = 0.1 mm
     assert!(rel(ps[0].sinter_rate(5e-5, 300.0), 0.01125) < 1e-12);
 }
+
+#[test]
+fn contact_step_combines_force_friction_and_plastic_update() {
+    use nalgebra::Vector3;
+    let p = FrenkelParams::new(&FrenkelSpec { friction: 0.3, tangential_stiffness: 50.0, tangential_damping: 0.0, ..base() }).unwrap();
+    let r_red = 5e-5;
+    let mut s = FrenkelState::default();
+    let n = Vector3::z();
+    let kin = FrenkelKinematics { normal: n, overlap: 2e-6, overlap_rate: 0.0, surface_velocity: Vector3::new(1e-2, 0.0, 0.0), reduced_radius: r_red };
+    let mut slid = false;
+    for i in 0..200 {
+        let before = s.delta_p;
+        let f = contact_force(&p, &mut s, &kin, 300.0, 1e-5);
+        let limit = 0.3 * f.normal.total.abs();
+        assert!(f.tangential.force.norm() <= limit * (1.0 + 1e-12));
+        assert!(f.tangential.force.dot(&n).abs() < 1e-18);
+        slid |= f.tangential.sliding;
+        // δ_p advanced by the step's rate (2F k_s/s_a) after the force
+        // (from the second step on: the first also applies the loading rule at fixed δ)
+        assert!(i == 0 || rel(s.delta_p - before, f.plastic_rate * 1e-5) < 1e-9, "step {i}");
+        assert!(rel(f.plastic_rate, 2.0 * f.normal.force * 0.01 / 0.01) < 1e-12);
+    }
+    assert!(slid, "a steady shear must reach the Coulomb limit");
+    // the neck outputs
+    assert!(rel(mercury_neck_radius(r_red, 1e-6), (2.0 * r_red * 1e-6f64).sqrt()) < 1e-15);
+    assert!(neck_radius(1e-4, 1e-4, 0.5e-4).is_ok() && neck_radius(1e-4, 1e-4, 0.7e-4).is_err(), "beyond h_max the neck is a ModelError");
+}

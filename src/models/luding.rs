@@ -587,6 +587,15 @@ mod tests {
     }
 
     #[test]
+    fn cohesive_root_puts_delta_min_at_delta() {
+        let p = LudingParams::new(&LudingSpec::default(), 1e-3).unwrap();
+        for &(k1t, d) in &[(1e5, 1e-7), (0.4e5, 3e-6), (0.9e5, 1e-4), (1e5, 5e-4)] {
+            let dm = cohesive_delta_max(&p, k1t, d);
+            assert!((p.delta_min(k1t, dm) - d).abs() <= 1e-10 * d, "{k1t} {d}: {}", p.delta_min(k1t, dm));
+        }
+    }
+
+    #[test]
     fn cooling_root_satisfies_its_equation() {
         let p = LudingParams::new(&LudingSpec::default(), 1e-3).unwrap();
         for &(k1t, d0) in &[(1e5, 1e-6), (0.7e5, 3e-5), (0.99e5, 1.5e-4)] {
