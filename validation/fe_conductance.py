@@ -33,6 +33,7 @@ Usage:
   python validation/fe_conductance.py --full     # regenerate table, csv, png, vtu
   python validation/fe_conductance.py --pair     # unequal pair only
   python validation/fe_conductance.py --row 0.3  # one row, all levels
+  python validation/fe_conductance.py --refit    # fe_fit + plot from the stored table
 """
 from __future__ import annotations
 
@@ -381,26 +382,36 @@ def converge_row(x: float, levels=LEVELS_FULL, mp=None, verbose=True):
 
 
 # --------------------------------------------------------------------------
-# fe_fit: f(x) = K_i/(kappa pi a), 1/f = pi/4 + p1 x + p2 x^2 + p3 x^3
+# fe_fit:  f(x) = K_i/(kappa pi a) = 1 / D(x),  x = a/r,
+#   D(x) = pi/4 + p1 x + p2 x ln x + p3 x^2 + p4 x (1 - sqrt(1 - x^2)),
+#   p4 = 2/3 - pi/4 - p1 - p3,
+# so that f(0+) = 4/pi (Holm constriction limit) and f(1) = 3/2 (at a = r
+# the half geometry is a cylinder of radius r and length 2r/3).  The x ln x
+# term carries the slow approach to the Holm limit (thin neck), the
+# sqrt(1 - x^2) term the shrinking sphere segment.
 # --------------------------------------------------------------------------
-def fit_fe_law(x: np.ndarray, f: np.ndarray, ncoef: int = 3):
-    """Least-squares fit (relative) of 1/f = pi/4 + sum_k p_k x^k, k=1..ncoef."""
-    V = np.stack([x ** k for k in range(1, ncoef + 1)], axis=1)
-    y = 1.0 / f - math.pi / 4
-    w = f                                   # relative error in f ~ f * err(1/f)
-    coef, *_ = np.linalg.lstsq(V * w[:, None], y * w, rcond=None)
-    # refine to minimise the maximum relative error (a few IRLS sweeps)
-    for _ in range(50):
-        r = np.abs(fe_fit_eval(x, coef) / f - 1)
-        ww = w * (1 + 50 * r / r.max())
-        coef, *_ = np.linalg.lstsq(V * ww[:, None], y * ww, rcond=None)
-    return coef
+def fe_fit_D(x, coef):
+    p1, p2, p3 = coef
+    p4 = 2.0 / 3.0 - math.pi / 4 - p1 - p3
+    x = np.asarray(x, dtype=float)
+    return (math.pi / 4 + p1 * x + p2 * x * np.log(x) + p3 * x * x
+            + p4 * x * (1.0 - np.sqrt(1.0 - x * x)))
 
 
 def fe_fit_eval(x, coef):
-    x = np.asarray(x, dtype=float)
-    inv = math.pi / 4 + sum(c * x ** (k + 1) for k, c in enumerate(coef))
-    return 1.0 / inv
+    """Python twin of src/heat/fe_fit.rs::fe_fit_factor, for 0 < x <= 1."""
+    return 1.0 / fe_fit_D(x, coef)
+
+
+def fit_fe_law(x: np.ndarray, f: np.ndarray):
+    """Minimax (relative) fit of p1..p3 to the converged table."""
+    from scipy.optimize import minimize
+    obj = lambda c: float(np.max(np.abs(fe_fit_eval(x, c) / f - 1)))  # noqa: E731
+    c = np.array([0.25, -0.3, -0.2])
+    opts = dict(maxiter=60000, xatol=1e-13, fatol=1e-15)
+    for _ in range(6):
+        c = minimize(obj, c, method="Nelder-Mead", options=opts).x
+    return c
 
 
 # --------------------------------------------------------------------------
@@ -484,7 +495,7 @@ def plot(rows, coef, pair=None, path=os.path.join(DATA, "conductance_half.png"))
     import matplotlib.pyplot as plt
     x = np.array([r["x"] for r in rows])
     k = np.array([r["kx"] for r in rows])
-    xs = np.linspace(0.0, 0.85, 200)
+    xs = np.linspace(1e-4, 0.85, 200)
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4.2))
     ax1.plot(x, k, "o", label="FE (converged)")
     ax1.plot(xs, SLOPE_PAPER * xs, "-", label="Rojek eq. 40: 1.064 a/r")
@@ -562,6 +573,7 @@ def main(argv=None):
     ap.add_argument("--pair", action="store_true", help="unequal pair only")
     ap.add_argument("--row", type=float, help="one a/r value, all levels")
     ap.add_argument("--levels", type=int, nargs="+", default=list(LEVELS_FULL))
+    ap.add_argument("--refit", action="store_true", help="fit + plot from the stored table")
     ap.add_argument("--jobs", type=int, default=2, help="worker processes for --full")
     args = ap.parse_args(argv)
     mp = MeshParams()
@@ -580,6 +592,10 @@ def main(argv=None):
               f"diff {100*(kx/PAIR_K_LINEAR-1):+.3f} %")
         if levels == LEVELS_FULL:
             write_pair_csv(ks, kx, p, levels, mp)
+    if args.refit:
+        rows = [dict(x=r["a_over_r"], kx=r["K_over_Kcyl_converged"]) for r in read_table()]
+        refit_and_plot(rows)
+        return
     if not args.full:
         return
     from concurrent.futures import ProcessPoolExecutor
@@ -594,18 +610,23 @@ def main(argv=None):
         M = build_mesh(blocks, 1.0)
         r["n"] = M.doflocs.shape[1]
     write_csv(rows, mp, levels)
+    refit_and_plot(rows)
+    print("wrote", write_vtu(0.3, 0)[0])
+
+
+def refit_and_plot(rows):
     x = np.array([r["x"] for r in rows])
     f = np.array([r["kx"] for r in rows]) / x
     coef = fit_fe_law(x, f)
     dev = fe_fit_eval(x, coef) / f - 1
-    print("fe_fit coefficients p1..p3:", ", ".join(f"{c:.6f}" for c in coef),
-          f"max |dev| = {100*np.abs(dev).max():.3f} %")
+    print("fe_fit coefficients p1..p3:", ", ".join(f"{c:.10f}" for c in coef),
+          f"p4 = {2/3 - math.pi/4 - coef[0] - coef[2]:.10f}",
+          f"max |dev| = {100*np.abs(dev).max():.4f} %")
     sel = x <= 0.7 + 1e-9
     k = f * x
     c = float((x[sel] @ k[sel]) / (x[sel] @ x[sel]))
     print(f"least-squares slope over a/r <= 0.7: c = {c:.5f} (paper 1.064, diff {100*(c/1.064-1):+.2f} %)")
     print("wrote", plot(rows, coef))
-    print("wrote", write_vtu(0.3, 1)[0])
 
 
 if __name__ == "__main__":

@@ -85,7 +85,7 @@ def test_table_rows_recomputed(table, x):
     within 2e-5 of it everywhere in the stored table)."""
     r = table[x]
     k1 = fc.k_half(x, 1)
-    assert k1 == pytest.approx(r["K_level1"], rel=1e-9)
+    assert k1 == pytest.approx(r["K_level1"], rel=2e-8)   # 9 decimals stored
     assert k1 == pytest.approx(r["K_over_Kcyl_converged"], rel=2e-5)
     assert k1 >= r["K_over_Kcyl_converged"]    # Galerkin energy bound from above
 
@@ -118,12 +118,16 @@ def test_linear_slope_reproduces_paper(table):
 
 
 def test_small_neck_tends_to_holm_limit(table):
-    """K_i/(kappa pi a) rises towards 4/pi as a/r -> 0: linear extrapolation of
-    1/f from the three smallest necks hits pi/4 within 1 %."""
-    xs = sorted(table)[:3]
-    inv = [1 / table[x]["f_converged"] for x in xs]
-    slope, icpt = np.polyfit(xs, inv, 1)
-    assert icpt == pytest.approx(math.pi / 4, rel=0.01)
+    """K_i/(kappa pi a) rises towards 4/pi as a/r -> 0, slowly: 1/f has an
+    x ln x term (thin neck, H/a = a/4r).  A free least-squares fit
+    1/f = c0 + c1 x + c2 x ln x to the four smallest necks (a/r <= 0.125)
+    gives c0 = 0.7842, pi/4 within 0.2 % (a straight line through 1/f would
+    miss it by 3 %)."""
+    xs = np.array(sorted(table)[:4])
+    inv = np.array([1 / table[x]["f_converged"] for x in xs])
+    V = np.stack([np.ones_like(xs), xs, xs * np.log(xs)], axis=1)
+    c0 = np.linalg.lstsq(V, inv, rcond=None)[0][0]
+    assert c0 == pytest.approx(math.pi / 4, rel=0.005)
     assert table[0.05]["f_converged"] > 1.064
 
 
@@ -133,7 +137,7 @@ def test_unequal_pair_against_paper():
     kx, p = fc.richardson(ks)
     stored = fc.read_pair_csv()
     assert kx == pytest.approx(stored["K_pair_converged"], rel=2e-6)
-    assert ks[-1] == pytest.approx(stored["K_pair_level2"], rel=1e-9)
+    assert ks[-1] == pytest.approx(stored["K_pair_level2"], rel=1e-8)
     # Paper FE 0.278033 W/K: our converged value is 0.41 % higher (our
     # discretisation error < 1e-5); 0.5 % is the tolerance we can defend
     # against a published value without a stated error bar.
