@@ -182,8 +182,11 @@ pub struct ParticlesSpec {
     /// Overlap h relative to the smaller radius [1] (lattice nearest neighbours, pair).
     #[serde(default)]
     pub overlap: f64,
-    /// Packing file (CSV x,y,z,r[,material][,temperature]) relative to the case file.
+    /// Packing file relative to the case file: CSV `x,y,z,r[,material][,temperature]` (material
+    /// = 0-based index into `[[materials]]`), a LIGGGHTS/LAMMPS dump, or a Yade text export.
     pub file: Option<String>,
+    /// Format of `file`: "csv", "liggghts" or "yade" (default: from the extension).
+    pub format: Option<String>,
     /// Material name for every particle (default: the first material).
     pub material: Option<String>,
     /// Initial temperature [K] (default 293.15).

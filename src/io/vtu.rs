@@ -11,7 +11,11 @@ const VTK_VERTEX: u8 = 1;
 const VTK_LINE: u8 = 3;
 
 fn data_array(out: &mut String, name: &str, comps: usize, values: impl Iterator<Item = f64>) {
-    let _ = write!(out, "<DataArray type=\"Float64\" Name=\"{name}\" NumberOfComponents=\"{comps}\" format=\"ascii\">\n");
+    if comps > 1 {
+        let _ = write!(out, "<DataArray type=\"Float64\" Name=\"{name}\" NumberOfComponents=\"{comps}\" format=\"ascii\">\n");
+    } else {
+        let _ = write!(out, "<DataArray type=\"Float64\" Name=\"{name}\" format=\"ascii\">\n");
+    }
     for (k, v) in values.enumerate() {
         let _ = write!(out, "{v:e}");
         out.push(if (k + 1) % 9 == 0 { '\n' } else { ' ' });
