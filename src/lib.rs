@@ -18,6 +18,7 @@ pub mod heat;
 pub mod io;
 pub mod linsolve;
 pub mod material;
+pub mod mechanics;
 pub mod models;
 pub mod neck;
 pub mod packing;

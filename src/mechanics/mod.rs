@@ -1,0 +1,406 @@
+//! Bonded quasi-static mechanics (bonded-mechanics.md; Ivannikov et al. 2022 §2.3–2.4, §3.3).
+//!
+//! Every particle is a node with 6 DOF (displacement, small rotation); every contact a bonded link
+//! ([`bond`]). Each step solves the **increment** `K·Δy = ΔF` caused by the step's sintering-load
+//! increments `ΔF = (π/2)·E·R_m·(Δy4 + Δy7)` (F5) along the contacts' e3, with rotations scaled by
+//! the mean radius, rattlers left out and rigid modes held by plane constraints or pins
+//! ([`constraints`]), by Newton iteration on a sparse Cholesky or block-Jacobi PCG ([`solve`],
+//! [`cg`]). It returns the displacement and rotation increments and, per contact, the axial
+//! approach `ξ = (Δu_A − Δu_B)·e3` (C1) for the y4/y7 correction of `seven-dof-model.md` §9.
+//!
+//! ```text
+//! let mut sys = BondedSystem::new(n, MechParams { young_modulus, poisson_ratio, ..Default::default() },
+//!                                 Constraints::principal_planes(&pos, &r0, 0.01)?)?;
+//! sys.set_topology(&pairs)?;                    // whenever contacts appear
+//! let out = sys.step(&StepInput { positions: &pos, radii: &r0, y4_y7: &y, load: &df, external: None })?;
+//! // out.du, out.dtheta per particle; out.xi per contact → correct_y4_y7(.., out.xi[c], ..)
+//! ```
+//!
+//! Modules: [`bond`] element, [`assembly`] block assembly, [`constraints`] rattlers/planes/pins,
+//! [`solve`] parameters, Newton report, solver choice, [`cg`] PCG, [`bench`] the benchmark.
+
+pub mod assembly;
+pub mod bench;
+pub mod bond;
+pub mod cg;
+pub mod constraints;
+pub mod solve;
+
+pub use bond::{element_matrix, frame, h_matrix, kinematics, link_stiffness, skew, BondGeometry};
+pub use constraints::{dof, Constraints, TopologyReport};
+pub use solve::{LinearSolver, MechInfo, MechParams, SolverUsed, PCG_ABOVE_EQUATIONS};
+
+use crate::error::{ConfigError, Error, ModelError, SolveError};
+use crate::linsolve::{SpdFactor, SpdPattern};
+use assembly::{BlockMatrix, Incidence};
+use nalgebra::Vector3;
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// An external force [N] and moment [N·m] on a particle (tests, gravity, a press; the sintering
+/// loads come per contact through [`StepInput::load`]).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct NodalLoad {
+    pub force: Vector3<f64>,
+    pub moment: Vector3<f64>,
+}
+
+/// The data of one mechanical step.
+#[derive(Debug, Clone, Copy)]
+pub struct StepInput<'a> {
+    /// Current centre positions at the start of the step [m] (one per particle).
+    pub positions: &'a [Vector3<f64>],
+    /// Initial radii [m] (R_m of (F3) per contact, and the rotation scale r̄ = their mean).
+    pub radii: &'a [f64],
+    /// Current corrected `[y4, y7]` per contact, in the order of [`BondedSystem::set_topology`] [m].
+    pub y4_y7: &'a [[f64; 2]],
+    /// Load increment ΔF (F5) per contact [N], > 0 pulls the centres together.
+    pub load: &'a [f64],
+    /// Optional external load increments per particle.
+    pub external: Option<&'a [NodalLoad]>,
+}
+
+/// The result of one step.
+#[derive(Debug, Clone, Default)]
+pub struct MechStep {
+    /// Displacement increment per particle [m] (zero for rattlers and fixed DOF).
+    pub du: Vec<Vector3<f64>>,
+    /// Rotation increment (small-rotation vector) per particle [rad].
+    pub dtheta: Vec<Vector3<f64>>,
+    /// Axial approach `ξ = (Δu_A − Δu_B)·e3` per contact (C1) [m], > 0: closer. Equal to the
+    /// axial component of the relative displacement of the two bond points (the rotation terms of
+    /// ε are normal to e3).
+    pub xi: Vec<f64>,
+    /// The step's frame axis e3 per contact (unit, A → B).
+    pub e3: Vec<Vector3<f64>>,
+    /// Solver report.
+    pub info: MechInfo,
+}
+
+impl MechStep {
+    /// Adds the increments to positions [m] and accumulated rotations [rad].
+    pub fn apply(&self, positions: &mut [Vector3<f64>], rotations: &mut [Vector3<f64>]) {
+        for (x, d) in positions.iter_mut().zip(&self.du) {
+            *x += d;
+        }
+        for (t, d) in rotations.iter_mut().zip(&self.dtheta) {
+            *t += d;
+        }
+    }
+}
+
+/// The bonded packing: topology, constraints, reusable pattern and factor.
+pub struct BondedSystem {
+    n: usize,
+    params: MechParams,
+    constraints: Constraints,
+    pairs: Vec<[u32; 2]>,
+    inc: Incidence,
+    report: Option<TopologyReport>,
+    pattern: Option<SpdPattern>,
+    factor: Option<SpdFactor>,
+}
+
+impl BondedSystem {
+    /// A system of `n_particles` without bonds.
+    pub fn new(n_particles: usize, params: MechParams, constraints: Constraints) -> Result<Self, Error> {
+        params.validate()?;
+        if constraints.fixed.len() != n_particles {
+            return Err(ConfigError::invalid(format!(
+                "mechanics: constraints for {} particles, system has {n_particles}",
+                constraints.fixed.len()
+            ))
+            .into());
+        }
+        Ok(BondedSystem {
+            n: n_particles,
+            params,
+            constraints,
+            pairs: Vec::new(),
+            inc: Incidence::new(n_particles, &[]),
+            report: None,
+            pattern: None,
+            factor: None,
+        })
+    }
+
+    /// Number of particles.
+    pub fn len(&self) -> usize {
+        self.n
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.n == 0
+    }
+
+    /// The solver parameters.
+    pub fn params(&self) -> &MechParams {
+        &self.params
+    }
+
+    /// The bonds, in contact order.
+    pub fn pairs(&self) -> &[[u32; 2]] {
+        &self.pairs
+    }
+
+    /// Replaces the bond list (`[A, B]` per contact, A ≠ B, no pair twice). The next step redoes the
+    /// topology analysis, the sparsity pattern and the symbolic factorisation.
+    pub fn set_topology(&mut self, pairs: &[[u32; 2]]) -> Result<(), Error> {
+        let mut seen: Vec<(u32, u32)> = Vec::with_capacity(pairs.len());
+        for (c, &[a, b]) in pairs.iter().enumerate() {
+            if a as usize >= self.n || b as usize >= self.n {
+                return Err(ConfigError::invalid(format!("mechanics: contact {c} joins particles ({a}, {b}), but there are {} particles", self.n)).into());
+            }
+            if a == b {
+                return Err(ConfigError::invalid(format!("mechanics: contact {c} joins particle {a} to itself")).into());
+            }
+            seen.push((a.min(b), a.max(b)));
+        }
+        seen.sort_unstable();
+        if let Some(w) = seen.windows(2).find(|w| w[0] == w[1]) {
+            return Err(ConfigError::invalid(format!("mechanics: particles ({}, {}) are bonded twice", w[0].0, w[0].1)).into());
+        }
+        self.pairs = pairs.to_vec();
+        self.inc = Incidence::new(self.n, pairs);
+        self.report = None;
+        self.pattern = None;
+        self.factor = None;
+        Ok(())
+    }
+
+    /// Replaces the constraints (same length); the next step redoes the topology analysis.
+    pub fn set_constraints(&mut self, constraints: Constraints) -> Result<(), Error> {
+        if constraints.fixed.len() != self.n {
+            return Err(ConfigError::invalid(format!("mechanics: constraints for {} particles, system has {}", constraints.fixed.len(), self.n)).into());
+        }
+        self.constraints = constraints;
+        self.report = None;
+        self.pattern = None;
+        self.factor = None;
+        Ok(())
+    }
+
+    /// The topology analysis of the last step (rattlers, pins, equations), if any.
+    pub fn report(&self) -> Option<&TopologyReport> {
+        self.report.as_ref()
+    }
+
+    fn check_input(&self, inp: &StepInput) -> Result<(), Error> {
+        let (n, m) = (self.n, self.pairs.len());
+        let lens = [("positions", inp.positions.len(), n), ("radii", inp.radii.len(), n), ("y4_y7", inp.y4_y7.len(), m), ("load", inp.load.len(), m)];
+        for (what, got, want) in lens {
+            if got != want {
+                return Err(ConfigError::invalid(format!("mechanics step: {got} {what} given, {want} expected")).into());
+            }
+        }
+        if let Some(e) = inp.external {
+            if e.len() != n {
+                return Err(ConfigError::invalid(format!("mechanics step: {} external loads given, {n} expected", e.len())).into());
+            }
+            if let Some(i) = e.iter().position(|l| !(l.force.iter().chain(l.moment.iter()).all(|v| v.is_finite()))) {
+                return Err(ModelError::new(format!("mechanics step: external load on particle {i} is not finite")).into());
+            }
+        }
+        if let Some(i) = inp.positions.iter().position(|x| !x.iter().all(|v| v.is_finite())) {
+            return Err(ModelError::new(format!("mechanics step: position of particle {i} is not finite")).into());
+        }
+        if let Some(i) = inp.radii.iter().position(|r| !(r.is_finite() && *r > 0.0)) {
+            return Err(ModelError::new(format!("mechanics step: radius of particle {i} = {} m is not positive and finite", inp.radii[i])).into());
+        }
+        if let Some(c) = inp.load.iter().position(|f| !f.is_finite()) {
+            return Err(ModelError::new(format!("mechanics step: load increment of contact {c} is {}", inp.load[c])).into());
+        }
+        Ok(())
+    }
+
+    /// One quasi-static step: assembles the links at the current geometry, applies the load
+    /// increments, solves for the increments by Newton with the scaled residual check and returns
+    /// them with ξ per contact. Positions are not changed (see [`MechStep::apply`]).
+    pub fn step(&mut self, inp: &StepInput) -> Result<MechStep, Error> {
+        let t_start = Instant::now();
+        self.check_input(inp)?;
+        let n = self.n;
+        let mut info = MechInfo { bonds: self.pairs.len(), ..Default::default() };
+
+        // topology analysis (once per topology)
+        if self.report.is_none() {
+            let t0 = Instant::now();
+            self.report = Some(constraints::analyse(n, &self.pairs, inp.positions, &self.constraints)?);
+            info.topology_rebuilt = true;
+            info.analysis_seconds = t0.elapsed().as_secs_f64();
+        }
+        let Some(rep) = self.report.as_ref() else { unreachable!() };
+        info.equations = rep.n_eq;
+        info.components = rep.components;
+        info.rattlers = rep.rattlers.len();
+        info.pinned = rep.pinned.len();
+
+        // geometry, link stiffness, assembly, loads
+        let t0 = Instant::now();
+        let r_scale = inp.radii.iter().sum::<f64>() / n.max(1) as f64;
+        let (e, nu) = (self.params.young_modulus, self.params.poisson_ratio);
+        let geom: Result<Vec<BondGeometry>, Error> = self
+            .pairs
+            .par_iter()
+            .zip(inp.y4_y7.par_iter())
+            .enumerate()
+            .map(|(c, (&[a, b], &[y4, y7]))| {
+                BondGeometry::new(&inp.positions[a as usize], &inp.positions[b as usize], y4, y7)
+                    .map_err(|err| Error::from(err.with_context(format!("contact {c} between particles {a} and {b}"))))
+            })
+            .collect();
+        let geom = geom?;
+        let k: Vec<[f64; 6]> =
+            self.pairs.iter().map(|&[a, b]| link_stiffness(e, nu, 0.5 * (inp.radii[a as usize] + inp.radii[b as usize]))).collect();
+        let blocks = BlockMatrix::assemble(n, &self.pairs, &self.inc, &geom, &k, r_scale);
+        let mut rhs = vec![0.0; 6 * n];
+        rhs.par_chunks_mut(6).enumerate().for_each(|(i, f)| {
+            let mut force = Vector3::zeros();
+            for &(c, side) in &self.inc.bonds[self.inc.start[i] as usize..self.inc.start[i + 1] as usize] {
+                let g = geom[c as usize].e3 * inp.load[c as usize];
+                if side == 0 { force += g } else { force -= g }
+            }
+            let mut moment = Vector3::zeros();
+            if let Some(ext) = inp.external {
+                force += ext[i].force;
+                moment += ext[i].moment / r_scale;
+            }
+            let m = rep.fixed[i];
+            for k in 0..3 {
+                f[k] = if m & (1 << k) != 0 { 0.0 } else { force[k] };
+                f[3 + k] = if m & (8 << k) != 0 { 0.0 } else { moment[k] };
+            }
+        });
+        info.assemble_seconds = t0.elapsed().as_secs_f64();
+
+        let b_norm = cg::dot(&rhs, &rhs).sqrt();
+        let mut x = vec![0.0; 6 * n];
+        if b_norm > 0.0 && rep.n_eq > 0 {
+            let use_pcg = match self.params.solver {
+                LinearSolver::Pcg => true,
+                LinearSolver::Cholesky => false,
+                LinearSolver::Auto => rep.n_eq > PCG_ABOVE_EQUATIONS,
+            };
+            if use_pcg {
+                self.newton_pcg(&blocks, &rhs, b_norm, &mut x, &mut info)?;
+            } else {
+                self.newton_cholesky(&blocks, &rhs, b_norm, &mut x, &mut info)?;
+            }
+        }
+
+        let du: Vec<Vector3<f64>> = x.chunks(6).map(|c| Vector3::new(c[0], c[1], c[2])).collect();
+        let dtheta: Vec<Vector3<f64>> = x.chunks(6).map(|c| Vector3::new(c[3], c[4], c[5]) / r_scale).collect();
+        let xi: Vec<f64> = self.pairs.iter().zip(&geom).map(|(&[a, b], g)| (du[a as usize] - du[b as usize]).dot(&g.e3)).collect();
+        if let Some(c) = xi.iter().position(|v| !v.is_finite()) {
+            return Err(SolveError::new("mechanics", format!("non-finite approach at contact {c}")).into());
+        }
+        info.total_seconds = t_start.elapsed().as_secs_f64();
+        Ok(MechStep { du, dtheta, xi, e3: geom.iter().map(|g| g.e3).collect(), info })
+    }
+
+    /// Scaled residual `r = b − K x` (full vectors) and its relative norm.
+    fn residual(&self, blocks: &BlockMatrix, fixed: &[u8], b: &[f64], b_norm: f64, x: &[f64], r: &mut [f64]) -> f64 {
+        blocks.matvec(&self.pairs, &self.inc, fixed, x, r);
+        r.par_iter_mut().zip(b.par_iter()).for_each(|(ri, bi)| *ri = bi - *ri);
+        cg::dot(r, r).sqrt() / b_norm
+    }
+
+    fn newton_cholesky(&mut self, blocks: &BlockMatrix, b: &[f64], b_norm: f64, x: &mut [f64], info: &mut MechInfo) -> Result<(), Error> {
+        info.solver = SolverUsed::Cholesky;
+        let Some(rep) = self.report.as_ref() else { unreachable!() };
+        crate::linsolve::set_parallelism_for(rep.n_eq);
+        if self.pattern.is_none() {
+            let mut entries = Vec::new();
+            blocks.for_each_lower(&self.pairs, rep, |r, c, _| entries.push((r, c)));
+            let p = SpdPattern::new(rep.n_eq, &entries)?;
+            info.symbolic_seconds = p.symbolic_seconds;
+            self.pattern = Some(p);
+            self.factor = None;
+        }
+        let t0 = Instant::now();
+        let mut values = Vec::new();
+        blocks.for_each_lower(&self.pairs, rep, |_, _, v| values.push(v));
+        info.assemble_seconds += t0.elapsed().as_secs_f64();
+        let Some(pattern) = self.pattern.as_ref() else { unreachable!() };
+        if !self.params.reuse_factor || self.factor.is_none() {
+            let f = pattern.factorize(&values)?;
+            info.factor_seconds += f.factor_seconds;
+            info.factorizations += 1;
+            self.factor = Some(f);
+        }
+        let mut r = b.to_vec();
+        let mut rel = 1.0;
+        let mut red = vec![0.0; rep.n_eq];
+        let mut fresh = info.factorizations > 0;
+        while info.newton_iterations < self.params.max_newton {
+            let Some(factor) = self.factor.as_ref() else { unreachable!() };
+            for (d, &e) in rep.eq.iter().enumerate() {
+                if e != u32::MAX {
+                    red[e as usize] = r[d];
+                }
+            }
+            let t1 = Instant::now();
+            factor.solve_in_place(pattern, &mut red)?;
+            info.solve_seconds += t1.elapsed().as_secs_f64();
+            for (d, &e) in rep.eq.iter().enumerate() {
+                if e != u32::MAX {
+                    x[d] += red[e as usize];
+                }
+            }
+            info.newton_iterations += 1;
+            let new_rel = self.residual(blocks, &rep.fixed, b, b_norm, x, &mut r);
+            info.residuals.push(new_rel);
+            if !new_rel.is_finite() {
+                return Err(not_finite(info).into());
+            }
+            if new_rel <= self.params.rtol {
+                return Ok(());
+            }
+            // a stale factor that converges slowly (or diverges) is replaced by a fresh one
+            if !fresh && new_rel > 0.1 * rel {
+                let f = pattern.factorize(&values)?;
+                info.factor_seconds += f.factor_seconds;
+                info.factorizations += 1;
+                self.factor = Some(f);
+                fresh = true;
+            }
+            rel = new_rel;
+        }
+        Err(solve::not_converged(info, self.params.rtol, "Cholesky").into())
+    }
+
+    fn newton_pcg(&mut self, blocks: &BlockMatrix, b: &[f64], b_norm: f64, x: &mut [f64], info: &mut MechInfo) -> Result<(), Error> {
+        info.solver = SolverUsed::Pcg;
+        let Some(rep) = self.report.as_ref() else { unreachable!() };
+        let t0 = Instant::now();
+        let prec = cg::BlockJacobi::new(&blocks.diag, &rep.fixed)?;
+        info.factor_seconds += t0.elapsed().as_secs_f64();
+        let mut r = b.to_vec();
+        let mut rel = 1.0f64;
+        let mut dx = vec![0.0; x.len()];
+        while info.newton_iterations < self.params.max_newton {
+            // inner tolerance so that the outer residual lands below rtol·‖b‖ with a margin
+            let inner = (0.5 * self.params.rtol / rel).min(0.1);
+            dx.iter_mut().for_each(|v| *v = 0.0);
+            let t1 = Instant::now();
+            let pi = cg::pcg(|v, out| blocks.matvec(&self.pairs, &self.inc, &rep.fixed, v, out), &prec, &r, &mut dx, inner, self.params.pcg_max_iter)?;
+            info.solve_seconds += t1.elapsed().as_secs_f64();
+            info.pcg_iterations += pi.iterations;
+            x.par_iter_mut().zip(dx.par_iter()).for_each(|(xi, d)| *xi += d);
+            info.newton_iterations += 1;
+            rel = self.residual(blocks, &rep.fixed, b, b_norm, x, &mut r);
+            info.residuals.push(rel);
+            if !rel.is_finite() {
+                return Err(not_finite(info).into());
+            }
+            if rel <= self.params.rtol {
+                return Ok(());
+            }
+        }
+        Err(solve::not_converged(info, self.params.rtol, "PCG").into())
+    }
+}
+
+fn not_finite(info: &MechInfo) -> SolveError {
+    SolveError { stage: "mechanics Newton".into(), message: "non-finite residual (singular or ill-posed stiffness)".into(), residuals: info.residuals.clone() }
+}
