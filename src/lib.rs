@@ -25,6 +25,7 @@ pub mod packing;
 pub mod particles;
 pub mod plot;
 pub mod profile;
+pub mod scheduler;
 pub mod scene;
 pub mod units;
 

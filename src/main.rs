@@ -45,6 +45,14 @@ enum Command {
         #[arg(long)]
         quiet: bool,
     },
+    /// Continue an interrupted compact run from DIR/checkpoint.json.
+    Resume {
+        /// The run's output directory.
+        dir: PathBuf,
+        /// No progress bar.
+        #[arg(long)]
+        quiet: bool,
+    },
     /// Validate a case file only (parse, ranges, scene construction).
     Check {
         #[command(flatten)]
@@ -151,7 +159,7 @@ fn base_dir(case: &Path) -> PathBuf {
 }
 
 fn unknown_kind(kind: &str) -> Error {
-    sinterdem::ConfigError::invalid(format!("kind = \"{kind}\": expected heat, pair or generate")).into()
+    sinterdem::ConfigError::invalid(format!("kind = \"{kind}\": expected heat, compact, pair or generate")).into()
 }
 
 fn main() -> ExitCode {
@@ -195,12 +203,32 @@ fn real_main(cli: Cli) -> Result<(), Error> {
                     let s = sinterdem::packing::generate_case(&value, &out, !quiet)?;
                     log(&format!("done: {s:?}"));
                 }
+                "compact" => {
+                    let sim = sinterdem::scheduler::prepare(value, &base_dir(&case.case), &mut log)?;
+                    sinterdem::scheduler::run(sim, &out, !quiet, &mut log)?;
+                }
                 "pair" => {
                     let s = sinterdem::models::diffusion7::pair::run_pair_case(&value, &out, !quiet)?;
                     log(&format!("done: {s:?}"));
                 }
                 k => return Err(unknown_kind(k)),
             }
+            Ok(())
+        }
+        Command::Resume { dir, quiet } => {
+            let mut log = log_to(None);
+            let mut file_log = {
+                let path = dir.join("log.txt");
+                let mut f = std::fs::OpenOptions::new().append(true).create(true).open(&path).ok();
+                move |msg: &str| {
+                    log(msg);
+                    if let Some(f) = f.as_mut() {
+                        use std::io::Write;
+                        let _ = writeln!(f, "{msg}");
+                    }
+                }
+            };
+            sinterdem::scheduler::resume(&dir, !quiet, &mut file_log)?;
             Ok(())
         }
         Command::Check { case } => {
@@ -214,6 +242,10 @@ fn real_main(cli: Cli) -> Result<(), Error> {
                         prep.scene.particles.len(),
                         prep.pipes.pairs.len()
                     );
+                }
+                "compact" => {
+                    let sim = sinterdem::scheduler::prepare(value, &base_dir(&case.case), &mut |_| {})?;
+                    println!("{}: ok (compact case, {} particles, {} contacts)", case.case.display(), sim.prep.scene.particles.len(), sim.contacts.len());
                 }
                 "generate" => {
                     sinterdem::packing::check_generate_case(&value)?;

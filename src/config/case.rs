@@ -46,6 +46,10 @@ pub struct ContactsSpec {
     /// Search every this many steps (default 1).
     #[serde(default = "one")]
     pub detect_every: f64,
+    /// Pairs whose surface gap is below this fraction of the mean radius count as touching
+    /// (green packings are stress-free, so most neighbours are at a tiny gap) [1] (default 1e-3).
+    #[serde(default = "gap")]
+    pub gap_tolerance: f64,
     /// Initial neck excess ε of (I2) [1] (default 0.01).
     #[serde(default = "eps")]
     pub epsilon: f64,
@@ -60,10 +64,13 @@ pub struct ContactsSpec {
 
 impl Default for ContactsSpec {
     fn default() -> Self {
-        ContactsSpec { detect_new: true, detect_every: 1.0, epsilon: eps(), eta: eta(), neck: vc() }
+        ContactsSpec { detect_new: true, detect_every: 1.0, gap_tolerance: gap(), epsilon: eps(), eta: eta(), neck: vc() }
     }
 }
 
+fn gap() -> f64 {
+    1e-3
+}
 fn eps() -> f64 {
     0.01
 }

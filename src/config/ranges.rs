@@ -86,6 +86,7 @@ pub static TABLE: &[Range] = &[
     c("output.conductivity_at.*", 0.0, 1e9, "s", "times of the effective-conductivity analyses of a compact run"),
     // contacts and mechanics of compact runs
     c("contacts.detect_every", 1.0, 1e9, "1", "neighbour search every this many steps"),
+    c("contacts.gap_tolerance", 0.0, 0.1, "1", "surface gap, relative to the mean radius, below which a pair counts as touching"),
     c("contacts.epsilon", 1e-4, 0.1, "1", "initial neck excess epsilon of a new contact (I2)"),
     o("contacts.eta", 0.0, 1.0, "1", "initial cone parameter eta of a new contact (I2)"),
     c("mechanics.plane_margin", 1.0, 2.0, "1", "a particle touches a principal plane when its centre is within margin * r"),

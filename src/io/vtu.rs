@@ -85,6 +85,16 @@ impl PvdIndex {
         PvdIndex { entries: Vec::new() }
     }
 
+    /// The index entries so far: (time [s], particles file, contacts file).
+    pub fn entries(&self) -> &[(f64, String, String)] {
+        &self.entries
+    }
+
+    /// Continues an index (resumed runs).
+    pub fn with_entries(entries: Vec<(f64, String, String)>) -> Self {
+        PvdIndex { entries }
+    }
+
     pub fn write(&mut self, dir: &Path, index: usize, snap: &Snapshot) -> Result<(), IoError> {
         let (p, c) = write_snapshot(dir, index, snap)?;
         let name = |x: &Path| x.file_name().unwrap().to_string_lossy().to_string();
