@@ -254,6 +254,11 @@ pub struct Explicit<M: ContactModel> {
     wall_built_at: Vec<f64>,
     /// Tangential springs of particle–wall contacts, `[particle * walls + wall]`.
     wall_xi: Vec<V3>,
+    /// Particle–wall candidates `(wall, particle)`, sorted: gap below 1.5 skins at the last build
+    /// (particles move < skin since then and walls < skin/2 before a rebuild, so no contact is missed).
+    wall_list: Vec<(u32, u32)>,
+    /// Wall offsets at the last wall-list build.
+    wall_list_at: Vec<f64>,
     force: Vec<V3>,
     torque: Vec<V3>,
     wall_power: Vec<f64>,
@@ -291,6 +296,8 @@ impl<M: ContactModel> Explicit<M> {
             built_at: Vec::new(),
             wall_built_at: Vec::new(),
             wall_xi: Vec::new(),
+            wall_list: Vec::new(),
+            wall_list_at: Vec::new(),
             force: Vec::new(),
             torque: Vec::new(),
             wall_power: Vec::new(),
@@ -357,10 +364,44 @@ impl<M: ContactModel> Explicit<M> {
         self.inc = inc;
         self.built_at = p.position.clone();
         self.wall_built_at = self.walls.iter().map(|w| w.offset).collect();
-        if self.wall_xi.len() != n * self.walls.len() {
-            self.wall_xi = vec![V3::zeros(); n * self.walls.len()];
-        }
+        self.rebuild_wall_list(p);
         self.counters.rebuilds += 1;
+    }
+
+    /// Particle–wall candidates: gap < 1.5 skins. Springs of pairs leaving the list are reset
+    /// (they are out of contact: a pair in contact stays within the margin).
+    fn rebuild_wall_list(&mut self, p: &Particles) {
+        let nw = self.walls.len();
+        if self.wall_xi.len() != p.len() * nw {
+            self.wall_xi = vec![V3::zeros(); p.len() * nw];
+            self.wall_list.clear();
+        }
+        let margin = 1.5 * self.settings.skin;
+        let mut list = Vec::with_capacity(self.wall_list.len());
+        for (w, wall) in self.walls.iter().enumerate() {
+            for a in 0..p.len() {
+                if wall.normal.dot(&p.position[a]) - wall.offset - p.radius[a] < margin {
+                    list.push((w as u32, a as u32));
+                }
+            }
+        }
+        // reset the springs of dropped candidates (both lists sorted)
+        let mut k = 0;
+        for &(w, a) in &self.wall_list {
+            while k < list.len() && list[k] < (w, a) {
+                k += 1;
+            }
+            if k >= list.len() || list[k] != (w, a) {
+                self.wall_xi[a as usize * nw + w as usize] = V3::zeros();
+            }
+        }
+        self.wall_list = list;
+        self.wall_list_at = self.walls.iter().map(|w| w.offset).collect();
+    }
+
+    fn walls_moved(&self) -> bool {
+        let half = 0.5 * self.settings.skin;
+        self.wall_list_at.len() != self.walls.len() || self.walls.iter().zip(&self.wall_list_at).any(|(w, &o)| (w.offset - o).abs() >= half)
     }
 
     fn needs_rebuild(&self, p: &Particles) -> bool {
@@ -454,34 +495,35 @@ impl<M: ContactModel> Explicit<M> {
         let nw = self.walls.len();
         self.wall_power.resize(nw, 0.0);
         let muw = st.wall_friction;
-        for (w, wall) in self.walls.iter_mut().enumerate() {
-            let mut fw = 0.0;
-            let mut power = 0.0;
-            for a in 0..n {
-                let gap = wall.normal.dot(&p.position[a]) - wall.offset - p.radius[a];
-                let xi = &mut self.wall_xi[a * nw + w];
-                if gap >= 0.0 {
-                    *xi = V3::zeros();
-                    continue;
-                }
-                let nrm = wall.normal;
-                let wa = if rot { p.angular_velocity[a] } else { V3::zeros() };
-                let vij = p.velocity[a] - nrm * wall.velocity + p.radius[a] * nrm.cross(&wa);
-                let vn = vij.dot(&nrm);
-                let g = PairGeom { overlap: -gap, overlap_rate: -vn, mass: p.mass[a], radius: p.radius[a] };
-                let mut s = M::State::default();
-                let no = self.law.normal(&g, &mut s);
-                let vt = vij - nrm * vn;
-                let (ft, el_t, diss_t) = tangential(xi, &nrm, &vt, &no, muw, alpha, beta, dt);
-                self.force[a] += nrm * no.force + ft;
-                self.torque[a] -= p.radius[a] * nrm.cross(&ft);
-                elastic += no.elastic_energy + el_t;
-                dissipation += no.damping_force * g.overlap_rate + diss_t;
-                fw += no.force;
-                power += no.force * wall.velocity;
+        let mut fw = vec![0.0; nw];
+        self.wall_power.iter_mut().for_each(|x| *x = 0.0);
+        for &(w, a) in &self.wall_list {
+            let (w, a) = (w as usize, a as usize);
+            let wall = &self.walls[w];
+            let gap = wall.normal.dot(&p.position[a]) - wall.offset - p.radius[a];
+            let xi = &mut self.wall_xi[a * nw + w];
+            if gap >= 0.0 {
+                *xi = V3::zeros();
+                continue;
             }
-            wall.force = fw;
-            self.wall_power[w] = power;
+            let nrm = wall.normal;
+            let wa = if rot { p.angular_velocity[a] } else { V3::zeros() };
+            let vij = p.velocity[a] - nrm * wall.velocity + p.radius[a] * nrm.cross(&wa);
+            let vn = vij.dot(&nrm);
+            let g = PairGeom { overlap: -gap, overlap_rate: -vn, mass: p.mass[a], radius: p.radius[a] };
+            let mut s = M::State::default();
+            let no = self.law.normal(&g, &mut s);
+            let vt = vij - nrm * vn;
+            let (ft, el_t, diss_t) = tangential(xi, &nrm, &vt, &no, muw, alpha, beta, dt);
+            self.force[a] += nrm * no.force + ft;
+            self.torque[a] -= p.radius[a] * nrm.cross(&ft);
+            elastic += no.elastic_energy + el_t;
+            dissipation += no.damping_force * g.overlap_rate + diss_t;
+            fw[w] += no.force;
+            self.wall_power[w] += no.force * wall.velocity;
+        }
+        for (wall, f) in self.walls.iter_mut().zip(fw) {
+            wall.force = f;
         }
         // Cundall local damping
         let lam = st.local_damping;
@@ -579,6 +621,8 @@ impl<M: ContactModel> Explicit<M> {
         if self.needs_rebuild(p) {
             self.rebuild(p);
             self.ready = true;
+        } else if self.walls_moved() {
+            self.rebuild_wall_list(p);
         }
         let (el, diss_new) = self.compute_forces(p);
         for a in 0..p.len() {

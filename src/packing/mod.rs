@@ -482,9 +482,10 @@ pub fn generate(case: &GenerateCase, progress: bool) -> Result<(Packing, Generat
     let mut mu = proto.friction;
     let mut steps_compact = 0u64;
     let mut jammed_steps = 0u64;
-    let mut shakes = 0u32;
-    let mut stalled = false;
     let mut phi_at_check = 0.0;
+    // tapping (see below): strength, jammed steps before a tap, taps per stall check
+    let (tap, quiet_steps, stall_taps) = (0.05, 150u64, 40u32);
+    let mut taps = 0u32;
     let mut target = target;
     for a in 0..3 {
         sim.walls[2 * a + 1].control = WallControl::Velocity;
@@ -517,30 +518,30 @@ pub fn generate(case: &GenerateCase, progress: bool) -> Result<(Packing, Generat
                 }
                 jammed_steps = 0;
                 pr.say(format!("jammed at solid fraction {:.4}: friction lowered to {mu:.4}", vp / box_of(&sim.walls).iter().product::<f64>()));
-            } else if jammed_steps >= 150 && mu == 0.0 {
-                // frictionless and still jammed below the target (wall layers lower the box-based
-                // fraction): shake, i.e. random velocities of 0.05 √(k/m̄) r̄, so that the packing
-                // explores denser configurations under the same pressure
-                jammed_steps = 0;
-                shakes += 1;
-                let phi = vp / box_of(&sim.walls).iter().product::<f64>();
-                if shakes % 20 == 0 {
-                    // stalled: less than 1e-3 gained over the last 20 shakes
-                    stalled = phi - phi_at_check < 1e-3;
-                    phi_at_check = phi;
-                }
-                if stalled {
-                    pr.say(format!("still jammed at solid fraction {phi:.4} after {shakes} shakes: accepting it"));
+            }
+        } else {
+            jammed_steps = 0;
+        }
+        if mu == 0.0 && jammed_steps >= quiet_steps {
+            // frictionless and jammed below the target box (the flat walls leave looser layers):
+            // tap, i.e. random velocities of `tap`·√(k_n/m̄) r̄, so that the packing explores denser
+            // configurations under the same pressure; accept the box once `stall_taps` taps
+            // gained < 1e-3 in solid fraction
+            jammed_steps = 0;
+            taps += 1;
+            let phi = vp / box_of(&sim.walls).iter().product::<f64>();
+            if taps % stall_taps == 0 {
+                if phi - phi_at_check < 1e-3 {
+                    pr.say(format!("jammed at solid fraction {phi:.4} after {taps} taps: accepting it"));
                     target = box_of(&sim.walls);
                     lambda = 1.0;
                     continue;
                 }
-                for v in p.velocity.iter_mut() {
-                    *v += V3::new(rng.normal(), rng.normal(), rng.normal()) * 0.05;
-                }
+                phi_at_check = phi;
             }
-        } else {
-            jammed_steps = 0;
+            for v in p.velocity.iter_mut() {
+                *v += V3::new(rng.normal(), rng.normal(), rng.normal()) * tap;
+            }
         }
         sim.step(&mut p)?;
         set_areas(&mut sim.walls);
@@ -565,7 +566,7 @@ pub fn generate(case: &GenerateCase, progress: bool) -> Result<(Packing, Generat
     }
     set_areas(&mut sim.walls);
     pr.say(format!(
-        "compacted to the target box ({shakes} shakes) after {steps_compact} steps, friction {mu:.4}, wall pressure {:.3e} (p_c = {p_c:.3e})",
+        "compacted to the target box ({taps} taps) after {steps_compact} steps, friction {mu:.4}, wall pressure {:.3e} (p_c = {p_c:.3e})",
         (0..3).map(|a| sim.walls[2 * a + 1].pressure()).sum::<f64>() / 3.0
     ));
     // 4. unload and relax
@@ -722,12 +723,15 @@ pub fn write_outputs(case: &GenerateCase, packing: &Packing, summary: &GenerateS
         csv.push_str(&format!("{:.10e},{:.10e},{:.10e},{:.10e}\n", x[0], x[1], x[2], r));
     }
     report::write_text(&out_dir.join("packing.csv"), &csv)?;
-    let (z, _) = coordination(&packing.positions, &packing.radii, case.protocol.contact_gap_rel * summary.mean_radius);
-    report::write_vtu(&out_dir.join("packing.vtu"), &packing.positions, &packing.radii, &z)?;
+    let gap = case.protocol.contact_gap_rel * summary.mean_radius;
+    let (z, _) = coordination(&packing.positions, &packing.radii, gap);
+    let pairs: Vec<[u32; 2]> = crate::contacts::detect::touching_pairs(&packing.positions, &packing.radii, gap).into_iter().map(|(i, j)| [i, j]).collect();
+    // the generator is athermal: the VTU carries the 300 K its particles are created with
+    let temperature = vec![300.0; packing.radii.len()];
+    report::write_vtu(out_dir, "packing", &packing.positions, &packing.radii, &temperature, &z, &pairs)?;
     // laminae (eq. 48)
     let hi = V3::new(packing.box_size[0], packing.box_size[1], packing.box_size[2]);
     let mut lam = String::from("# relative density of laminae (Ivannikov et al. 2022 eq. 48); position = lamina centre [m]\naxis,position,relative_density,interior\n");
-    let colours = [[200u8, 30, 30], [30, 140, 30], [30, 30, 200]];
     let mut series = Vec::new();
     for a in 0..3 {
         let l = report::laminae(&packing.positions, &packing.radii, &V3::zeros(), &hi, a, summary.lamina_width, 2.0 * summary.mean_radius);
@@ -735,11 +739,11 @@ pub fn write_outputs(case: &GenerateCase, packing: &Packing, summary: &GenerateS
             lam.push_str(&format!("{},{:.6e},{:.6},{}\n", ["x", "y", "z"][a], l.centres[k], l.density[k], l.interior[k]));
         }
         // normalised position s/L so the three axes share the plot
-        series.push((l.centres.iter().zip(&l.density).map(|(c, d)| (c / packing.box_size[a], *d)).collect::<Vec<_>>(), colours[a]));
+        series.push((["x", "y", "z"][a], l.centres.iter().zip(&l.density).map(|(c, d)| (c / packing.box_size[a], *d)).collect::<Vec<_>>()));
     }
     report::write_text(&out_dir.join("laminae.csv"), &lam)?;
-    let m = summary.solid_fraction;
-    report::write_line_plot(&out_dir.join("laminae.png"), &series, Some((m - 0.05, m + 0.05)))?;
+    let title = format!("Laminae relative density (eq. 48), {} particles, width {:.3e} m", packing.radii.len(), summary.lamina_width);
+    report::write_laminae_plot(&out_dir.join("laminae.png"), &title, &series, summary.solid_fraction, 0.05)?;
     // size distribution achieved vs asked
     let mut d: Vec<f64> = packing.radii.iter().map(|r| 2.0 * r).collect();
     d.sort_by(f64::total_cmp);

@@ -1,6 +1,5 @@
-//! Packing report: laminae relative density (Ivannikov et al. 2022 eq. 48), a minimal VTU writer
-//! for spheres, and a minimal PNG line plot (main has no shared plot/VTU facility yet; these live
-//! here until it does).
+//! Packing report: laminae relative density (Ivannikov et al. 2022 eq. 48), and the packing's VTU
+//! and laminae plot through the shared writers (`crate::io::vtu`, `crate::plot`).
 
 use crate::error::{Error, IoError};
 use nalgebra::Vector3;
@@ -56,160 +55,41 @@ pub fn laminae(pos: &[Vector3<f64>], rad: &[f64], lo: &Vector3<f64>, hi: &Vector
     Laminae { axis, centres, density: vol.iter().map(|v| v / (w * cross)).collect(), interior }
 }
 
-/// Writes the spheres as VTK XML unstructured points (ASCII `.vtu`): point data `radius`
-/// [m] and `coordination`.
-pub fn write_vtu(path: &Path, pos: &[Vector3<f64>], rad: &[f64], coordination: &[u32]) -> Result<(), Error> {
-    let mut s = String::new();
-    let n = pos.len();
-    s.push_str("<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"0.1\" byte_order=\"LittleEndian\">\n<UnstructuredGrid>\n");
-    s.push_str(&format!("<Piece NumberOfPoints=\"{n}\" NumberOfCells=\"{n}\">\n<Points>\n<DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">\n"));
-    for x in pos {
-        s.push_str(&format!("{:e} {:e} {:e}\n", x[0], x[1], x[2]));
-    }
-    s.push_str("</DataArray>\n</Points>\n<Cells>\n<DataArray type=\"Int64\" Name=\"connectivity\" format=\"ascii\">\n");
-    for k in 0..n {
-        s.push_str(&format!("{k}\n"));
-    }
-    s.push_str("</DataArray>\n<DataArray type=\"Int64\" Name=\"offsets\" format=\"ascii\">\n");
-    for k in 0..n {
-        s.push_str(&format!("{}\n", k + 1));
-    }
-    s.push_str("</DataArray>\n<DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">\n");
-    for _ in 0..n {
-        s.push_str("1\n");
-    }
-    s.push_str("</DataArray>\n</Cells>\n<PointData Scalars=\"radius\">\n<DataArray type=\"Float64\" Name=\"radius\" format=\"ascii\">\n");
-    for r in rad {
-        s.push_str(&format!("{r:e}\n"));
-    }
-    s.push_str("</DataArray>\n<DataArray type=\"Int32\" Name=\"coordination\" format=\"ascii\">\n");
-    for c in coordination {
-        s.push_str(&format!("{c}\n"));
-    }
-    s.push_str("</DataArray>\n</PointData>\n</Piece>\n</UnstructuredGrid>\n</VTKFile>\n");
-    std::fs::write(path, s).map_err(|e| IoError::new(path, e).into())
-}
-
-/// A minimal line plot as PNG: each series `(points, rgb)` drawn as a polyline in a frame scaled
-/// to the data, plus an optional horizontal band `[lo, hi]` shaded grey. No text (labels go in
-/// the CSV beside it).
-pub fn write_line_plot(path: &Path, series: &[(Vec<(f64, f64)>, [u8; 3])], band: Option<(f64, f64)>) -> Result<(), Error> {
-    let (w, h) = (640usize, 400usize);
-    let (ml, mr, mt, mb) = (40usize, 20usize, 20usize, 40usize);
-    let mut img = vec![255u8; w * h * 3];
-    let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
-    for (pts, _) in series {
-        for &(x, y) in pts {
-            if x.is_finite() && y.is_finite() {
-                x0 = x0.min(x);
-                x1 = x1.max(x);
-                y0 = y0.min(y);
-                y1 = y1.max(y);
-            }
-        }
-    }
-    if let Some((a, b)) = band {
-        y0 = y0.min(a);
-        y1 = y1.max(b);
-    }
-    if !(x1 > x0) {
-        x1 = x0 + 1.0;
-    }
-    if !(y1 > y0) {
-        y1 = y0 + 1.0;
-    }
-    let pad = 0.05 * (y1 - y0);
-    let (y0, y1) = (y0 - pad, y1 + pad);
-    let px = |x: f64| ml as f64 + (x - x0) / (x1 - x0) * (w - ml - mr) as f64;
-    let py = |y: f64| (h - mb) as f64 - (y - y0) / (y1 - y0) * (h - mt - mb) as f64;
-    let put = |img: &mut Vec<u8>, x: i64, y: i64, c: [u8; 3]| {
-        if x >= 0 && y >= 0 && (x as usize) < w && (y as usize) < h {
-            let o = (y as usize * w + x as usize) * 3;
-            img[o..o + 3].copy_from_slice(&c);
-        }
+/// Writes the spheres through the shared VTU writer ([`crate::io::vtu::write_snapshot`]) as
+/// `stem.vtu` (points with `radius_m`, `temperature_K` and `coordination`) and `stem_contacts.vtu`
+/// (the given contact pairs as lines with their `gap_m`). The generator is athermal: pass the
+/// temperature the packing will start from.
+#[allow(clippy::too_many_arguments)]
+pub fn write_vtu(dir: &Path, stem: &str, pos: &[Vector3<f64>], rad: &[f64], temperature: &[f64], coordination: &[u32], contacts: &[[u32; 2]]) -> Result<(), Error> {
+    let z: Vec<f64> = coordination.iter().map(|&c| c as f64).collect();
+    let gap: Vec<f64> = contacts.iter().map(|c| (pos[c[0] as usize] - pos[c[1] as usize]).norm() - rad[c[0] as usize] - rad[c[1] as usize]).collect();
+    let snap = crate::io::Snapshot {
+        time: 0.0,
+        position: pos,
+        radius: rad,
+        temperature,
+        contacts,
+        contact_data: vec![("gap_m", &gap)],
+        particle_data: vec![("coordination", &z)],
     };
-    if let Some((a, b)) = band {
-        let (ya, yb) = (py(b) as i64, py(a) as i64);
-        for y in ya..=yb {
-            for x in ml as i64..(w - mr) as i64 {
-                put(&mut img, x, y, [225, 225, 225]);
-            }
-        }
+    let (p, c) = crate::io::vtu::write_snapshot(dir, 0, &snap)?;
+    for (from, to) in [(p, dir.join(format!("{stem}.vtu"))), (c, dir.join(format!("{stem}_contacts.vtu")))] {
+        std::fs::rename(&from, &to).map_err(|e| IoError::new(&to, e))?;
     }
-    // frame
-    for x in ml..w - mr {
-        put(&mut img, x as i64, (h - mb) as i64, [0, 0, 0]);
-        put(&mut img, x as i64, mt as i64, [0, 0, 0]);
-    }
-    for y in mt..=h - mb {
-        put(&mut img, ml as i64, y as i64, [0, 0, 0]);
-        put(&mut img, (w - mr) as i64, y as i64, [0, 0, 0]);
-    }
-    for (pts, c) in series {
-        for seg in pts.windows(2) {
-            let (ax, ay, bx, by) = (px(seg[0].0), py(seg[0].1), px(seg[1].0), py(seg[1].1));
-            let steps = ((bx - ax).abs().max((by - ay).abs()).ceil() as usize).max(1);
-            for s in 0..=steps {
-                let t = s as f64 / steps as f64;
-                let (x, y) = ((ax + t * (bx - ax)).round() as i64, (ay + t * (by - ay)).round() as i64);
-                for d in [(0, 0), (1, 0), (0, 1)] {
-                    put(&mut img, x + d.0, y + d.1, *c);
-                }
-            }
-        }
-    }
-    std::fs::write(path, encode_png(w, h, &img)).map_err(|e| IoError::new(path, e).into())
+    Ok(())
 }
 
-fn crc32(data: &[u8]) -> u32 {
-    let mut c = 0xFFFF_FFFFu32;
-    for &b in data {
-        c ^= b as u32;
-        for _ in 0..8 {
-            c = if c & 1 != 0 { 0xEDB8_8320 ^ (c >> 1) } else { c >> 1 };
-        }
+/// The laminae plot (eq. 48) through the shared plot facility: relative density against the
+/// normalised position s/L for the three axes, with the mean ± `band` drawn as two thin lines.
+pub fn write_laminae_plot(path: &Path, title: &str, series: &[(&str, Vec<(f64, f64)>)], mean: f64, band: f64) -> Result<(), Error> {
+    let mut plot = crate::plot::Plot::new(title).labels("position s/L [1]", "relative density of the lamina [1]");
+    for (name, pts) in series {
+        plot.add(crate::plot::Series::new(*name, pts.clone()).with_markers());
     }
-    !c
-}
-
-/// RGB8 PNG with an uncompressed (stored-block) zlib stream.
-fn encode_png(w: usize, h: usize, rgb: &[u8]) -> Vec<u8> {
-    let mut raw = Vec::with_capacity(h * (w * 3 + 1));
-    for y in 0..h {
-        raw.push(0u8);
-        raw.extend_from_slice(&rgb[y * w * 3..(y + 1) * w * 3]);
+    for (name, y) in [(format!("solid fraction + {band}"), mean + band), (format!("solid fraction - {band}"), mean - band)] {
+        plot.add(crate::plot::Series::new(name, vec![(0.0, y), (1.0, y)]));
     }
-    let mut z = vec![0x78u8, 0x01];
-    let blocks: Vec<&[u8]> = raw.chunks(65535).collect();
-    for (k, b) in blocks.iter().enumerate() {
-        z.push(if k + 1 == blocks.len() { 1 } else { 0 });
-        let len = b.len() as u16;
-        z.extend_from_slice(&len.to_le_bytes());
-        z.extend_from_slice(&(!len).to_le_bytes());
-        z.extend_from_slice(b);
-    }
-    let (mut a, mut bsum) = (1u32, 0u32);
-    for &x in &raw {
-        a = (a + x as u32) % 65521;
-        bsum = (bsum + a) % 65521;
-    }
-    z.extend_from_slice(&((bsum << 16) | a).to_be_bytes());
-    let mut png = vec![0x89, b'P', b'N', b'G', 0x0D, 0x0A, 0x1A, 0x0A];
-    let chunk = |png: &mut Vec<u8>, ty: &[u8; 4], data: &[u8]| {
-        png.extend_from_slice(&(data.len() as u32).to_be_bytes());
-        let mut c = ty.to_vec();
-        c.extend_from_slice(data);
-        png.extend_from_slice(&c);
-        png.extend_from_slice(&crc32(&c).to_be_bytes());
-    };
-    let mut ihdr = Vec::new();
-    ihdr.extend_from_slice(&(w as u32).to_be_bytes());
-    ihdr.extend_from_slice(&(h as u32).to_be_bytes());
-    ihdr.extend_from_slice(&[8, 2, 0, 0, 0]);
-    chunk(&mut png, b"IHDR", &ihdr);
-    chunk(&mut png, b"IDAT", &z);
-    chunk(&mut png, b"IEND", &[]);
-    png
+    plot.save_png(path).map_err(Error::from)
 }
 
 /// Writes text to a file, naming the path on failure.
