@@ -144,6 +144,12 @@ enum Bench {
         #[arg(long, default_value_t = 3)]
         steps: u64,
     },
+    /// The bonded 6-DOF solve: assembly, symbolic, factorisation, solve and PCG on bonded packings.
+    Mechanics {
+        /// Particle counts (repeatable).
+        #[arg(long = "particles", default_values_t = vec![1000usize, 10000])]
+        particles: Vec<usize>,
+    },
     /// Work-precision diagram of the 7-DOF pair integrators (copper and E14B titanium).
     Pair {
         /// Output directory for work_precision.csv and the PNG diagrams.
@@ -315,6 +321,10 @@ fn real_main(cli: Cli) -> Result<(), Error> {
         }
         Command::Bench { which } => match which {
             Bench::Heat { particles, repeat } => sinterdem::heat::bench::bench_heat(&particles, repeat.max(1)),
+            Bench::Mechanics { particles } => {
+                println!("{}", sinterdem::mechanics::bench::bench_mechanics(&particles)?);
+                Ok(())
+            }
             Bench::Coupled { case, particles, steps } => {
                 let c = (case != "none").then(|| PathBuf::from(&case));
                 println!("{}", sinterdem::scheduler::bench_coupled(c.as_deref(), &particles, steps)?);
