@@ -138,6 +138,13 @@ impl BondedSystem {
         &self.params
     }
 
+    /// Replaces the solver parameters; the topology analysis, pattern and factor are kept.
+    pub fn set_params(&mut self, params: MechParams) -> Result<(), Error> {
+        params.validate()?;
+        self.params = params;
+        Ok(())
+    }
+
     /// The bonds, in contact order.
     pub fn pairs(&self) -> &[[u32; 2]] {
         &self.pairs
