@@ -6,7 +6,7 @@
 //! Packing: an FCC lattice with nearest-neighbour distance 2R (R = 50 µm) and radii
 //! R·(1 ± 5 %) uniform, bonds between the overlapping neighbours (about half of them: mean
 //! coordination ≈ 6, irregular graph with some rattlers and floating clusters), plane
-//! constraints, copper links (E = 110 GPa, ν = 0.34), load increments (F5) for random approaches
+//! constraints, nested-dissection ordering of the Cholesky factor, copper links (E = 110 GPa, ν = 0.34), load increments (F5) for random approaches
 //! of 1e-4·R_m ± 50 %.
 
 use super::{BondedSystem, Constraints, LinearSolver, MechParams, StepInput};
@@ -53,36 +53,6 @@ pub fn fcc_packing(n: usize, seed: u64) -> (Vec<Vector3<f64>>, Vec<f64>, Vec<[u3
     (pos, rad, pairs, y)
 }
 
-/// nnz of the Cholesky factor of the packing's reduced stiffness (faer's AMD ordering), computed
-/// outside the timed steps with the same entries the solver uses.
-fn factor_fill(
-    pos: &[Vector3<f64>],
-    rad: &[f64],
-    pairs: &[[u32; 2]],
-    y: &[[f64; 2]],
-    cons: &Constraints,
-    params: &MechParams,
-) -> Result<usize, Error> {
-    use faer::sparse::{Pair, SymbolicSparseColMat};
-    let rep = super::constraints::analyse(pos.len(), pairs, pos, cons)?;
-    let inc = super::assembly::Incidence::new(pos.len(), pairs);
-    let geom: Vec<super::BondGeometry> = pairs
-        .iter()
-        .zip(y)
-        .map(|(&[a, b], &[y4, y7])| super::BondGeometry::new(&pos[a as usize], &pos[b as usize], y4, y7))
-        .collect::<Result<_, _>>()?;
-    let k: Vec<[f64; 6]> =
-        pairs.iter().map(|&[a, b]| super::link_stiffness(params.young_modulus, params.poisson_ratio, 0.5 * (rad[a as usize] + rad[b as usize]))).collect();
-    let blocks = super::assembly::BlockMatrix::assemble(pos.len(), pairs, &inc, &geom, &k, 50e-6);
-    let mut idx = Vec::new();
-    blocks.for_each_lower(pairs, &rep, |r, c, _| idx.push(Pair::new(r as usize, c as usize)));
-    let fail = |e: String| Error::from(crate::error::SolveError::new("bench fill", e));
-    let (sym, _) = SymbolicSparseColMat::try_new_from_indices(rep.n_eq, rep.n_eq, &idx).map_err(|e| fail(format!("{e:?}")))?;
-    let chol = faer::sparse::linalg::cholesky::factorize_symbolic_cholesky(sym.as_ref(), faer::Side::Lower, Default::default(), Default::default())
-        .map_err(|e| fail(format!("{e:?}")))?;
-    Ok(chol.len_val())
-}
-
 /// Runs the benchmark for packings of about `sizes[k]` particles and returns the table.
 pub fn bench_mechanics(sizes: &[usize]) -> Result<String, Error> {
     let mut out = String::new();
@@ -111,7 +81,7 @@ pub fn bench_mechanics(sizes: &[usize]) -> Result<String, Error> {
         sys.set_topology(&pairs)?;
         let first = sys.step(&inp)?;
         let second = sys.step(&inp)?;
-        let fill = factor_fill(&pos, &rad, &pairs, &y, &cons, &params)?;
+        let fill = sys.factor_nnz().unwrap_or(0);
         // factor reuse: move the particles by 10 increments plus 1e-3·R noise, step with the old factor
         sys.set_params(MechParams { solver: LinearSolver::Cholesky, reuse_factor: true, ..params })?;
         let pos2: Vec<Vector3<f64>> =
