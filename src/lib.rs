@@ -13,6 +13,7 @@
 pub mod config;
 pub mod contacts;
 pub mod error;
+pub mod explicit;
 pub mod heat;
 pub mod io;
 pub mod linsolve;
@@ -20,9 +21,11 @@ pub mod material;
 pub mod mechanics;
 pub mod models;
 pub mod neck;
+pub mod packing;
 pub mod particles;
 pub mod plot;
 pub mod profile;
+pub mod scheduler;
 pub mod scene;
 pub mod units;
 

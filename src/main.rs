@@ -34,6 +34,25 @@ enum Command {
         #[arg(long)]
         quiet: bool,
     },
+    /// Generate a green packing (kind = "generate"): packing.csv, packing.vtu, summary.json, laminae.
+    Generate {
+        #[command(flatten)]
+        case: CaseArgs,
+        /// Output directory (default: out/<case name>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// No progress bar.
+        #[arg(long)]
+        quiet: bool,
+    },
+    /// Continue an interrupted compact run from DIR/checkpoint.json.
+    Resume {
+        /// The run's output directory.
+        dir: PathBuf,
+        /// No progress bar.
+        #[arg(long)]
+        quiet: bool,
+    },
     /// Validate a case file only (parse, ranges, scene construction).
     Check {
         #[command(flatten)]
@@ -83,6 +102,8 @@ enum Command {
         #[arg(long)]
         diameter: Option<f64>,
     },
+    /// Print every numeric case-file key with its allowed range and unit (Markdown).
+    Keys,
     /// Benchmarks (print figures; not tests).
     Bench {
         #[command(subcommand)]
@@ -100,6 +121,15 @@ enum Bench {
         /// Repetitions per size (median reported).
         #[arg(long, default_value_t = 3)]
         repeat: usize,
+    },
+    /// Packing generation time for given particle counts.
+    Generate {
+        /// Particle counts (repeatable).
+        #[arg(long = "particles", default_values_t = vec![805usize, 3619])]
+        particles: Vec<usize>,
+        /// Output directory.
+        #[arg(long, default_value = "out/bench-generate")]
+        out: PathBuf,
     },
     /// Work-precision diagram of the 7-DOF pair integrators (copper and E14B titanium).
     Pair {
@@ -129,7 +159,7 @@ fn base_dir(case: &Path) -> PathBuf {
 }
 
 fn unknown_kind(kind: &str) -> Error {
-    sinterdem::ConfigError::invalid(format!("kind = \"{kind}\": expected heat or pair")).into()
+    sinterdem::ConfigError::invalid(format!("kind = \"{kind}\": expected heat, compact, pair or generate")).into()
 }
 
 fn main() -> ExitCode {
@@ -145,6 +175,18 @@ fn main() -> ExitCode {
 
 fn real_main(cli: Cli) -> Result<(), Error> {
     match cli.command {
+        Command::Generate { case, out, quiet } => {
+            let value = sinterdem::config::load_case(&case.case, &case.set)?;
+            if case_kind(&value) != "generate" {
+                return Err(sinterdem::ConfigError::invalid(format!("{}: kind must be \"generate\"", case.case.display())).into());
+            }
+            let stem = case.case.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| "case".into());
+            let out = out.unwrap_or_else(|| PathBuf::from("out").join(stem));
+            sinterdem::io::ensure_dir(&out)?;
+            let s = sinterdem::packing::generate_case(&value, &out, !quiet)?;
+            eprintln!("{s:?}");
+            Ok(())
+        }
         Command::Run { case, out, quiet } => {
             let value = sinterdem::config::load_case(&case.case, &case.set)?;
             let stem = case.case.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| "case".into());
@@ -157,12 +199,36 @@ fn real_main(cli: Cli) -> Result<(), Error> {
                     let prep = sinterdem::heat::run::prepare(value, &base_dir(&case.case))?;
                     sinterdem::heat::run::run(prep, &out, !quiet, &mut log)?;
                 }
+                "generate" => {
+                    let s = sinterdem::packing::generate_case(&value, &out, !quiet)?;
+                    log(&format!("done: {s:?}"));
+                }
+                "compact" => {
+                    let sim = sinterdem::scheduler::prepare(value, &base_dir(&case.case), &mut log)?;
+                    sinterdem::scheduler::run(sim, &out, !quiet, &mut log)?;
+                }
                 "pair" => {
                     let s = sinterdem::models::diffusion7::pair::run_pair_case(&value, &out, !quiet)?;
                     log(&format!("done: {s:?}"));
                 }
                 k => return Err(unknown_kind(k)),
             }
+            Ok(())
+        }
+        Command::Resume { dir, quiet } => {
+            let mut log = log_to(None);
+            let mut file_log = {
+                let path = dir.join("log.txt");
+                let mut f = std::fs::OpenOptions::new().append(true).create(true).open(&path).ok();
+                move |msg: &str| {
+                    log(msg);
+                    if let Some(f) = f.as_mut() {
+                        use std::io::Write;
+                        let _ = writeln!(f, "{msg}");
+                    }
+                }
+            };
+            sinterdem::scheduler::resume(&dir, !quiet, &mut file_log)?;
             Ok(())
         }
         Command::Check { case } => {
@@ -176,6 +242,14 @@ fn real_main(cli: Cli) -> Result<(), Error> {
                         prep.scene.particles.len(),
                         prep.pipes.pairs.len()
                     );
+                }
+                "compact" => {
+                    let sim = sinterdem::scheduler::prepare(value, &base_dir(&case.case), &mut |_| {})?;
+                    println!("{}: ok (compact case, {} particles, {} contacts)", case.case.display(), sim.prep.scene.particles.len(), sim.contacts.len());
+                }
+                "generate" => {
+                    sinterdem::packing::check_generate_case(&value)?;
+                    println!("{}: ok (packing generation case)", case.case.display());
                 }
                 "pair" => {
                     sinterdem::models::diffusion7::pair::check_pair_case(&value)?;
@@ -196,7 +270,8 @@ fn real_main(cli: Cli) -> Result<(), Error> {
         Command::Neck { r1, r2, overlap, kappa, kappa2, conductance, factor, contact_conductance } => {
             let law = match conductance.as_str() {
                 "linear" => sinterdem::heat::ConductanceLaw::Linear,
-                other => return Err(sinterdem::ConfigError::invalid(format!("--conductance {other}: expected linear")).into()),
+                "fe_fit" => sinterdem::heat::ConductanceLaw::FeFit,
+                other => return Err(sinterdem::ConfigError::invalid(format!("--conductance {other}: expected linear or fe_fit")).into()),
             };
             for (k, v) in [("--r1", r1), ("--r2", r2), ("--kappa", kappa), ("--factor", factor)] {
                 if !(v > 0.0 && v.is_finite()) {
@@ -221,8 +296,17 @@ fn real_main(cli: Cli) -> Result<(), Error> {
             println!("{}", serde_json::to_string_pretty(&v).unwrap());
             Ok(())
         }
+        Command::Keys => {
+            print!("{}", sinterdem::config::ranges::markdown());
+            Ok(())
+        }
         Command::Bench { which } => match which {
             Bench::Heat { particles, repeat } => sinterdem::heat::bench::bench_heat(&particles, repeat.max(1)),
+            Bench::Generate { particles, out } => {
+                sinterdem::io::ensure_dir(&out)?;
+                println!("{}", sinterdem::packing::bench_generate(&out, &particles)?);
+                Ok(())
+            }
             Bench::Pair { out } => {
                 sinterdem::io::ensure_dir(&out)?;
                 let table = sinterdem::models::diffusion7::bench::bench_pair(&out)?;

@@ -23,6 +23,9 @@ pub struct MaterialSpec {
     pub young_modulus: Option<f64>,
     /// Poisson's ratio ν [1].
     pub poisson_ratio: Option<f64>,
+    /// 7-DOF diffusion data (compact runs): a bundled set, "copper" or "titanium" (default: the
+    /// preset's name).
+    pub diffusion: Option<String>,
 }
 
 /// A resolved material.
@@ -39,6 +42,8 @@ pub struct Material {
     pub young_modulus: f64,
     /// ν [1].
     pub poisson_ratio: f64,
+    /// Name of the bundled 7-DOF diffusion data, if any.
+    pub diffusion: Option<String>,
 }
 
 /// Built-in values. Copper: ρ, c, κ handbook values near room temperature (κ = 394 W/(m·K) as in
@@ -46,8 +51,8 @@ pub struct Material {
 /// temperature): ρ = 4506, c = 523, κ = 21.9; E = 57 GPa as in Ivannikov et al. 2022 Table 4.
 pub fn preset(name: &str) -> Option<Material> {
     match name {
-        "copper" => Some(Material { name: "copper".into(), density: 8960.0, heat_capacity: 385.0, conductivity: 394.0, young_modulus: 72e9, poisson_ratio: 0.34 }),
-        "titanium" => Some(Material { name: "titanium".into(), density: 4506.0, heat_capacity: 523.0, conductivity: 21.9, young_modulus: 57e9, poisson_ratio: 0.32 }),
+        "copper" => Some(Material { name: "copper".into(), density: 8960.0, heat_capacity: 385.0, conductivity: 394.0, young_modulus: 72e9, poisson_ratio: 0.34, diffusion: Some("copper".into()) }),
+        "titanium" => Some(Material { name: "titanium".into(), density: 4506.0, heat_capacity: 523.0, conductivity: 21.9, young_modulus: 57e9, poisson_ratio: 0.32, diffusion: Some("titanium".into()) }),
         _ => None,
     }
 }
@@ -75,6 +80,7 @@ impl MaterialSpec {
             conductivity: get(self.conductivity, "conductivity", base.as_ref().map(|b| b.conductivity))?,
             young_modulus: get(self.young_modulus, "young_modulus", base.as_ref().map(|b| b.young_modulus).or(Some(1e11)))?,
             poisson_ratio: get(self.poisson_ratio, "poisson_ratio", base.as_ref().map(|b| b.poisson_ratio).or(Some(0.3)))?,
+            diffusion: self.diffusion.clone().or_else(|| base.as_ref().and_then(|b| b.diffusion.clone())),
         })
     }
 }

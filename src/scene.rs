@@ -131,20 +131,35 @@ pub fn build(spec: &ParticlesSpec, materials: Vec<Material>, base: &Path) -> Res
             push(&mut p, Vector3::new(r1 + r2 - h, 0.0, 0.0), r2, mat, t0);
         }
         "file" => {
+            use crate::packing::import::{ImportFormat, import};
             let f = spec.file.as_ref().ok_or_else(|| ConfigError::invalid("particles.file is required for source = \"file\""))?;
             let path = base.join(f);
-            let rows = read_csv(&path)?;
-            for (k, row) in rows.iter().enumerate() {
-                let m = match &row.material {
-                    Some(name) => material_index(&materials, Some(name), &format!("{}: row {} material", path.display(), k + 1))?,
+            let format: ImportFormat = match spec.format.as_deref() {
+                Some(s) => s.parse()?,
+                None => match path.extension().and_then(|e| e.to_str()) {
+                    Some("csv") => ImportFormat::Csv,
+                    Some("dump") | Some("liggghts") | Some("lammps") => ImportFormat::Liggghts,
+                    _ => ImportFormat::Yade,
+                },
+            };
+            let pk = import(&path, format)?;
+            for k in 0..pk.radii.len() {
+                let m = match &pk.materials {
+                    Some(ids) => {
+                        let id = ids[k];
+                        if id as usize >= materials.len() {
+                            return Err(ConfigError::invalid(format!("{}: particle {k} has material id {id}, but [[materials]] has {} entries (ids are 0-based)", path.display(), materials.len())).into());
+                        }
+                        id
+                    }
                     None => mat,
                 };
-                let t = match row.temperature {
-                    Some(t) => config::check("particles.initial_temperature", t)?,
+                let t = match &pk.temperatures {
+                    Some(ts) => config::check("particles.initial_temperature", ts[k])?,
                     None => t0,
                 };
-                config::check("particles.radius", row.r)?;
-                push(&mut p, row.x, row.r, m, t);
+                config::check("particles.radius", pk.radii[k])?;
+                push(&mut p, pk.positions[k], pk.radii[k], m, t);
             }
         }
         other => {
@@ -155,64 +170,6 @@ pub fn build(spec: &ParticlesSpec, materials: Vec<Material>, base: &Path) -> Res
         return Err(ConfigError::invalid("particles: the scene has no particles").into());
     }
     Ok(Scene { particles: p, materials, periodic_box, lattice })
-}
-
-/// One row of a packing CSV.
-#[derive(Debug, Clone)]
-pub struct CsvRow {
-    pub x: Vector3<f64>,
-    pub r: f64,
-    pub material: Option<String>,
-    pub temperature: Option<f64>,
-}
-
-/// Reads `x,y,z,r[,material][,temperature]` (header optional, `#` comments); errors name the line.
-pub fn read_csv(path: &Path) -> Result<Vec<CsvRow>, Error> {
-    let text = std::fs::read_to_string(path).map_err(|e| crate::error::IoError::new(path, e))?;
-    let mut rows = Vec::new();
-    let mut cols: Option<Vec<String>> = None;
-    for (n, line) in text.lines().enumerate() {
-        let line = line.trim();
-        if line.is_empty() || line.starts_with('#') {
-            continue;
-        }
-        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
-        if cols.is_none() && fields[0].parse::<f64>().is_err() {
-            cols = Some(fields.iter().map(|s| s.to_ascii_lowercase()).collect());
-            continue;
-        }
-        let names = cols.clone().unwrap_or_else(|| {
-            ["x", "y", "z", "r", "material", "temperature"].iter().take(fields.len()).map(|s| s.to_string()).collect()
-        });
-        let bad = |why: String| ConfigError::invalid(format!("{}: line {}: {why}", path.display(), n + 1));
-        if fields.len() != names.len() {
-            return Err(bad(format!("{} fields, expected {}", fields.len(), names.len())).into());
-        }
-        let mut x = [f64::NAN; 3];
-        let mut r = f64::NAN;
-        let mut material = None;
-        let mut temperature = None;
-        for (name, f) in names.iter().zip(&fields) {
-            let num = || f.parse::<f64>().ok().filter(|v| v.is_finite()).ok_or_else(|| bad(format!("{name} = \"{f}\" is not a finite number")));
-            match name.as_str() {
-                "x" => x[0] = num()?,
-                "y" => x[1] = num()?,
-                "z" => x[2] = num()?,
-                "r" | "radius" => r = num()?,
-                "material" => material = Some(f.to_string()),
-                "temperature" | "t" => temperature = Some(num()?),
-                other => return Err(bad(format!("unknown column \"{other}\" (x, y, z, r, material, temperature)")).into()),
-            }
-        }
-        if x.iter().any(|v| v.is_nan()) || r.is_nan() {
-            return Err(bad("x, y, z and r are required".into()).into());
-        }
-        if r <= 0.0 {
-            return Err(bad(format!("radius {r} must be positive")).into());
-        }
-        rows.push(CsvRow { x: Vector3::from(x), r, material, temperature });
-    }
-    Ok(rows)
 }
 
 /// The particles of a region, sorted. `key` names the region in errors.

@@ -23,9 +23,90 @@ pub struct Case {
     pub particles: ParticlesSpec,
     #[serde(default)]
     pub thermal: ThermalSpec,
-    /// Settings of `sinterdem conductivity`.
+    /// Settings of `sinterdem conductivity` (and of the conductivity analyses of a compact run).
     #[serde(default)]
     pub conductivity: ConductivitySpec,
+    /// Contacts of a compact run (`kind = "compact"`).
+    pub contacts: Option<ContactsSpec>,
+    /// 7-DOF path factors (`kind = "compact"`; same keys as a pair case).
+    pub model: Option<crate::models::diffusion7::material::PathFactors>,
+    /// 7-DOF integrator (`kind = "compact"`; same keys as a pair case).
+    pub solver: Option<crate::models::diffusion7::advance::SolverOptions>,
+    /// Bonded mechanics (`kind = "compact"`).
+    pub mechanics: Option<MechanicsSpec>,
+}
+
+/// New contacts and their initial 7-DOF state.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ContactsSpec {
+    /// Search for newly touching pairs during the run (default true).
+    #[serde(default = "yes")]
+    pub detect_new: bool,
+    /// Search every this many steps (default 1).
+    #[serde(default = "one")]
+    pub detect_every: f64,
+    /// Pairs whose surface gap is below this fraction of the mean radius count as touching
+    /// (green packings are stress-free, so most neighbours are at a tiny gap) [1] (default 1e-3).
+    #[serde(default = "gap")]
+    pub gap_tolerance: f64,
+    /// Initial neck excess ε of (I2) [1] (default 0.01).
+    #[serde(default = "eps")]
+    pub epsilon: f64,
+    /// Initial cone parameter η of (I2) [1] (default 0.1).
+    #[serde(default = "eta")]
+    pub eta: f64,
+    /// Neck radius feeding the conductance: "volume_conserving" (default, from the centre
+    /// distance) or "seven_dof" (y1).
+    #[serde(default = "vc")]
+    pub neck: String,
+}
+
+impl Default for ContactsSpec {
+    fn default() -> Self {
+        ContactsSpec { detect_new: true, detect_every: 1.0, gap_tolerance: gap(), epsilon: eps(), eta: eta(), neck: vc() }
+    }
+}
+
+fn gap() -> f64 {
+    1e-3
+}
+fn eps() -> f64 {
+    0.01
+}
+fn eta() -> f64 {
+    0.1
+}
+fn vc() -> String {
+    "volume_conserving".into()
+}
+
+/// Bonded quasi-static mechanics settings.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct MechanicsSpec {
+    /// Constrain particles touching the principal planes x = 0, y = 0, z = 0 (default true).
+    #[serde(default = "yes")]
+    pub constrain_planes: bool,
+    /// A particle touches a plane when its centre is within `plane_margin·r` of it (default 1.01).
+    #[serde(default = "margin")]
+    pub plane_margin: f64,
+    /// Linear solver: "auto" (default), "cholesky" or "cg".
+    #[serde(default = "auto")]
+    pub solver: String,
+}
+
+impl Default for MechanicsSpec {
+    fn default() -> Self {
+        MechanicsSpec { constrain_planes: true, plane_margin: margin(), solver: auto() }
+    }
+}
+
+fn margin() -> f64 {
+    1.01
+}
+fn auto() -> String {
+    "auto".into()
 }
 
 #[derive(Debug, Clone, Deserialize, Serialize)]
@@ -38,6 +119,18 @@ pub struct TimeSpec {
     /// Heat scheme: backward_euler, crank_nicolson, bdf2 (default).
     #[serde(default)]
     pub scheme: Scheme,
+    /// Compact runs: step-control strategy 1 (global) or 2 (per-contact subdivision, default).
+    pub strategy: Option<f64>,
+    /// Compact runs: largest global step [s] (default 10 s strategy 2, 100 s strategy 1).
+    pub dt_max: Option<f64>,
+    /// Compact runs: smallest global step [s] (default 1e-12 s).
+    pub dt_min: Option<f64>,
+    /// Compact runs: growth/shrink factor α (default 1.5).
+    pub alpha: Option<f64>,
+    /// Strategy 2: grow when fewer than this fraction of contacts subdivided (default 0.05).
+    pub grow_below: Option<f64>,
+    /// Strategy 2: shrink when more than this fraction subdivided (default 0.15).
+    pub shrink_above: Option<f64>,
 }
 
 #[derive(Debug, Clone, Deserialize, Serialize)]
@@ -55,11 +148,17 @@ pub struct OutputSpec {
     /// Write HDF5 (default true; needs the `h5` build feature).
     #[serde(default = "yes")]
     pub hdf5: bool,
+    /// Compact runs: write a checkpoint every this many steps (0: only at the end).
+    #[serde(default)]
+    pub checkpoint_every: f64,
+    /// Compact runs: times [s] at which the effective conductivity of the compact is computed.
+    #[serde(default)]
+    pub conductivity_at: Vec<f64>,
 }
 
 impl Default for OutputSpec {
     fn default() -> Self {
-        OutputSpec { snapshots: default_snapshots(), series_every: 1.0, vtu: true, hdf5: true }
+        OutputSpec { snapshots: default_snapshots(), series_every: 1.0, vtu: true, hdf5: true, checkpoint_every: 0.0, conductivity_at: Vec::new() }
     }
 }
 
@@ -90,8 +189,11 @@ pub struct ParticlesSpec {
     /// Overlap h relative to the smaller radius [1] (lattice nearest neighbours, pair).
     #[serde(default)]
     pub overlap: f64,
-    /// Packing file (CSV x,y,z,r[,material][,temperature]) relative to the case file.
+    /// Packing file relative to the case file: CSV `x,y,z,r[,material][,temperature]` (material
+    /// = 0-based index into `[[materials]]`), a LIGGGHTS/LAMMPS dump, or a Yade text export.
     pub file: Option<String>,
+    /// Format of `file`: "csv", "liggghts" or "yade" (default: from the extension).
+    pub format: Option<String>,
     /// Material name for every particle (default: the first material).
     pub material: Option<String>,
     /// Initial temperature [K] (default 293.15).

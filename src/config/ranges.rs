@@ -51,15 +51,21 @@ impl Range {
     }
 }
 
-const INF: f64 = f64::INFINITY;
+/// +∞ for open-ended ranges.
+pub const INF: f64 = f64::INFINITY;
 
 /// `[lo, hi]` closed.
-const fn c(key: &'static str, lo: f64, hi: f64, unit: &'static str, meaning: &'static str) -> Range {
+pub const fn c(key: &'static str, lo: f64, hi: f64, unit: &'static str, meaning: &'static str) -> Range {
     Range { key, lo, hi, lo_open: false, hi_open: false, unit, meaning }
 }
 /// `(lo, hi]`: strictly positive quantities.
-const fn p(key: &'static str, lo: f64, hi: f64, unit: &'static str, meaning: &'static str) -> Range {
+pub const fn p(key: &'static str, lo: f64, hi: f64, unit: &'static str, meaning: &'static str) -> Range {
     Range { key, lo, hi, lo_open: true, hi_open: false, unit, meaning }
+}
+
+/// `(lo, hi)` open.
+pub const fn o(key: &'static str, lo: f64, hi: f64, unit: &'static str, meaning: &'static str) -> Range {
+    Range { key, lo, hi, lo_open: true, hi_open: true, unit, meaning }
 }
 
 /// The table. Add a row for every new numeric key.
@@ -69,10 +75,21 @@ pub static TABLE: &[Range] = &[
     p("time.dt", 0.0, 1e7, "s", "time step (initial step where adaptive)"),
     p("time.dt_min", 0.0, 1e7, "s", "smallest step the step control may take"),
     p("time.dt_max", 0.0, 1e7, "s", "largest step the step control may take"),
+    c("time.strategy", 1.0, 2.0, "1", "step control: 1 global, 2 per-contact subdivision"),
+    c("time.alpha", 1.01, 10.0, "1", "step growth/shrink factor alpha (spec: below 1.58 for 4th-order pairs)"),
+    c("time.grow_below", 0.0, 1.0, "1", "strategy 2: grow when fewer contacts than this fraction subdivided"),
+    c("time.shrink_above", 0.0, 1.0, "1", "strategy 2: shrink when more contacts than this fraction subdivided"),
     // output
     c("output.snapshots", 0.0, 1e5, "1", "number of VTU/HDF5 snapshots, evenly spaced in time"),
     c("output.series_every", 1.0, 1e9, "1", "write a series row every this many steps"),
     c("output.checkpoint_every", 0.0, 1e9, "1", "write a checkpoint every this many steps (0: never)"),
+    c("output.conductivity_at.*", 0.0, 1e9, "s", "times of the effective-conductivity analyses of a compact run"),
+    // contacts and mechanics of compact runs
+    c("contacts.detect_every", 1.0, 1e9, "1", "neighbour search every this many steps"),
+    c("contacts.gap_tolerance", 0.0, 0.1, "1", "surface gap, relative to the mean radius, below which a pair counts as touching"),
+    c("contacts.epsilon", 1e-4, 0.1, "1", "initial neck excess epsilon of a new contact (I2)"),
+    o("contacts.eta", 0.0, 1.0, "1", "initial cone parameter eta of a new contact (I2)"),
+    c("mechanics.plane_margin", 1.0, 2.0, "1", "a particle touches a principal plane when its centre is within margin * r"),
     // materials
     p("materials.*.density", 0.0, 1e5, "kg/m^3", "mass density rho"),
     p("materials.*.heat_capacity", 0.0, 1e5, "J/(kg K)", "specific heat capacity c"),
@@ -99,7 +116,7 @@ pub static TABLE: &[Range] = &[
 
 /// Every range table of the crate: this file's [`TABLE`] and the models' own tables
 /// (a model module may keep its keys beside its code and register the table here).
-pub static TABLES: &[&[Range]] = &[TABLE, crate::models::diffusion7::RANGES];
+pub static TABLES: &[&[Range]] = &[TABLE, crate::models::diffusion7::RANGES, crate::packing::RANGES, crate::models::luding::RANGES, crate::models::frenkel::RANGES];
 
 /// Looks up `key` in [`TABLES`], matching `*` against any one path segment.
 pub fn lookup(key: &str) -> Option<&'static Range> {
@@ -139,4 +156,14 @@ mod tests {
             }
         }
     }
+}
+
+/// The range tables as a Markdown table (key, allowed range, unit, meaning), for
+/// `docs/case-file.md` (`sinterdem keys` prints it; a test keeps the document in step).
+pub fn markdown() -> String {
+    let mut s = String::from("| key | allowed | unit | meaning |\n|---|---|---|---|\n");
+    for r in TABLES.iter().flat_map(|t| t.iter()) {
+        s.push_str(&format!("| `{}` | {} | {} | {} |\n", r.key, r.describe(), r.unit, r.meaning));
+    }
+    s
 }

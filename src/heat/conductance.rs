@@ -10,6 +10,9 @@ pub enum ConductanceLaw {
     /// `K_i = c_K·κ_i·π·a` with the published FE slope c_K = 1.064 by default (eq. 43).
     #[default]
     Linear,
+    /// `K_i = f(a/r_i)·κ_i·π·a`, f fitted to sinterdem's own axisymmetric FE table
+    /// (`validation/`, docs/validation-conductance.md); within 0.1 % of it for 0.05 ≤ a/r ≤ 0.8.
+    FeFit,
 }
 
 /// The conductance model of a scene.
@@ -45,8 +48,8 @@ impl Conductance {
     pub fn half(&self, kappa: f64, r: f64, a: f64) -> f64 {
         let f = match self.law {
             ConductanceLaw::Linear => self.factor,
+            ConductanceLaw::FeFit => super::fe_fit::fe_fit_factor(a / r),
         };
-        let _ = r;
         f * kappa * std::f64::consts::PI * a
     }
 
@@ -88,5 +91,16 @@ mod tests {
         let expect = 1.0 / (1.0 / (100.0 * k) + 1.0 / (300.0 * k) + 2.0);
         assert!((p.pair / expect - 1.0).abs() < 1e-14);
         assert_eq!(c.pipe(1.0, 1.0, 1.0, 1.0, 0.0).pair, 0.0);
+    }
+
+    #[test]
+    fn fe_fit_uses_each_half_its_own_radius() {
+        let c = Conductance { law: ConductanceLaw::FeFit, ..Default::default() };
+        let p = c.pipe(394.0, 394.0, 1e-3, 3e-3, 0.3e-3);
+        let k = 394.0 * std::f64::consts::PI * 0.3e-3;
+        assert!((p.half_i / (crate::heat::fe_fit::fe_fit_factor(0.3) * k) - 1.0).abs() < 1e-14);
+        assert!((p.half_j / (crate::heat::fe_fit::fe_fit_factor(0.1) * k) - 1.0).abs() < 1e-14);
+        // small necks conduct more than the linear law says (Holm's limit 4/π per side)
+        assert!(p.half_j > Conductance::default().half(394.0, 3e-3, 0.3e-3));
     }
 }

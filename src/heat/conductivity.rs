@@ -118,12 +118,25 @@ fn steady(n: usize, pipes: &[[u32; 2]], k: &[f64], is_unknown: &[bool], values: 
 }
 
 /// The faces method along `axis` (0, 1, 2). `depth` [m]: particles whose sphere comes within it
-/// of a face of the bounding box form that face's Dirichlet layer.
+/// of a face of the bounding box of the conducting particles form that face's Dirichlet layer.
 pub fn faces(p: &Particles, pipes: &Pipes, axis: usize, depth: f64, delta_t: f64) -> Result<AxisResult, Error> {
     let n = p.len();
-    let (lo, hi) = p.bounding_box();
-    let hot: Vec<bool> = (0..n).map(|i| p.position[i][axis] - p.radius[i] <= lo[axis] + depth).collect();
-    let cold: Vec<bool> = (0..n).map(|i| p.position[i][axis] + p.radius[i] >= hi[axis] - depth && !hot[i]).collect();
+    // particles without a conducting pipe (rattlers) neither bound the packing nor form layers
+    let mut conducts = vec![false; n];
+    for (e, &[i, j]) in pipes.pairs.iter().enumerate() {
+        if pipes.conductance[e] > 0.0 {
+            conducts[i as usize] = true;
+            conducts[j as usize] = true;
+        }
+    }
+    let mut lo = Vector3::repeat(f64::INFINITY);
+    let mut hi = Vector3::repeat(f64::NEG_INFINITY);
+    for i in (0..n).filter(|&i| conducts[i]) {
+        lo = lo.inf(&p.position[i].add_scalar(-p.radius[i]));
+        hi = hi.sup(&p.position[i].add_scalar(p.radius[i]));
+    }
+    let hot: Vec<bool> = (0..n).map(|i| conducts[i] && p.position[i][axis] - p.radius[i] <= lo[axis] + depth).collect();
+    let cold: Vec<bool> = (0..n).map(|i| conducts[i] && p.position[i][axis] + p.radius[i] >= hi[axis] - depth && !hot[i]).collect();
     let (nh, nc) = (hot.iter().filter(|&&h| h).count(), cold.iter().filter(|&&c| c).count());
     if nh == 0 || nc == 0 {
         return Err(SolveError::new("effective conductivity", format!("axis {axis}: a Dirichlet layer is empty (hot {nh}, cold {nc})")).into());

@@ -4,6 +4,7 @@
 pub mod bench;
 pub mod conductance;
 pub mod conductivity;
+pub mod fe_fit;
 pub mod network;
 pub mod run;
 

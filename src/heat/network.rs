@@ -242,6 +242,16 @@ impl HeatNetwork {
         }
     }
 
+    /// The BDF2 history (T^{n−1} [K], Δt_{n−1} [s]) for checkpoints.
+    pub fn history(&self) -> Option<&(Vec<f64>, f64)> {
+        self.prev.as_ref()
+    }
+
+    /// Restores the BDF2 history from a checkpoint.
+    pub fn set_history(&mut self, h: Option<(Vec<f64>, f64)>) {
+        self.prev = h;
+    }
+
     /// Forgets the BDF2 history (after a rejected step or a topology change, the next step is
     /// backward Euler).
     pub fn reset_history(&mut self) {

@@ -47,8 +47,24 @@ pub fn conductance_of(case: &Case) -> Result<Conductance, ConfigError> {
     })
 }
 
-/// Parse → validate → build (no time stepping). `base` is the case file's directory.
+/// Parse → validate → build a heat case (no time stepping). `base` is the case file's directory.
 pub fn prepare(value: toml::Value, base: &Path) -> Result<Prepared, Error> {
+    let prep = prepare_scene(value, base)?;
+    let c = &prep.case;
+    if let Some(k) = c.kind.as_deref().filter(|k| *k != "heat") {
+        return Err(ConfigError::invalid(format!("kind = \"{k}\" is not a heat case")).into());
+    }
+    for (present, key) in [(c.contacts.is_some(), "contacts"), (c.model.is_some(), "model"), (c.solver.is_some(), "solver"), (c.mechanics.is_some(), "mechanics")] {
+        if present {
+            return Err(ConfigError::inconsistent(key, "this section belongs to kind = \"compact\" cases; a heat case has a static packing").into());
+        }
+    }
+    Ok(prep)
+}
+
+/// Parse → validate → build the parts shared by heat and compact cases: scene, materials,
+/// heat sources and the initial contact pipes.
+pub fn prepare_scene(value: toml::Value, base: &Path) -> Result<Prepared, Error> {
     let case: Case = from_value(value, "")?;
     config::check("time.end", case.time.end)?;
     config::check("time.dt", case.time.dt)?;
@@ -192,6 +208,18 @@ pub fn run(mut prep: Prepared, out: &Path, progress: bool, log: &mut dyn FnMut(&
     let (mut heat_in, mut stored, mut stored_plain, mut scale) = (0.0, 0.0, 0.0, 0.0f64);
     let (mut t_assemble, mut t_factor, mut t_solve, mut factorizations, mut max_resid) = (0.0, 0.0, 0.0, 0usize, 0.0f64);
     let mut max_iters = 0u32;
+    // local error estimate (docs/heat-model.md): difference between the step's result and an
+    // explicit extrapolation from earlier steps of the same size, scaled by the scheme's error
+    // constant: BE ½|T¹ − (2T⁰ − T⁻¹)|, CN (1/11)|T¹ − P|, BDF2 (2/7)|T¹ − P|, P = 3T⁰ − 3T⁻¹ + T⁻².
+    let mut hist: Vec<Vec<f64>> = Vec::new();
+    let mut hist_dt = f64::NAN;
+    let mut max_err_est = 0.0f64;
+    // the extrapolation is not valid across a kink of a prescribed profile: restart it there
+    let mut kinks: Vec<f64> = prep.sources.profiles.iter().flat_map(|p| p.breakpoints().to_vec()).collect();
+    if let Some(f) = &prep.sources.furnace {
+        kinks.extend_from_slice(f.gas.breakpoints());
+        kinks.extend_from_slice(f.wall.breakpoints());
+    }
     while next_snap < snap_times.len() && snap_times[next_snap] <= t + 1e-12 * end {
         write_snapshot(&mut snaps, t, p, &prep.pipes)?;
         next_snap += 1;
@@ -217,6 +245,29 @@ pub fn run(mut prep: Prepared, out: &Path, progress: bool, log: &mut dyn FnMut(&
             iters = info.iterations;
             max_iters = max_iters.max(iters);
             hin = info.heat_in;
+        }
+        if prep.isothermal.is_none() {
+            if dt != hist_dt || kinks.iter().any(|&k| k > t && k <= t + dt) {
+                hist.clear();
+                hist_dt = dt;
+            }
+            let need = if case.time.scheme == crate::heat::Scheme::BackwardEuler { 2 } else { 3 };
+            if hist.len() == need {
+                let est = (0..n)
+                    .filter(|&i| !net.is_fixed(i))
+                    .map(|i| {
+                        let (y, h) = (p.temperature[i], &hist);
+                        match case.time.scheme {
+                            crate::heat::Scheme::BackwardEuler => 0.5 * (y - (2.0 * h[1][i] - h[0][i])).abs(),
+                            crate::heat::Scheme::CrankNicolson => (y - (3.0 * h[2][i] - 3.0 * h[1][i] + h[0][i])).abs() / 11.0,
+                            crate::heat::Scheme::Bdf2 => 2.0 / 7.0 * (y - (3.0 * h[2][i] - 3.0 * h[1][i] + h[0][i])).abs(),
+                        }
+                    })
+                    .fold(0.0, f64::max);
+                max_err_est = max_err_est.max(est);
+                hist.remove(0);
+            }
+            hist.push(p.temperature.clone());
         }
         t += dt;
         steps += 1;
@@ -255,6 +306,7 @@ pub fn run(mut prep: Prepared, out: &Path, progress: bool, log: &mut dyn FnMut(&
         "max_temperature_K": hi,
         "factorizations": factorizations,
         "max_radiation_iterations": max_iters,
+        "max_local_error_estimate_K": max_err_est,
         "max_scaled_residual": max_resid,
         "seconds_assemble": t_assemble,
         "seconds_factorize": t_factor,

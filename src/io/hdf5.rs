@@ -31,6 +31,23 @@ impl H5Writer {
         Ok(H5Writer { file, path: path.to_path_buf() })
     }
 
+    /// Reopens the file of an interrupted run, removing the snapshots numbered `keep` and above
+    /// (written after the checkpoint).
+    pub fn reopen(path: &Path, keep: usize) -> Result<Self, H5Error> {
+        let err = |e: hdf5_metno::Error| H5Error::Io(IoError::new(path, e));
+        if !path.exists() {
+            return Self::create(path);
+        }
+        let file = hdf5_metno::File::open_rw(path).map_err(err)?;
+        let g = file.group("snapshots").map_err(err)?;
+        for name in g.member_names().map_err(err)? {
+            if name.parse::<usize>().map(|k| k >= keep).unwrap_or(false) {
+                g.unlink(&name).map_err(err)?;
+            }
+        }
+        Ok(H5Writer { file, path: path.to_path_buf() })
+    }
+
     pub fn write(&mut self, index: usize, s: &Snapshot) -> Result<(), IoError> {
         let err = |e: hdf5_metno::Error| IoError::new(&self.path, e);
         let g = self.file.group("snapshots").map_err(err)?.create_group(&format!("{index:06}")).map_err(err)?;
@@ -54,6 +71,10 @@ pub struct H5Writer;
 #[cfg(not(feature = "h5"))]
 impl H5Writer {
     pub fn create(_path: &Path) -> Result<Self, H5Error> {
+        Err(H5Error::Disabled)
+    }
+
+    pub fn reopen(_path: &Path, _keep: usize) -> Result<Self, H5Error> {
         Err(H5Error::Disabled)
     }
 

@@ -36,6 +36,21 @@ impl Series {
         Ok(s)
     }
 
+    /// Reopens a series for appending after its first `keep_lines` lines (header included), dropping
+    /// the rows written after a checkpoint.
+    pub fn resume(path: &Path, keep_lines: usize, columns: usize) -> Result<Self, IoError> {
+        let text = std::fs::read_to_string(path).map_err(|e| IoError::new(path, e))?;
+        let kept: Vec<&str> = text.lines().take(keep_lines).collect();
+        if kept.len() != keep_lines {
+            return Err(IoError::new(path, format!("has {} lines, the checkpoint expects at least {keep_lines}", kept.len())));
+        }
+        let mut body = kept.join("\n");
+        body.push('\n');
+        std::fs::write(path, body).map_err(|e| IoError::new(path, e))?;
+        let f = std::fs::OpenOptions::new().append(true).open(path).map_err(|e| IoError::new(path, e))?;
+        Ok(Series { path: path.to_path_buf(), file: std::io::BufWriter::new(f), columns })
+    }
+
     /// Appends one row (full precision).
     pub fn row(&mut self, values: &[f64]) -> Result<(), IoError> {
         debug_assert_eq!(values.len(), self.columns);
@@ -106,6 +121,29 @@ impl SnapshotWriter {
     /// Number of snapshots written.
     pub fn count(&self) -> usize {
         self.count
+    }
+
+    /// The VTU index entries (for checkpoints).
+    pub fn vtu_entries(&self) -> Vec<(f64, String, String)> {
+        self.vtu.as_ref().map(|v| v.entries().to_vec()).unwrap_or_default()
+    }
+
+    /// Continues after a checkpoint that had written `count` snapshots.
+    pub fn resume(dir: &Path, vtu: bool, h5: bool, count: usize, entries: Vec<(f64, String, String)>, log: &mut dyn FnMut(&str)) -> Result<Self, IoError> {
+        let vtu = if vtu { Some(vtu::PvdIndex::with_entries(entries)) } else { None };
+        let h5 = if h5 {
+            match hdf5::H5Writer::reopen(&dir.join("sinterdem.h5"), count) {
+                Ok(w) => Some(w),
+                Err(hdf5::H5Error::Disabled) => {
+                    log(hdf5::DISABLED_MESSAGE);
+                    None
+                }
+                Err(hdf5::H5Error::Io(e)) => return Err(e),
+            }
+        } else {
+            None
+        };
+        Ok(SnapshotWriter { dir: dir.to_path_buf(), vtu, h5, count })
     }
 
     pub fn hdf5_enabled(&self) -> bool {

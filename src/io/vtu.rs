@@ -11,7 +11,11 @@ const VTK_VERTEX: u8 = 1;
 const VTK_LINE: u8 = 3;
 
 fn data_array(out: &mut String, name: &str, comps: usize, values: impl Iterator<Item = f64>) {
-    let _ = write!(out, "<DataArray type=\"Float64\" Name=\"{name}\" NumberOfComponents=\"{comps}\" format=\"ascii\">\n");
+    if comps > 1 {
+        let _ = write!(out, "<DataArray type=\"Float64\" Name=\"{name}\" NumberOfComponents=\"{comps}\" format=\"ascii\">\n");
+    } else {
+        let _ = write!(out, "<DataArray type=\"Float64\" Name=\"{name}\" format=\"ascii\">\n");
+    }
     for (k, v) in values.enumerate() {
         let _ = write!(out, "{v:e}");
         out.push(if (k + 1) % 9 == 0 { '\n' } else { ' ' });
@@ -79,6 +83,16 @@ pub struct PvdIndex {
 impl PvdIndex {
     pub fn new(_dir: &Path) -> Self {
         PvdIndex { entries: Vec::new() }
+    }
+
+    /// The index entries so far: (time [s], particles file, contacts file).
+    pub fn entries(&self) -> &[(f64, String, String)] {
+        &self.entries
+    }
+
+    /// Continues an index (resumed runs).
+    pub fn with_entries(entries: Vec<(f64, String, String)>) -> Self {
+        PvdIndex { entries }
     }
 
     pub fn write(&mut self, dir: &Path, index: usize, snap: &Snapshot) -> Result<(), IoError> {

@@ -69,7 +69,7 @@ pub struct Control<const N: usize> {
 }
 
 /// Work counters.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, serde::Deserialize)]
 pub struct OdeStats {
     /// Accepted steps.
     pub steps: u64,

@@ -11,7 +11,7 @@ pub const DEFAULT_EPSILON: f64 = 0.01;
 pub const DEFAULT_ETA: f64 = 0.1;
 
 /// State of one diffusion contact (architecture map: a small `Copy` struct).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Contact7 {
     /// Current state `[a, R_A, c_A, d_A, R_B, c_B, d_B]` [m].
     pub y: [f64; 7],

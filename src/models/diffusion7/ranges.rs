@@ -1,18 +1,7 @@
 //! Range table of the 7-DOF model's case-file keys (registered in `config::ranges::TABLES`).
 
-use crate::config::ranges::Range;
+use crate::config::ranges::{INF, Range, c, o, p};
 
-const INF: f64 = f64::INFINITY;
-
-const fn c(key: &'static str, lo: f64, hi: f64, unit: &'static str, meaning: &'static str) -> Range {
-    Range { key, lo, hi, lo_open: false, hi_open: false, unit, meaning }
-}
-const fn p(key: &'static str, lo: f64, hi: f64, unit: &'static str, meaning: &'static str) -> Range {
-    Range { key, lo, hi, lo_open: true, hi_open: false, unit, meaning }
-}
-const fn o(key: &'static str, lo: f64, hi: f64, unit: &'static str, meaning: &'static str) -> Range {
-    Range { key, lo, hi, lo_open: true, hi_open: true, unit, meaning }
-}
 
 /// Keys of `kind = "pair"` cases and of 7-DOF material phases.
 pub static RANGES: &[Range] = &[

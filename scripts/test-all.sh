@@ -1,0 +1,39 @@
+#!/usr/bin/env bash
+# Runs every test: the Rust suite (unit, end-to-end, doc snippets) and the Python FE validation.
+#   bash scripts/test-all.sh
+set -uo pipefail
+set -e
+cd "$(dirname "$0")/.."
+source scripts/setup.sh
+features=$(sinterdem_features)
+start=$(date +%s)
+echo "== cargo build --release $features"
+# shellcheck disable=SC2086
+cargo build --release --quiet $features
+echo "== cargo test --release $features"
+set +e
+# shellcheck disable=SC2086
+cargo test --release $features 2>&1 | tee /tmp/sinterdem-cargo-test.log
+rust_status=${PIPESTATUS[0]}
+set -e
+python_status=0
+echo "== Python FE validation (validation/)"
+if [ -x validation/run_tests.sh ] || [ -f validation/run_tests.sh ]; then
+    set +e
+    SINTERDEM_BIN="$PWD/target/release/sinterdem" bash validation/run_tests.sh 2>&1 | tee /tmp/sinterdem-pytest.log
+    python_status=${PIPESTATUS[0]}
+    set -e
+else
+    echo "validation/run_tests.sh missing"; python_status=1
+fi
+passed=$(grep -Eo "[0-9]+ passed" /tmp/sinterdem-cargo-test.log | awk '{s+=$1} END {print s+0}')
+failed=$(grep -Eo "[0-9]+ failed" /tmp/sinterdem-cargo-test.log | awk '{s+=$1} END {print s+0}')
+py_passed=$(grep -Eo "[0-9]+ passed" /tmp/sinterdem-pytest.log 2>/dev/null | tail -n 1 | awk '{print $1+0}')
+py_failed=$(grep -Eo "[0-9]+ failed" /tmp/sinterdem-pytest.log 2>/dev/null | tail -n 1 | awk '{print $1+0}')
+echo "== Rust: $passed passed, $failed failed; Python: ${py_passed:-0} passed, ${py_failed:-0} failed (exit $python_status); $(( $(date +%s) - start )) s"
+if [ "$rust_status" != "0" ] || [ "$python_status" != "0" ]; then
+    echo "SOME TESTS FAILED"
+    echo "$(( passed + ${py_passed:-0} )) passed, $(( failed + ${py_failed:-0} + (rust_status != 0 && failed == 0) + (python_status != 0 && ${py_failed:-0} == 0) )) failed"
+    exit 1
+fi
+echo "$(( passed + ${py_passed:-0} )) passed, 0 failed"

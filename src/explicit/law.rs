@@ -1,0 +1,169 @@
+//! Contact laws of the explicit driver, behind one small trait ([`ContactModel`]).
+//!
+//! A law is a pure function of the pair's geometry ([`PairGeom`]) and its own per-contact `Copy`
+//! state (architecture map, "Data and dispatch"): the elastic laws here carry no state (`()`);
+//! Luding's and the SinterNormal laws of `explicit-sintering-laws.md` will carry δ_max, δ_0, δ_p.
+//! The driver is generic over the law (static dispatch); the case's choice is an enum
+//! ([`NormalLaw`]) matched once when the driver is built.
+//!
+//! Sign conventions (`explicit-sintering-laws.md`, Notation): overlap `δ = r_i + r_j − |x_i − x_j|`
+//! (> 0 in contact), overlap rate `δ̇ = −(v_i − v_j)·n` (> 0 while approaching), normal force
+//! positive when repulsive.
+
+/// What a law sees of one contact at one instant.
+#[derive(Debug, Clone, Copy)]
+pub struct PairGeom {
+    /// Overlap δ [m] (> 0 in contact).
+    pub overlap: f64,
+    /// Overlap rate δ̇ [m/s] (> 0 while approaching).
+    pub overlap_rate: f64,
+    /// Reduced mass m_ij = m_i m_j/(m_i + m_j) [kg] (m_i against a wall).
+    pub mass: f64,
+    /// Reduced radius R_red = r_i r_j/(r_i + r_j) [m] (r_i against a wall).
+    pub radius: f64,
+}
+
+/// A law's answer for one contact.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct NormalOut {
+    /// Total normal force, elastic + viscous, positive when repulsive [N].
+    pub force: f64,
+    /// Viscous part of `force` [N] (its power `f_d·δ̇` is dissipated).
+    pub damping_force: f64,
+    /// Elastic energy stored in the normal spring [J].
+    pub elastic_energy: f64,
+    /// Tangent normal stiffness dF_el/dδ [N/m], the base of the tangential spring k_t = α·k_n.
+    pub stiffness: f64,
+    /// Normal damping coefficient at this state [kg/s], the base of γ_t = β·γ_n.
+    pub damping: f64,
+}
+
+/// A normal contact law with its per-contact state.
+pub trait ContactModel: Sync + Send {
+    /// Per-contact history (δ_max, δ_p, ... for the sintering laws; `()` for elastic laws).
+    type State: Copy + Default + Send + Sync + std::fmt::Debug;
+    /// Normal force for a contact with `g.overlap > 0`; may update `state`.
+    fn normal(&self, g: &PairGeom, state: &mut Self::State) -> NormalOut;
+    /// Duration of a binary collision (half-period of the contact oscillation) t_c [s] for reduced
+    /// mass `mass` and reduced radius `radius`; `impact_speed` [m/s] matters only for laws whose
+    /// stiffness grows with overlap (Hertz). The time step is a fraction of the smallest t_c.
+    fn collision_time(&self, mass: f64, radius: f64, impact_speed: f64) -> f64;
+}
+
+/// How the normal viscous damping of the linear law is given.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Damping {
+    /// A fixed coefficient γ_n [kg/s].
+    Coefficient(f64),
+    /// A restitution coefficient e ∈ (0, 1]; γ_n is computed per pair from its reduced mass so
+    /// that every binary collision has exactly this e (see [`LinearSpringDashpot::gamma`]).
+    Restitution(f64),
+}
+
+/// Linear spring-dashpot: `f = k_n δ + γ_n δ̇` (Luding 2005 eq. 4 loading branch with k1 = k2,
+/// plus eq. 5). The force is not clipped at zero: the analytic restitution coefficient
+/// `e = exp(−η t_c)`, `η = γ_n/(2m)`, `t_c = π/√(k_n/m − η²)` (eq. 6) holds for a contact that ends
+/// when δ returns to zero.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LinearSpringDashpot {
+    /// Normal stiffness k_n [N/m].
+    pub stiffness: f64,
+    /// Normal viscous damping.
+    pub damping: Damping,
+}
+
+/// `−2 ln e/√(π² + ln² e)`: γ_n = this · √(m k_n) gives restitution e.
+#[inline]
+fn restitution_factor(e: f64) -> f64 {
+    let l = e.ln();
+    -2.0 * l / (std::f64::consts::PI.powi(2) + l * l).sqrt()
+}
+
+impl LinearSpringDashpot {
+    /// γ_n [kg/s] for reduced mass `m` [kg]: for a restitution e,
+    /// `γ = −2 ln(e) √(m k)/√(π² + ln² e)` (inverts e = exp(−η π/ω), ω² = k/m − η²).
+    #[inline]
+    pub fn gamma(&self, m: f64) -> f64 {
+        match self.damping {
+            Damping::Coefficient(g) => g,
+            Damping::Restitution(e) => restitution_factor(e) * (m * self.stiffness).sqrt(),
+        }
+    }
+
+    /// Analytic restitution coefficient of a binary collision with reduced mass `m` [kg]
+    /// (Luding 2005 eq. 6): `e = exp(−η t_c)`; 0 when overdamped.
+    pub fn restitution(&self, m: f64) -> f64 {
+        let eta = self.gamma(m) / (2.0 * m);
+        let w2 = self.stiffness / m - eta * eta;
+        if w2 <= 0.0 {
+            return 0.0;
+        }
+        (-eta * std::f64::consts::PI / w2.sqrt()).exp()
+    }
+}
+
+impl ContactModel for LinearSpringDashpot {
+    type State = ();
+    #[inline]
+    fn normal(&self, g: &PairGeom, _: &mut ()) -> NormalOut {
+        let gamma = self.gamma(g.mass);
+        let fd = gamma * g.overlap_rate;
+        NormalOut {
+            force: self.stiffness * g.overlap + fd,
+            damping_force: fd,
+            elastic_energy: 0.5 * self.stiffness * g.overlap * g.overlap,
+            stiffness: self.stiffness,
+            damping: gamma,
+        }
+    }
+    fn collision_time(&self, mass: f64, _radius: f64, _v: f64) -> f64 {
+        let eta = self.gamma(mass) / (2.0 * mass);
+        let w2 = self.stiffness / mass - eta * eta;
+        if w2 > 0.0 { std::f64::consts::PI / w2.sqrt() } else { std::f64::consts::PI * (mass / self.stiffness).sqrt() }
+    }
+}
+
+/// Hertzian elastic repulsion with Tsuji-type damping:
+/// `f = K δ^{3/2} + β √(m K) δ^{1/4} δ̇`, `K = (4/3) E* √R_red` (Hertz), elastic energy
+/// `(2/5) K δ^{5/2}`. With this damping form the restitution coefficient is independent of the
+/// impact speed (Tsuji et al. 1992); β = 0 is purely elastic.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Hertz {
+    /// Effective modulus E* = E/(2(1 − ν²)) for two equal materials [Pa].
+    pub effective_modulus: f64,
+    /// Dimensionless damping β ≥ 0.
+    pub damping: f64,
+}
+
+impl ContactModel for Hertz {
+    type State = ();
+    #[inline]
+    fn normal(&self, g: &PairGeom, _: &mut ()) -> NormalOut {
+        let k = 4.0 / 3.0 * self.effective_modulus * g.radius.sqrt();
+        let sd = g.overlap.sqrt();
+        let fe = k * g.overlap * sd;
+        let gamma = self.damping * (g.mass * k).sqrt() * sd.sqrt();
+        let fd = gamma * g.overlap_rate;
+        NormalOut {
+            force: fe + fd,
+            damping_force: fd,
+            elastic_energy: 0.4 * k * g.overlap * g.overlap * sd,
+            stiffness: 1.5 * k * sd,
+            damping: gamma,
+        }
+    }
+    /// Elastic Hertz collision time `t_c = 2.94 (m²/(K² v))^{1/5}` (Johnson 1985, §11.4:
+    /// `t_c = 2.94 δ_max/v`, `δ_max = (15 m v²/(16 E* √R))^{2/5}`).
+    fn collision_time(&self, mass: f64, radius: f64, v: f64) -> f64 {
+        let v = v.max(f64::MIN_POSITIVE);
+        let dmax = (15.0 * mass * v * v / (16.0 * self.effective_modulus * radius.sqrt())).powf(0.4);
+        2.94 * dmax / v
+    }
+}
+
+/// The case's choice of elastic law: matched once to build a driver generic over the law.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum NormalLaw {
+    Linear(LinearSpringDashpot),
+    Hertz(Hertz),
+}
