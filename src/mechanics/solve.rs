@@ -26,8 +26,8 @@ pub enum LinearSolver {
 }
 
 /// Automatic choice: PCG above this many equations. Measured by `bench_mechanics` (random FCC
-/// bonded packings, docs/mechanics.md), one step with a fresh factor: Cholesky 2× faster than
-/// block-Jacobi PCG at 4.6·10³ equations, 1.2× slower at 6·10⁴, 4.7× slower at 5.4·10⁵
+/// bonded packings, docs/mechanics.md), one step with a fresh factor: Cholesky 2–3× faster than
+/// block-Jacobi PCG at 4.6·10³ equations, 1.2× slower at 6·10⁴, 3–5× slower at 5.4·10⁵
 /// (nnz(L) grows ≈ N^1.5, its factorisation ≈ N²; PCG iterations only ≈ N^0.25). The crossover,
 /// ≈ 4–5·10⁴ equations (≈ 8·10³ particles), is where this switch sits. With `reuse_factor` the
 /// Cholesky stays ahead for as long as one factor serves many steps.
