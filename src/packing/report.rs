@@ -80,13 +80,13 @@ pub fn write_vtu(dir: &Path, stem: &str, pos: &[Vector3<f64>], rad: &[f64], temp
 }
 
 /// The laminae plot (eq. 48) through the shared plot facility: relative density against the
-/// normalised position s/L for the three axes, with the mean ± `band` drawn as two thin lines.
+/// normalised position s/L for the three axes, with `mean` ± `band` drawn as two lines.
 pub fn write_laminae_plot(path: &Path, title: &str, series: &[(&str, Vec<(f64, f64)>)], mean: f64, band: f64) -> Result<(), Error> {
-    let mut plot = crate::plot::Plot::new(title).labels("position s/L [1]", "relative density of the lamina [1]");
+    let mut plot = crate::plot::Plot::new(title).labels("position s/L [1]", "relative density [1]");
     for (name, pts) in series {
         plot.add(crate::plot::Series::new(*name, pts.clone()).with_markers());
     }
-    for (name, y) in [(format!("solid fraction + {band}"), mean + band), (format!("solid fraction - {band}"), mean - band)] {
+    for (name, y) in [(format!("interior mean + {band}"), mean + band), (format!("interior mean - {band}"), mean - band)] {
         plot.add(crate::plot::Series::new(name, vec![(0.0, y), (1.0, y)]));
     }
     plot.save_png(path).map_err(Error::from)
