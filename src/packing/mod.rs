@@ -581,6 +581,16 @@ pub fn generate(case: &GenerateCase, progress: bool) -> Result<(Packing, Generat
     let met = loop {
         sim.run(&mut p, 50)?;
         steps_relax += 50;
+        if mu > 0.0 {
+            // a rattler (no contact: zero force, gravity is off) keeps any spin forever, and its
+            // rotational energy would hold the kinetic energy above the threshold; the spin of a
+            // contact-free sphere does not affect the geometry, so stop it
+            for (w, f) in p.angular_velocity.iter_mut().zip(sim.forces()) {
+                if *f == V3::zeros() {
+                    *w = V3::zeros();
+                }
+            }
+        }
         let ke = sim.energy.kinetic;
         let ov = max_overlap(&p, &sim.walls, sim.neighbour_pairs());
         if ke < ke_tol && ov < ov_tol && !backing_off {
