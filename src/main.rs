@@ -131,6 +131,25 @@ enum Bench {
         #[arg(long, default_value = "out/bench-generate")]
         out: PathBuf,
     },
+    /// The coupled loop: the copper compact whole (stage shares), then the cost per step of FCC
+    /// compacts of the given sizes.
+    Coupled {
+        /// Compact case to run whole (default cases/copper-compact.toml; "none" to skip).
+        #[arg(long, default_value = "cases/copper-compact.toml")]
+        case: String,
+        /// Particle counts of the per-step measurement (repeatable).
+        #[arg(long = "particles", default_values_t = vec![1000usize, 10000, 100000])]
+        particles: Vec<usize>,
+        /// Steps timed per size.
+        #[arg(long, default_value_t = 3)]
+        steps: u64,
+    },
+    /// The bonded 6-DOF solve: assembly, symbolic, factorisation, solve and PCG on bonded packings.
+    Mechanics {
+        /// Particle counts (repeatable).
+        #[arg(long = "particles", default_values_t = vec![1000usize, 10000])]
+        particles: Vec<usize>,
+    },
     /// Work-precision diagram of the 7-DOF pair integrators (copper and E14B titanium).
     Pair {
         /// Output directory for work_precision.csv and the PNG diagrams.
@@ -310,6 +329,15 @@ fn real_main(cli: Cli) -> Result<(), Error> {
         }
         Command::Bench { which } => match which {
             Bench::Heat { particles, repeat } => sinterdem::heat::bench::bench_heat(&particles, repeat.max(1)),
+            Bench::Mechanics { particles } => {
+                println!("{}", sinterdem::mechanics::bench::bench_mechanics(&particles)?);
+                Ok(())
+            }
+            Bench::Coupled { case, particles, steps } => {
+                let c = (case != "none").then(|| PathBuf::from(&case));
+                println!("{}", sinterdem::scheduler::bench_coupled(c.as_deref(), &particles, steps)?);
+                Ok(())
+            }
             Bench::Generate { particles, out } => {
                 sinterdem::io::ensure_dir(&out)?;
                 println!("{}", sinterdem::packing::bench_generate(&out, &particles)?);

@@ -42,6 +42,7 @@ pub struct Settings {
     pub alpha: f64,
     pub grow_below: f64,
     pub shrink_above: f64,
+    pub substeps_allowed: u64,
     pub detect_new: bool,
     pub detect_every: u64,
     /// Gap [m] below which a pair counts as touching.
@@ -95,6 +96,7 @@ impl Settings {
             alpha: config::check("time.alpha", t.alpha.unwrap_or(1.5))?,
             grow_below: config::check("time.grow_below", t.grow_below.unwrap_or(0.05))?,
             shrink_above: config::check("time.shrink_above", t.shrink_above.unwrap_or(0.15))?,
+            substeps_allowed: config::check("time.substeps_allowed", t.substeps_allowed.unwrap_or(1.0))? as u64,
             detect_new: c.detect_new,
             detect_every: every as u64,
             gap: config::check("contacts.gap_tolerance", c.gap_tolerance)?,
@@ -120,6 +122,7 @@ pub struct MechanicsSettings {
     /// Relative surface gap of the plane test: centre within (1 + gap)·r (spec §8: 1 %).
     pub plane_gap: f64,
     pub solver: LinearSolver,
+    pub reuse_factor: bool,
 }
 
 impl MechanicsSettings {
@@ -131,7 +134,7 @@ impl MechanicsSettings {
             "cg" => LinearSolver::Pcg,
             o => return Err(ConfigError::invalid(format!("mechanics.solver = \"{o}\": expected auto, cholesky or cg"))),
         };
-        Ok(MechanicsSettings { constrain_planes: m.constrain_planes, plane_gap: margin - 1.0, solver })
+        Ok(MechanicsSettings { constrain_planes: m.constrain_planes, plane_gap: margin - 1.0, solver, reuse_factor: m.reuse_factor })
     }
 }
 
@@ -160,7 +163,7 @@ impl MechanicsStage {
         } else {
             Constraints::none(p.len())
         };
-        let params = MechParams { young_modulus: young, poisson_ratio: poisson, solver: self.settings.solver, ..Default::default() };
+        let params = MechParams { young_modulus: young, poisson_ratio: poisson, solver: self.settings.solver, reuse_factor: self.settings.reuse_factor, ..Default::default() };
         self.sys = Some(BondedSystem::new(p.len(), params, cons)?);
         Ok(())
     }
@@ -259,6 +262,8 @@ pub struct Simulation {
     pub heat_stored: f64,
     pub heat_scale: f64,
     pub warnings: Vec<String>,
+    /// Corrections (C4) that had to be limited to keep a contact admissible.
+    pub limited_corrections: u64,
     /// Log of what was skipped, said once.
     pub skipped: Vec<&'static str>,
     /// The case as run (overrides applied) and its directory, for checkpoints.
@@ -312,6 +317,7 @@ impl Simulation {
             heat_stored: 0.0,
             heat_scale: 0.0,
             warnings: Vec::new(),
+            limited_corrections: 0,
             skipped: Vec::new(),
             source: (String::new(), std::path::PathBuf::new()),
             prep,
@@ -465,7 +471,7 @@ impl Simulation {
                 stats.push(r?);
             }
             self.timing.diffusion += tic.elapsed().as_secs_f64();
-            let subdivided = stats.iter().filter(|s| s.steps > 1).count();
+            let subdivided = stats.iter().filter(|s| s.steps > self.settings.substeps_allowed).count();
             if self.settings.strategy == 1 && subdivided > 0 && dt > self.settings.dt_min {
                 // strategy 1: any contact that needed more than one step rejects the global step
                 for c in &mut self.contacts.state {
@@ -539,11 +545,30 @@ impl Simulation {
                     (r[3], r[6])
                 };
                 let corr = d7::correct_y4_y7(prev, star, rates_star, xi[k], r_sum);
-                c.y[3] = corr.y4;
-                c.y[6] = corr.y7;
+                // (C4) can push a young contact's cone past tangency (A3) when its neighbours
+                // compress it more than its own approach: then the deviation from y* is halved
+                // until the state is admissible (counted; docs/decisions.md)
+                let mut w = 1.0;
+                loop {
+                    c.y[3] = star.0 + w * (corr.y4 - star.0);
+                    c.y[6] = star.1 + w * (corr.y7 - star.1);
+                    let ok = d7::geometry::sides(&c.y).is_ok_and(|(a, b)| a.derivs().is_ok() && b.derivs().is_ok());
+                    if ok {
+                        break;
+                    }
+                    if w < 1e-6 {
+                        c.y[3] = star.0;
+                        c.y[6] = star.1;
+                        break;
+                    }
+                    w *= 0.5;
+                }
+                if w < 1.0 {
+                    self.limited_corrections += 1;
+                }
                 c.y_prev = c.y;
                 c.e3 = [e3[k].x, e3[k].y, e3[k].z];
-                self.contacts.dl_bar[k] = corr.dl_bar;
+                self.contacts.dl_bar[k] = (c.y[3] + c.y[6]) - (star.0 + star.1);
                 if p2 {
                     // an isolated pair: A stays, B approaches by exactly the 7-DOF prediction
                     let ps = &mut self.prep.scene.particles;
@@ -592,6 +617,27 @@ impl Simulation {
         let v: f64 = p.radius.iter().map(|&r| crate::units::sphere_volume(r)).sum();
         let e = self.extents();
         v / (e.x * e.y * e.z)
+    }
+
+    /// Mean contact shrinkage ΔL/L0 and mean neck ratio in `layers` slabs along z (contact
+    /// midpoints, initial positions), bottom first: the densification profile of a compact heated
+    /// from one face.
+    pub fn layer_profile(&self, layers: usize) -> Vec<(f64, f64, f64, usize)> {
+        let p = &self.prep.scene.particles;
+        let (lo, hi) = (self.planes.z, self.planes.z + self.extent0.z);
+        let mut acc = vec![(0.0, 0.0, 0usize); layers];
+        for (c, &[i, j]) in self.contacts.state.iter().zip(&self.contacts.pairs) {
+            let z = 0.5 * (self.x0[i as usize].z + self.x0[j as usize].z);
+            let k = (((z - lo) / (hi - lo) * layers as f64) as usize).min(layers - 1);
+            acc[k].0 += c.shrinkage();
+            acc[k].1 += c.neck_ratio();
+            acc[k].2 += 1;
+        }
+        let _ = p;
+        acc.iter()
+            .enumerate()
+            .map(|(k, &(s, nr, n))| (lo + (k as f64 + 0.5) * (hi - lo) / layers as f64, s / n.max(1) as f64, nr / n.max(1) as f64, n))
+            .collect()
     }
 
     /// Shrinkage per axis, 1 − L/L0 [1].
@@ -644,6 +690,7 @@ pub struct Checkpoint {
     pub heat_stored: f64,
     pub heat_scale: f64,
     pub warnings: Vec<String>,
+    pub limited_corrections: u64,
     pub position: Vec<[f64; 3]>,
     pub temperature: Vec<f64>,
     pub rotation: Vec<[f64; 3]>,
@@ -674,6 +721,7 @@ impl Simulation {
             heat_stored: self.heat_stored,
             heat_scale: self.heat_scale,
             warnings: self.warnings.clone(),
+            limited_corrections: self.limited_corrections,
             position: p.position.iter().map(|x| [x.x, x.y, x.z]).collect(),
             temperature: p.temperature.clone(),
             rotation: self.mechanics.rotation.iter().map(|x| [x.x, x.y, x.z]).collect(),
@@ -716,6 +764,7 @@ impl Simulation {
         sim.heat_stored = ck.heat_stored;
         sim.heat_scale = ck.heat_scale;
         sim.warnings = ck.warnings.clone();
+        sim.limited_corrections = ck.limited_corrections;
         log(&format!("resumed from the checkpoint at t = {} s (step {}, {} contacts)", sim.t, sim.step, sim.contacts.len()));
         Ok((sim, ck.output.clone()))
     }
@@ -899,6 +948,7 @@ pub fn run_from(mut sim: Simulation, out: &Path, progress: bool, log: &mut dyn F
         "max_temperature_K": t.iter().copied().fold(f64::NEG_INFINITY, f64::max),
         "energy_balance_rel": balance,
         "rhs_evaluations": sim.ode.rhs,
+        "limited_corrections": sim.limited_corrections,
         "ode_steps": sim.ode.steps,
         "ode_rejected": sim.ode.rejected,
         "timing_seconds": sim.timing,
@@ -909,7 +959,15 @@ pub fn run_from(mut sim: Simulation, out: &Path, progress: bool, log: &mut dyn F
         "warnings": sim.warnings,
         "threads": rayon::current_num_threads(),
     });
+    let mut summary = summary;
+    let prof = sim.layer_profile(5);
+    summary["layer_z_m"] = json!(prof.iter().map(|l| l.0).collect::<Vec<_>>());
+    summary["layer_contact_shrinkage"] = json!(prof.iter().map(|l| l.1).collect::<Vec<_>>());
+    summary["layer_neck_ratio"] = json!(prof.iter().map(|l| l.2).collect::<Vec<_>>());
     io::write_json(&out.join("summary.json"), &summary)?;
+    if let Err(e) = write_plots(out, &sim) {
+        log(&format!("warning: plots not written: {e}"));
+    }
     log(&format!(
         "done: {} steps to t = {} s in {:.3} s; shrinkage x/y/z = {:.4e}/{:.4e}/{:.4e}; relative density {:.4}; mean neck ratio {:.4}",
         sim.step,
@@ -948,6 +1006,123 @@ pub fn compact_conductivity(sim: &Simulation) -> Result<[f64; 3], Error> {
     let mut out = [0.0; 3];
     for (a, o) in out.iter_mut().enumerate() {
         *o = crate::heat::conductivity::faces(p, &pipes, a, 0.5 * p.mean_radius(), 1.0)?.kappa;
+    }
+    Ok(out)
+}
+
+/// PNG plots of a compact run from its series.csv, the ΔL̄ histogram (Ivannikov et al. 2022
+/// Fig. 20) and the layer profile along z.
+pub fn write_plots(out: &Path, sim: &Simulation) -> Result<(), IoError> {
+    use crate::plot::{Plot, Series as Line};
+    let path = out.join("series.csv");
+    let text = std::fs::read_to_string(&path).map_err(|e| IoError::new(&path, e))?;
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap_or("").split(',').collect();
+    let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|v| v.parse().unwrap_or(f64::NAN)).collect()).collect();
+    let col = |name: &str| -> Vec<(f64, f64)> {
+        let k = header.iter().position(|h| *h == name).unwrap_or(0);
+        rows.iter().filter(|r| r[0] > 0.0).map(|r| (r[0], r[k])).collect()
+    };
+    let mut p = Plot::new("shrinkage along each axis").labels("time t [s]", "shrinkage 1 - L/L0 [1]");
+    for (name, key) in [("x", "shrinkage_x"), ("y", "shrinkage_y"), ("z", "shrinkage_z")] {
+        p.add(Line::new(name, col(key)));
+    }
+    p.save_png(&out.join("shrinkage.png"))?;
+    let mut p = Plot::new("relative density (eq. 49)").labels("time t [s]", "relative density [1]");
+    p.add(Line::new("relative density", col("relative_density")));
+    p.save_png(&out.join("relative_density.png"))?;
+    let mut p = Plot::new("mean coordination number").labels("time t [s]", "coordination [1]");
+    p.add(Line::new("2 contacts / particles", col("coordination_mean")));
+    p.save_png(&out.join("coordination.png"))?;
+    let mut p = Plot::new("mean neck ratio").labels("time t [s]", "y1/R_min [1]").log_x(true);
+    p.add(Line::new("neck ratio", col("neck_ratio_mean")));
+    p.save_png(&out.join("neck_ratio.png"))?;
+    let mut p = Plot::new("particle temperatures").labels("time t [s]", "T [K]");
+    for (name, key) in [("mean", "mean_temperature_K"), ("min", "min_temperature_K"), ("max", "max_temperature_K")] {
+        p.add(Line::new(name, col(key)));
+    }
+    p.save_png(&out.join("temperature.png"))?;
+    // histogram of the last step's ΔL̄, normalised by the contact's L0
+    let dl: Vec<f64> = sim.contacts.dl_bar.iter().zip(&sim.contacts.state).map(|(d, c)| d / c.l0).collect();
+    if !dl.is_empty() {
+        let (lo, hi) = dl.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+        let bins = 30usize;
+        let w = ((hi - lo) / bins as f64).max(f64::MIN_POSITIVE);
+        let mut count = vec![0usize; bins];
+        for v in &dl {
+            count[(((v - lo) / w) as usize).min(bins - 1)] += 1;
+        }
+        let mut pts = Vec::new();
+        for (k, &c) in count.iter().enumerate() {
+            let (a, b) = (lo + k as f64 * w, lo + (k + 1) as f64 * w);
+            pts.push((a, 0.0));
+            pts.push((a, c as f64));
+            pts.push((b, c as f64));
+            pts.push((b, 0.0));
+        }
+        let mut p = Plot::new("correction of the last step (paper Fig. 20)").labels("dL_bar / L0 [1]", "contacts");
+        p.add(Line::new("histogram", pts));
+        p.save_png(&out.join("dl_bar_histogram.png"))?;
+    }
+    let prof = sim.layer_profile(5);
+    let mut p = Plot::new("densification through the height").labels("height z [m]", "mean contact shrinkage dL/L0 [1]");
+    p.add(Line::new("contacts by layer", prof.iter().map(|l| (l.0, l.1)).collect()).with_markers());
+    p.save_png(&out.join("layer_profile.png"))?;
+    Ok(())
+}
+
+/// `sinterdem bench coupled`: the bundled copper compact run whole (wall time and the share of
+/// each stage), then the cost per step of isothermal FCC compacts of about `sizes` particles.
+pub fn bench_coupled(copper_case: Option<&Path>, sizes: &[usize], steps: u64) -> Result<String, Error> {
+    use std::fmt::Write as _;
+    let mut out = String::new();
+    let _ = writeln!(out, "# sinterdem bench coupled ({} rayon threads)", rayon::current_num_threads());
+    if let Some(case) = copper_case {
+        let value = crate::config::load_case(case, &["output.snapshots=0".into(), "output.vtu=false".into(), "output.hdf5=false".into(), "output.checkpoint_every=0".into(), "output.conductivity_at=[]".into()])?;
+        let base = case.parent().unwrap_or(Path::new("."));
+        let dir = std::env::temp_dir().join(format!("sinterdem-bench-{}", std::process::id()));
+        let sim = prepare(value, base, &mut |_| {})?;
+        let s = run(sim, &dir, false, &mut |_| {})?;
+        let _ = std::fs::remove_dir_all(&dir);
+        let tm: Timing = serde_json::from_value(s["timing_seconds"].clone()).unwrap_or_default();
+        let total = s["wall_seconds"].as_f64().unwrap_or(0.0);
+        let _ = writeln!(out, "{}: {} steps, {} contacts at the end, wall {:.2} s", case.display(), s["steps"], s["contacts"], total);
+        for (name, v) in [("detection", tm.detection), ("heat", tm.heat), ("diffusion", tm.diffusion), ("mechanics", tm.mechanics), ("correction", tm.correction), ("output", tm.output)] {
+            let _ = writeln!(out, "  {name:<11} {v:>9.3} s  {:>5.1} %", 100.0 * v / total.max(1e-300));
+        }
+    }
+    let _ = writeln!(out, "{:>9} {:>9} {:>12} {:>12} {:>12} {:>12} {:>12}", "particles", "contacts", "s/step", "detection", "diffusion", "mechanics", "correction");
+    for &n in sizes {
+        let cells = ((n as f64 / 4.0).cbrt().round() as u32).max(2);
+        let text = format!(
+            "kind = \"compact\"\n[time]\nend = {end}\ndt = 1.0\ndt_max = 1.0\n[output]\nsnapshots = 0\nvtu = false\nhdf5 = false\n[[materials]]\nname = \"copper\"\npreset = \"copper\"\n[particles]\nsource = \"lattice\"\nlattice = \"fcc\"\ncells = [{cells}, {cells}, {cells}]\nradius = 25e-6\noverlap = 0.0\n[thermal]\nmode = \"isothermal\"\nfurnace = {{ profile = {{ constant = 1293.0 }} }}\n[contacts]\ndetect_new = true\n",
+            end = steps as f64
+        );
+        let value = toml::Value::Table(text.parse::<toml::Table>().map_err(|e| ConfigError::invalid(e.to_string()))?);
+        let mut sim = prepare(value, Path::new("."), &mut |_| {})?;
+        // the first step of a new contact is the stiff start; time the later steps
+        sim.advance_step(&mut |_| {})?;
+        let t0 = sim.timing;
+        let w = Instant::now();
+        let mut k = 0;
+        while sim.t < sim.settings.end && k < steps {
+            sim.advance_step(&mut |_| {})?;
+            k += 1;
+        }
+        let per = w.elapsed().as_secs_f64() / k.max(1) as f64;
+        let tm = sim.timing;
+        let d = |a: f64, b: f64| (a - b) / k.max(1) as f64;
+        let _ = writeln!(
+            out,
+            "{:>9} {:>9} {:>12.4} {:>12.4} {:>12.4} {:>12.4} {:>12.4}",
+            sim.prep.scene.particles.len(),
+            sim.contacts.len(),
+            per,
+            d(tm.detection, t0.detection),
+            d(tm.diffusion, t0.diffusion),
+            d(tm.mechanics, t0.mechanics),
+            d(tm.correction, t0.correction)
+        );
     }
     Ok(out)
 }

@@ -324,3 +324,25 @@ fn random_packing_is_spd_and_solvers_agree() {
     let diff = fresh.du.iter().zip(&reused.du).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
     assert!(diff < 1e-8 * scale, "reuse vs fresh: {diff:e}");
 }
+
+/// An iteration budget that cannot reach the tolerance is a SolveError with the residual history,
+/// not a silent inaccurate answer.
+#[test]
+fn unconverged_pcg_is_a_solve_error_with_history() {
+    let r = 10e-6;
+    let (pos, pairs) = sc_lattice(4, r);
+    let rad = vec![r; pos.len()];
+    let cons = Constraints::principal_planes(&pos, &rad, 0.01).unwrap();
+    let mut sys = BondedSystem::new(pos.len(), MechParams { pcg_max_iter: 2, max_newton: 2, ..params(LinearSolver::Pcg) }, cons).unwrap();
+    sys.set_topology(&pairs).unwrap();
+    let mut s = 9u64;
+    let load: Vec<f64> = pairs.iter().map(|_| rng(&mut s)).collect();
+    let err = sys.step(&StepInput { positions: &pos, radii: &rad, y4_y7: &vec![[r, r]; pairs.len()], load: &load, external: None }).unwrap_err();
+    match err {
+        sinterdem::Error::Solve(e) => {
+            assert!(e.stage.contains("PCG") && !e.residuals.is_empty(), "{e}");
+            assert!(e.residuals.iter().all(|v| v.is_finite()));
+        }
+        other => panic!("expected SolveError, got {other}"),
+    }
+}

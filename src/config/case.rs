@@ -94,11 +94,15 @@ pub struct MechanicsSpec {
     /// Linear solver: "auto" (default), "cholesky" or "cg".
     #[serde(default = "auto")]
     pub solver: String,
+    /// Reuse the last Cholesky factor as the Newton operator while the contacts are unchanged,
+    /// refactorising only when Newton stalls (default true; the step's residual test still holds).
+    #[serde(default = "yes")]
+    pub reuse_factor: bool,
 }
 
 impl Default for MechanicsSpec {
     fn default() -> Self {
-        MechanicsSpec { constrain_planes: true, plane_margin: margin(), solver: auto() }
+        MechanicsSpec { constrain_planes: true, plane_margin: margin(), solver: auto(), reuse_factor: true }
     }
 }
 
@@ -131,6 +135,9 @@ pub struct TimeSpec {
     pub grow_below: Option<f64>,
     /// Strategy 2: shrink when more than this fraction subdivided (default 0.15).
     pub shrink_above: Option<f64>,
+    /// Strategy 2: a contact counts as subdivided when it needed more than this many substeps
+    /// (default 1, the paper's rule).
+    pub substeps_allowed: Option<f64>,
 }
 
 #[derive(Debug, Clone, Deserialize, Serialize)]

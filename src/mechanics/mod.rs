@@ -23,6 +23,7 @@ pub mod assembly;
 pub mod bench;
 pub mod bond;
 pub mod cg;
+pub mod cholesky;
 pub mod constraints;
 pub mod solve;
 
@@ -31,7 +32,7 @@ pub use constraints::{dof, Constraints, TopologyReport};
 pub use solve::{LinearSolver, MechInfo, MechParams, SolverUsed, PCG_ABOVE_EQUATIONS};
 
 use crate::error::{ConfigError, Error, ModelError, SolveError};
-use crate::linsolve::{SpdFactor, SpdPattern};
+use cholesky::BondCholesky;
 use assembly::{BlockMatrix, Incidence};
 use nalgebra::Vector3;
 use rayon::prelude::*;
@@ -97,8 +98,7 @@ pub struct BondedSystem {
     pairs: Vec<[u32; 2]>,
     inc: Incidence,
     report: Option<TopologyReport>,
-    pattern: Option<SpdPattern>,
-    factor: Option<SpdFactor>,
+    chol: Option<BondCholesky>,
 }
 
 impl BondedSystem {
@@ -119,8 +119,7 @@ impl BondedSystem {
             pairs: Vec::new(),
             inc: Incidence::new(n_particles, &[]),
             report: None,
-            pattern: None,
-            factor: None,
+            chol: None,
         })
     }
 
@@ -136,6 +135,13 @@ impl BondedSystem {
     /// The solver parameters.
     pub fn params(&self) -> &MechParams {
         &self.params
+    }
+
+    /// Replaces the solver parameters; the topology analysis, pattern and factor are kept.
+    pub fn set_params(&mut self, params: MechParams) -> Result<(), Error> {
+        params.validate()?;
+        self.params = params;
+        Ok(())
     }
 
     /// The bonds, in contact order.
@@ -163,8 +169,7 @@ impl BondedSystem {
         self.pairs = pairs.to_vec();
         self.inc = Incidence::new(self.n, pairs);
         self.report = None;
-        self.pattern = None;
-        self.factor = None;
+        self.chol = None;
         Ok(())
     }
 
@@ -175,9 +180,13 @@ impl BondedSystem {
         }
         self.constraints = constraints;
         self.report = None;
-        self.pattern = None;
-        self.factor = None;
+        self.chol = None;
         Ok(())
+    }
+
+    /// Stored values of the current Cholesky factor (None before the first Cholesky step of a topology).
+    pub fn factor_nnz(&self) -> Option<usize> {
+        self.chol.as_ref().map(|c| c.nnz_l())
     }
 
     /// The topology analysis of the last step (rattlers, pins, equations), if any.
@@ -284,7 +293,7 @@ impl BondedSystem {
             if use_pcg {
                 self.newton_pcg(&blocks, &rhs, b_norm, &mut x, &mut info)?;
             } else {
-                self.newton_cholesky(&blocks, &rhs, b_norm, &mut x, &mut info)?;
+                self.newton_cholesky(inp.positions, &blocks, &rhs, b_norm, &mut x, &mut info)?;
             }
         }
 
@@ -305,50 +314,60 @@ impl BondedSystem {
         cg::dot(r, r).sqrt() / b_norm
     }
 
-    fn newton_cholesky(&mut self, blocks: &BlockMatrix, b: &[f64], b_norm: f64, x: &mut [f64], info: &mut MechInfo) -> Result<(), Error> {
+    fn newton_cholesky(
+        &mut self,
+        positions: &[Vector3<f64>],
+        blocks: &BlockMatrix,
+        b: &[f64],
+        b_norm: f64,
+        x: &mut [f64],
+        info: &mut MechInfo,
+    ) -> Result<(), Error> {
         info.solver = SolverUsed::Cholesky;
         let Some(rep) = self.report.as_ref() else { unreachable!() };
         crate::linsolve::set_parallelism_for(rep.n_eq);
-        if self.pattern.is_none() {
+        if self.chol.is_none() {
+            let t0 = Instant::now();
             let mut entries = Vec::new();
             blocks.for_each_lower(&self.pairs, rep, |r, c, _| entries.push((r, c)));
-            let p = SpdPattern::new(rep.n_eq, &entries)?;
-            info.symbolic_seconds = p.symbolic_seconds;
-            self.pattern = Some(p);
-            self.factor = None;
+            let perm = match self.params.ordering {
+                cholesky::Ordering::NestedDissection => Some(cholesky::equation_order(positions, &self.pairs, &rep.fixed, &rep.eq, rep.n_eq)),
+                cholesky::Ordering::Amd => None,
+            };
+            let c = BondCholesky::new(rep.n_eq, &entries, perm)?;
+            info.symbolic_seconds = t0.elapsed().as_secs_f64();
+            self.chol = Some(c);
         }
         let t0 = Instant::now();
         let mut values = Vec::new();
         blocks.for_each_lower(&self.pairs, rep, |_, _, v| values.push(v));
         info.assemble_seconds += t0.elapsed().as_secs_f64();
-        let Some(pattern) = self.pattern.as_ref() else { unreachable!() };
-        if !self.params.reuse_factor || self.factor.is_none() {
-            let f = pattern.factorize(&values)?;
-            info.factor_seconds += f.factor_seconds;
+        let Some(chol) = self.chol.as_mut() else { unreachable!() };
+        let mut fresh = false;
+        if !self.params.reuse_factor || !chol.is_factored() {
+            info.factor_seconds += chol.factorize(&values)?;
             info.factorizations += 1;
-            self.factor = Some(f);
+            fresh = true;
         }
         let mut r = b.to_vec();
         let mut rel = 1.0;
         let mut red = vec![0.0; rep.n_eq];
-        let mut fresh = info.factorizations > 0;
         while info.newton_iterations < self.params.max_newton {
-            let Some(factor) = self.factor.as_ref() else { unreachable!() };
             for (d, &e) in rep.eq.iter().enumerate() {
                 if e != u32::MAX {
                     red[e as usize] = r[d];
                 }
             }
-            let t1 = Instant::now();
-            factor.solve_in_place(pattern, &mut red)?;
-            info.solve_seconds += t1.elapsed().as_secs_f64();
+            info.solve_seconds += chol.solve_in_place(&mut red)?;
             for (d, &e) in rep.eq.iter().enumerate() {
                 if e != u32::MAX {
                     x[d] += red[e as usize];
                 }
             }
             info.newton_iterations += 1;
-            let new_rel = self.residual(blocks, &rep.fixed, b, b_norm, x, &mut r);
+            blocks.matvec(&self.pairs, &self.inc, &rep.fixed, x, &mut r);
+            r.par_iter_mut().zip(b.par_iter()).for_each(|(ri, bi)| *ri = bi - *ri);
+            let new_rel = cg::dot(&r, &r).sqrt() / b_norm;
             info.residuals.push(new_rel);
             if !new_rel.is_finite() {
                 return Err(not_finite(info).into());
@@ -358,10 +377,8 @@ impl BondedSystem {
             }
             // a stale factor that converges slowly (or diverges) is replaced by a fresh one
             if !fresh && new_rel > 0.1 * rel {
-                let f = pattern.factorize(&values)?;
-                info.factor_seconds += f.factor_seconds;
+                info.factor_seconds += chol.factorize(&values)?;
                 info.factorizations += 1;
-                self.factor = Some(f);
                 fresh = true;
             }
             rel = new_rel;

@@ -1,7 +1,7 @@
 //! Newton iteration for the quasi-static equilibrium `S·K·S·ỹ = S·ΔF` with a scaled residual check
 //! (bonded-mechanics.md, "Scaling": accept when `‖S(ΔF − K·Δy)‖₂ ≤ rtol·‖S·ΔF‖₂`, rtol = 1e-10)
-//! and the choice of linear solver: faer sparse Cholesky through [`crate::linsolve`] (symbolic
-//! analysis reused while the topology is unchanged, optionally the numeric factor reused across
+//! and the choice of linear solver: faer sparse Cholesky ([`super::cholesky`], geometric nested
+//! dissection or AMD; symbolic analysis reused while the topology is unchanged, optionally the numeric factor reused across
 //! steps as a modified-Newton operator) or block-Jacobi PCG ([`super::cg`]).
 //!
 //! Within a step the links are linear, so one Newton iteration with a fresh factor meets the
@@ -25,12 +25,13 @@ pub enum LinearSolver {
     Pcg,
 }
 
-/// Automatic choice: PCG above this many equations. `bench mechanics` measured Cholesky
-/// (factor + solve every step) faster than block-Jacobi PCG at every size up to 6·10⁵ equations
-/// (10⁵ particles), and much faster when the factor is reused; the factor's memory (≈ 3 GB at
-/// 6·10⁵ equations, growing ≈ N^1.5) is what limits it, so the switch is set where it would pass
-/// ≈ 8 GB.
-pub const PCG_ABOVE_EQUATIONS: usize = 1_200_000;
+/// Automatic choice: PCG above this many equations. Measured by `bench_mechanics` (random FCC
+/// bonded packings, docs/mechanics.md), one step with a fresh factor: Cholesky 2–3× faster than
+/// block-Jacobi PCG at 4.6·10³ equations, 1.2× slower at 6·10⁴, 3–5× slower at 5.4·10⁵
+/// (nnz(L) grows ≈ N^1.5, its factorisation ≈ N²; PCG iterations only ≈ N^0.25). The crossover,
+/// ≈ 4–5·10⁴ equations (≈ 8·10³ particles), is where this switch sits. With `reuse_factor` the
+/// Cholesky stays ahead for as long as one factor serves many steps.
+pub const PCG_ABOVE_EQUATIONS: usize = 50_000;
 
 /// The solver that was used.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -58,6 +59,8 @@ pub struct MechParams {
     pub max_newton: usize,
     /// Linear solver.
     pub solver: LinearSolver,
+    /// Fill-reducing ordering of the Cholesky factor.
+    pub ordering: super::cholesky::Ordering,
     /// Reuse the previous step's Cholesky factor (same topology) as the Newton operator and
     /// refactorise only when an iteration reduces the residual by less than 10× [flag].
     pub reuse_factor: bool,
@@ -73,6 +76,7 @@ impl Default for MechParams {
             rtol: 1e-10,
             max_newton: 8,
             solver: LinearSolver::Auto,
+            ordering: super::cholesky::Ordering::Amd,
             reuse_factor: false,
             pcg_max_iter: 50_000,
         }
