@@ -33,7 +33,8 @@
 use super::law::ContactModel;
 use super::sinter::{FrenkelLaw, LudingLaw, LudingSlot};
 use super::{Explicit, Settings, Wall, WallControl, time_step};
-use crate::config::{check, from_value, ranges::Range};
+use crate::config::ranges::{c, p, Range};
+use crate::config::{check, from_value};
 use crate::error::{ConfigError, Error, IoError, ModelError};
 use crate::heat::conductance::Conductance;
 use crate::heat::network::{HeatNetwork, HeatSources, Scheme};
@@ -51,12 +52,6 @@ use std::path::Path;
 
 type V3 = Vector3<f64>;
 
-const fn c(key: &'static str, lo: f64, hi: f64, unit: &'static str, meaning: &'static str) -> Range {
-    Range { key, lo, hi, lo_open: false, hi_open: false, unit, meaning }
-}
-const fn p(key: &'static str, lo: f64, hi: f64, unit: &'static str, meaning: &'static str) -> Range {
-    Range { key, lo, hi, lo_open: true, hi_open: false, unit, meaning }
-}
 
 /// Range table of the `explicit_sinter` case keys (registered in `config::ranges::TABLES`).
 pub static RANGES: &[Range] = &[
