@@ -26,10 +26,12 @@ if [ -x validation/run_tests.sh ] || [ -f validation/run_tests.sh ]; then
 else
     echo "validation/run_tests.sh missing"; python_status=1
 fi
+set +e
 passed=$(grep -Eo "[0-9]+ passed" /tmp/sinterdem-cargo-test.log | awk '{s+=$1} END {print s+0}')
 failed=$(grep -Eo "[0-9]+ failed" /tmp/sinterdem-cargo-test.log | awk '{s+=$1} END {print s+0}')
 py_passed=$(grep -Eo "[0-9]+ passed" /tmp/sinterdem-pytest.log 2>/dev/null | tail -n 1 | awk '{print $1+0}')
 py_failed=$(grep -Eo "[0-9]+ failed" /tmp/sinterdem-pytest.log 2>/dev/null | tail -n 1 | awk '{print $1+0}')
+set -e
 echo "== Rust: $passed passed, $failed failed; Python: ${py_passed:-0} passed, ${py_failed:-0} failed (exit $python_status); $(( $(date +%s) - start )) s"
 if [ "$rust_status" != "0" ] || [ "$python_status" != "0" ]; then
     echo "SOME TESTS FAILED"

@@ -178,7 +178,7 @@ fn base_dir(case: &Path) -> PathBuf {
 }
 
 fn unknown_kind(kind: &str) -> Error {
-    sinterdem::ConfigError::invalid(format!("kind = \"{kind}\": expected heat, compact, pair or generate")).into()
+    sinterdem::ConfigError::invalid(format!("kind = \"{kind}\": expected heat, compact, pair, generate or explicit_sinter")).into()
 }
 
 fn main() -> ExitCode {
@@ -230,6 +230,10 @@ fn real_main(cli: Cli) -> Result<(), Error> {
                     let s = sinterdem::models::diffusion7::pair::run_pair_case(&value, &out, !quiet)?;
                     log(&format!("done: {s:?}"));
                 }
+                "explicit_sinter" => {
+                    let s = sinterdem::explicit::protocol::run_explicit_case(&value, &out, !quiet)?;
+                    log(&format!("done: {s}"));
+                }
                 k => return Err(unknown_kind(k)),
             }
             Ok(())
@@ -273,6 +277,10 @@ fn real_main(cli: Cli) -> Result<(), Error> {
                 "pair" => {
                     sinterdem::models::diffusion7::pair::check_pair_case(&value)?;
                     println!("{}: ok (pair case)", case.case.display());
+                }
+                "explicit_sinter" => {
+                    sinterdem::explicit::protocol::check_explicit_case(&value)?;
+                    println!("{}: ok (explicit_sinter case)", case.case.display());
                 }
                 k => return Err(unknown_kind(k)),
             }

@@ -48,6 +48,73 @@ pub trait ContactModel: Sync + Send {
     /// mass `mass` and reduced radius `radius`; `impact_speed` [m/s] matters only for laws whose
     /// stiffness grows with overlap (Hertz). The time step is a fraction of the smallest t_c.
     fn collision_time(&self, mass: f64, radius: f64, impact_speed: f64) -> f64;
+
+    /// The full particle–particle contact step: normal and tangential force at the contact
+    /// described by `c`, updating the law's `state` and the driver's tangential spring `xi`.
+    ///
+    /// The default is the elastic laws' path: [`Self::normal`], then the driver's Coulomb-limited
+    /// spring (`|f_t| ≤ μ·max(f_n, 0)`, `k_t = α·k_n`, `γ_t = β·γ_n`, module docs of
+    /// [`crate::explicit`]). The sintering laws ([`crate::explicit::sinter`]) override it: they
+    /// need the contact temperature and time step (Luding eqs. 10–12, the SinterNormal rate) and
+    /// have their own tangential rule (Luding eqs. 14–24). Particle–wall contacts always use
+    /// [`Self::normal`] with a fresh state.
+    #[inline]
+    fn contact(&self, c: &ContactCtx, state: &mut Self::State, xi: &mut nalgebra::Vector3<f64>, t: &TangentialParams) -> ContactOut {
+        let no = self.normal(&c.geom, state);
+        let (ft, el_t, diss_t) = super::tangential(xi, &c.normal, &c.tangential_velocity, &no, t.friction, t.stiffness_ratio, t.damping_ratio, t.dt);
+        ContactOut {
+            normal_force: no.force,
+            tangential: ft,
+            elastic_energy: no.elastic_energy + el_t,
+            dissipation: no.damping_force * c.geom.overlap_rate + diss_t,
+        }
+    }
+}
+
+/// Everything the driver knows about one particle–particle contact at one step
+/// ([`ContactModel::contact`]).
+#[derive(Debug, Clone, Copy)]
+pub struct ContactCtx {
+    /// Overlap, rate, reduced mass and radius.
+    pub geom: PairGeom,
+    /// Unit normal n from j to i.
+    pub normal: nalgebra::Vector3<f64>,
+    /// Relative surface velocity `v_ij = v_i − v_j + r_i n×ω_i + r_j n×ω_j` [m/s] (Luding eq. 18).
+    pub surface_velocity: nalgebra::Vector3<f64>,
+    /// Its tangential part `v_ij − n(n·v_ij)` [m/s] (eq. 17).
+    pub tangential_velocity: nalgebra::Vector3<f64>,
+    /// Radii r_i, r_j [m].
+    pub radius_i: f64,
+    pub radius_j: f64,
+    /// Particle temperatures T_i, T_j [K] (`Particles::temperature`).
+    pub temperature_i: f64,
+    pub temperature_j: f64,
+}
+
+/// The driver's tangential settings, passed to [`ContactModel::contact`].
+#[derive(Debug, Clone, Copy)]
+pub struct TangentialParams {
+    /// Coulomb coefficient μ [1] (`Settings::friction`).
+    pub friction: f64,
+    /// α = k_t/k_n [1].
+    pub stiffness_ratio: f64,
+    /// β = γ_t/γ_n [1].
+    pub damping_ratio: f64,
+    /// Time step Δt [s].
+    pub dt: f64,
+}
+
+/// A contact's answer to the driver ([`ContactModel::contact`]).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct ContactOut {
+    /// Normal force on i along +n [N], positive repulsive (damping and adhesion included).
+    pub normal_force: f64,
+    /// Tangential force on i [N] (on j its negative; torques `−r n × f_t`).
+    pub tangential: nalgebra::Vector3<f64>,
+    /// Elastic energy stored in the contact [J].
+    pub elastic_energy: f64,
+    /// Dissipated power [W] that the driver accounts for (viscous and sliding).
+    pub dissipation: f64,
 }
 
 /// How the normal viscous damping of the linear law is given.
@@ -162,6 +229,8 @@ impl ContactModel for Hertz {
 }
 
 /// The case's choice of elastic law: matched once to build a driver generic over the law.
+/// The sintering laws are [`crate::explicit::sinter::LudingLaw`] and
+/// [`crate::explicit::sinter::FrenkelLaw`] (case kind `explicit_sinter`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum NormalLaw {
     Linear(LinearSpringDashpot),

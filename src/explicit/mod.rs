@@ -26,11 +26,13 @@
 //! `E_kin + E_el + E_pot + E_diss − W_wall` is constant up to the integrator's error.
 
 pub mod law;
+pub mod protocol;
+pub mod sinter;
 
 use crate::contacts::detect::touching_pairs;
 use crate::error::{ConfigError, Error, SolveError};
 use crate::particles::Particles;
-use law::{ContactModel, NormalOut, PairGeom};
+use law::{ContactCtx, ContactModel, NormalOut, PairGeom, TangentialParams};
 use nalgebra::Vector3;
 use rayon::prelude::*;
 
@@ -224,6 +226,8 @@ struct Out {
     elastic: f64,
     /// Power dissipated in this contact [W].
     dissipation: f64,
+    /// Normal force on i along +n [N] (positive repulsive).
+    normal_force: f64,
     in_contact: bool,
 }
 
@@ -235,6 +239,7 @@ pub struct Counters {
 }
 
 /// The driver, generic over the contact law.
+#[derive(Clone)]
 pub struct Explicit<M: ContactModel> {
     pub settings: Settings,
     pub law: M,
@@ -315,6 +320,18 @@ impl<M: ContactModel> Explicit<M> {
     /// Pairs currently in contact (overlap > 0) at the last force evaluation.
     pub fn contacts(&self) -> Vec<(u32, u32)> {
         self.pairs.iter().zip(&self.out).filter(|(_, o)| o.in_contact).map(|(p, _)| *p).collect()
+    }
+
+    /// Particle–particle contacts at the last force evaluation with their normal force [N]
+    /// (positive repulsive) and the law's state, in pair order.
+    pub fn contact_states(&self) -> Vec<((u32, u32), f64, M::State)> {
+        self.pairs
+            .iter()
+            .zip(&self.out)
+            .zip(&self.slots)
+            .filter(|((_, o), _)| o.in_contact)
+            .map(|((p, o), s)| (*p, o.normal_force, s.state))
+            .collect()
     }
 
     /// Forces on the particles at the last evaluation [N] (gravity included).
@@ -426,6 +443,7 @@ impl<M: ContactModel> Explicit<M> {
         let (mu, alpha, beta) = (st.friction, st.tangential_stiffness_ratio, st.tangential_damping_ratio);
         let rot = st.rotation;
         let pairs = &self.pairs;
+        let tan = TangentialParams { friction: mu, stiffness_ratio: alpha, damping_ratio: beta, dt };
         let kernel = |(c, (slot, out)): (usize, (&mut Slot<M::State>, &mut Out))| {
             let (i, j) = (pairs[c].0 as usize, pairs[c].1 as usize);
             let d = p.position[i] - p.position[j];
@@ -446,14 +464,24 @@ impl<M: ContactModel> Explicit<M> {
                 mass: p.mass[i] * p.mass[j] / (p.mass[i] + p.mass[j]),
                 radius: p.radius[i] * p.radius[j] / (p.radius[i] + p.radius[j]),
             };
-            let no = law.normal(&g, &mut slot.state);
             let vt = vij - nrm * vn;
-            let (ft, el_t, diss_t) = tangential(&mut slot.xi, &nrm, &vt, &no, mu, alpha, beta, dt);
+            let ctx = ContactCtx {
+                geom: g,
+                normal: nrm,
+                surface_velocity: vij,
+                tangential_velocity: vt,
+                radius_i: p.radius[i],
+                radius_j: p.radius[j],
+                temperature_i: p.temperature.get(i).copied().unwrap_or(0.0),
+                temperature_j: p.temperature.get(j).copied().unwrap_or(0.0),
+            };
+            let co = law.contact(&ctx, &mut slot.state, &mut slot.xi, &tan);
             *out = Out {
-                f: nrm * no.force + ft,
-                nxft: nrm.cross(&ft),
-                elastic: no.elastic_energy + el_t,
-                dissipation: no.damping_force * g.overlap_rate + diss_t,
+                f: nrm * co.normal_force + co.tangential,
+                nxft: nrm.cross(&co.tangential),
+                elastic: co.elastic_energy,
+                dissipation: co.dissipation,
+                normal_force: co.normal_force,
                 in_contact: true,
             };
         };
@@ -671,7 +699,7 @@ impl<M: ContactModel> Explicit<M> {
 /// dissipated power).
 #[inline]
 #[allow(clippy::too_many_arguments)]
-fn tangential(xi: &mut V3, n: &V3, vt: &V3, no: &NormalOut, mu: f64, alpha: f64, beta: f64, dt: f64) -> (V3, f64, f64) {
+pub(crate) fn tangential(xi: &mut V3, n: &V3, vt: &V3, no: &NormalOut, mu: f64, alpha: f64, beta: f64, dt: f64) -> (V3, f64, f64) {
     if mu == 0.0 {
         *xi = V3::zeros();
         return (V3::zeros(), 0.0, 0.0);

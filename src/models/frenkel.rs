@@ -14,7 +14,8 @@
 //! [`free_sintering_pair`] integrates a free two-particle pair (velocity-Verlet in the overlap) for
 //! the closed-form checks of the tests.
 
-use crate::config::{check, from_value, ranges::Range};
+use crate::config::ranges::{c, o, p, Range};
+use crate::config::{check, from_value};
 use crate::error::{ConfigError, ModelError};
 use crate::models::luding::{tangential_spring, TangentialForce};
 use crate::units::{BOLTZMANN, GAS_CONSTANT};
@@ -22,15 +23,6 @@ use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
-const fn c(key: &'static str, lo: f64, hi: f64, unit: &'static str, meaning: &'static str) -> Range {
-    Range { key, lo, hi, lo_open: false, hi_open: false, unit, meaning }
-}
-const fn p(key: &'static str, lo: f64, hi: f64, unit: &'static str, meaning: &'static str) -> Range {
-    Range { key, lo, hi, lo_open: true, hi_open: false, unit, meaning }
-}
-const fn o(key: &'static str, lo: f64, hi: f64, unit: &'static str, meaning: &'static str) -> Range {
-    Range { key, lo, hi, lo_open: true, hi_open: true, unit, meaning }
-}
 
 /// Range table of the `[frenkel]` keys (registered in `config::ranges::TABLES`).
 pub static RANGES: &[Range] = &[

@@ -19,22 +19,14 @@
 //! tangential force returned acts on i (−f_t on j), with torques `−r_i n × f_t` on i and
 //! `−r_j n × f_t` on j. SI units throughout; temperatures in kelvin.
 
-use crate::config::{check, from_value, ranges::Range};
+use crate::config::ranges::{c, o, p, Range};
+use crate::config::{check, from_value};
 use crate::error::{ConfigError, ModelError};
 use crate::models::frenkel::MeanTemperature;
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
-const fn c(key: &'static str, lo: f64, hi: f64, unit: &'static str, meaning: &'static str) -> Range {
-    Range { key, lo, hi, lo_open: false, hi_open: false, unit, meaning }
-}
-const fn p(key: &'static str, lo: f64, hi: f64, unit: &'static str, meaning: &'static str) -> Range {
-    Range { key, lo, hi, lo_open: true, hi_open: false, unit, meaning }
-}
-const fn o(key: &'static str, lo: f64, hi: f64, unit: &'static str, meaning: &'static str) -> Range {
-    Range { key, lo, hi, lo_open: true, hi_open: true, unit, meaning }
-}
 
 /// Range table of the `[luding]` keys (registered in `config::ranges::TABLES`).
 pub static RANGES: &[Range] = &[
