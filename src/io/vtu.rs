@@ -63,14 +63,18 @@ pub fn write_snapshot(dir: &Path, index: usize, snap: &Snapshot) -> Result<(Path
     let n = snap.position.len();
     let cells: Vec<Vec<u64>> = (0..n as u64).map(|i| vec![i]).collect();
     let types = vec![VTK_VERTEX; n];
-    let mut pd: Vec<(&str, &[f64])> = vec![("radius_m", snap.radius), ("temperature_K", snap.temperature)];
+    // an athermal scene (packing generation) passes no temperatures: the array is left out
+    let mut pd: Vec<(&str, &[f64])> = vec![("radius_m", snap.radius)];
+    if !snap.temperature.is_empty() {
+        pd.push(("temperature_K", snap.temperature));
+    }
     pd.extend(snap.particle_data.iter().copied());
     let p_path = dir.join(format!("particles_{index:06}.vtu"));
     std::fs::write(&p_path, grid(snap.position, &cells, &types, &pd, &[])).map_err(|e| IoError::new(&p_path, e))?;
     let lines: Vec<Vec<u64>> = snap.contacts.iter().map(|c| vec![c[0] as u64, c[1] as u64]).collect();
     let ltypes = vec![VTK_LINE; lines.len()];
     let c_path = dir.join(format!("contacts_{index:06}.vtu"));
-    std::fs::write(&c_path, grid(snap.position, &lines, &ltypes, &[("temperature_K", snap.temperature)], &snap.contact_data)).map_err(|e| IoError::new(&c_path, e))?;
+    std::fs::write(&c_path, grid(snap.position, &lines, &ltypes, &pd[1..], &snap.contact_data)).map_err(|e| IoError::new(&c_path, e))?;
     Ok((p_path, c_path))
 }
 

@@ -736,9 +736,8 @@ pub fn write_outputs(case: &GenerateCase, packing: &Packing, summary: &GenerateS
     let gap = case.protocol.contact_gap_rel * summary.mean_radius;
     let (z, _) = coordination(&packing.positions, &packing.radii, gap);
     let pairs: Vec<[u32; 2]> = crate::contacts::detect::touching_pairs(&packing.positions, &packing.radii, gap).into_iter().map(|(i, j)| [i, j]).collect();
-    // the generator is athermal: the VTU carries the 300 K its particles are created with
-    let temperature = vec![300.0; packing.radii.len()];
-    report::write_vtu(out_dir, "packing", &packing.positions, &packing.radii, &temperature, &z, &pairs)?;
+    // the generator is athermal: the VTU carries no temperature
+    report::write_vtu(out_dir, "packing", &packing.positions, &packing.radii, &[], &z, &pairs)?;
     // laminae (eq. 48)
     let hi = V3::new(packing.box_size[0], packing.box_size[1], packing.box_size[2]);
     let mut lam = String::from("# relative density of laminae (Ivannikov et al. 2022 eq. 48); position = lamina centre [m]\naxis,position,relative_density,interior\n");

@@ -56,9 +56,8 @@ pub fn laminae(pos: &[Vector3<f64>], rad: &[f64], lo: &Vector3<f64>, hi: &Vector
 }
 
 /// Writes the spheres through the shared VTU writer ([`crate::io::vtu::write_snapshot`]) as
-/// `stem.vtu` (points with `radius_m`, `temperature_K` and `coordination`) and `stem_contacts.vtu`
-/// (the given contact pairs as lines with their `gap_m`). The generator is athermal: pass the
-/// temperature the packing will start from.
+/// `stem.vtu` (points with `radius_m`, `coordination` and, if `temperature` is not empty,
+/// `temperature_K`) and `stem_contacts.vtu` (the given contact pairs as lines with their `gap_m`).
 #[allow(clippy::too_many_arguments)]
 pub fn write_vtu(dir: &Path, stem: &str, pos: &[Vector3<f64>], rad: &[f64], temperature: &[f64], coordination: &[u32], contacts: &[[u32; 2]]) -> Result<(), Error> {
     let z: Vec<f64> = coordination.iter().map(|&c| c as f64).collect();
