@@ -87,23 +87,24 @@ pub struct SnapshotWriter {
     count: usize,
 }
 
+/// An opened HDF5 writer, or `None` with the log told that HDF5 output is off in this build.
+fn h5_or_off(r: Result<hdf5::H5Writer, hdf5::H5Error>, log: &mut dyn FnMut(&str)) -> Result<Option<hdf5::H5Writer>, IoError> {
+    match r {
+        Ok(w) => Ok(Some(w)),
+        Err(hdf5::H5Error::Disabled) => {
+            log(hdf5::DISABLED_MESSAGE);
+            Ok(None)
+        }
+        Err(hdf5::H5Error::Io(e)) => Err(e),
+    }
+}
+
 impl SnapshotWriter {
     /// `vtu`, `h5`: which formats. HDF5 without the `h5` build feature logs a clear message once
     /// and is skipped.
     pub fn new(dir: &Path, vtu: bool, h5: bool, log: &mut dyn FnMut(&str)) -> Result<Self, IoError> {
         let vtu = if vtu { Some(vtu::PvdIndex::new(dir)) } else { None };
-        let h5 = if h5 {
-            match hdf5::H5Writer::create(&dir.join("sinterdem.h5")) {
-                Ok(w) => Some(w),
-                Err(hdf5::H5Error::Disabled) => {
-                    log(hdf5::DISABLED_MESSAGE);
-                    None
-                }
-                Err(hdf5::H5Error::Io(e)) => return Err(e),
-            }
-        } else {
-            None
-        };
+        let h5 = if h5 { h5_or_off(hdf5::H5Writer::create(&dir.join("sinterdem.h5")), log)? } else { None };
         Ok(SnapshotWriter { dir: dir.to_path_buf(), vtu, h5, count: 0 })
     }
 
@@ -131,18 +132,7 @@ impl SnapshotWriter {
     /// Continues after a checkpoint that had written `count` snapshots.
     pub fn resume(dir: &Path, vtu: bool, h5: bool, count: usize, entries: Vec<(f64, String, String)>, log: &mut dyn FnMut(&str)) -> Result<Self, IoError> {
         let vtu = if vtu { Some(vtu::PvdIndex::with_entries(entries)) } else { None };
-        let h5 = if h5 {
-            match hdf5::H5Writer::reopen(&dir.join("sinterdem.h5"), count) {
-                Ok(w) => Some(w),
-                Err(hdf5::H5Error::Disabled) => {
-                    log(hdf5::DISABLED_MESSAGE);
-                    None
-                }
-                Err(hdf5::H5Error::Io(e)) => return Err(e),
-            }
-        } else {
-            None
-        };
+        let h5 = if h5 { h5_or_off(hdf5::H5Writer::reopen(&dir.join("sinterdem.h5"), count), log)? } else { None };
         Ok(SnapshotWriter { dir: dir.to_path_buf(), vtu, h5, count })
     }
 
