@@ -149,6 +149,9 @@ enum Bench {
         /// Particle counts (repeatable).
         #[arg(long = "particles", default_values_t = vec![1000usize, 10000])]
         particles: Vec<usize>,
+        /// Skip the Cholesky columns above this many particles (its factor needs ≈ 14 GB at 10⁵).
+        #[arg(long = "cholesky-max", default_value_t = usize::MAX)]
+        cholesky_max: usize,
     },
     /// Work-precision diagram of the 7-DOF pair integrators (copper and E14B titanium).
     Pair {
@@ -329,8 +332,8 @@ fn real_main(cli: Cli) -> Result<(), Error> {
         }
         Command::Bench { which } => match which {
             Bench::Heat { particles, repeat } => sinterdem::heat::bench::bench_heat(&particles, repeat.max(1)),
-            Bench::Mechanics { particles } => {
-                println!("{}", sinterdem::mechanics::bench::bench_mechanics(&particles)?);
+            Bench::Mechanics { particles, cholesky_max } => {
+                println!("{}", sinterdem::mechanics::bench::bench_mechanics_with(&particles, cholesky_max)?);
                 Ok(())
             }
             Bench::Coupled { case, particles, steps } => {

@@ -132,7 +132,8 @@ impl MechanicsSettings {
             "auto" => LinearSolver::Auto,
             "cholesky" => LinearSolver::Cholesky,
             "cg" => LinearSolver::Pcg,
-            o => return Err(ConfigError::invalid(format!("mechanics.solver = \"{o}\": expected auto, cholesky or cg"))),
+            "amg" => LinearSolver::Amg,
+            o => return Err(ConfigError::invalid(format!("mechanics.solver = \"{o}\": expected auto, cholesky, cg or amg"))),
         };
         Ok(MechanicsSettings { constrain_planes: m.constrain_planes, plane_gap: margin - 1.0, solver, reuse_factor: m.reuse_factor })
     }

@@ -91,7 +91,7 @@ pub struct MechanicsSpec {
     /// A particle touches a plane when its centre is within `plane_margin·r` of it (default 1.01).
     #[serde(default = "margin")]
     pub plane_margin: f64,
-    /// Linear solver: "auto" (default), "cholesky" or "cg".
+    /// Linear solver: "auto" (default), "cholesky", "cg" (block-Jacobi) or "amg" (aggregation-multigrid CG).
     #[serde(default = "auto")]
     pub solver: String,
     /// Reuse the last Cholesky factor as the Newton operator while the contacts are unchanged,

@@ -40,7 +40,7 @@ impl Incidence {
         Incidence { start: count, bonds }
     }
 
-    fn of(&self, i: usize) -> &[(u32, u8)] {
+    pub(crate) fn of(&self, i: usize) -> &[(u32, u8)] {
         &self.bonds[self.start[i] as usize..self.start[i + 1] as usize]
     }
 }

@@ -53,19 +53,58 @@ pub fn fcc_packing(n: usize, seed: u64) -> (Vec<Vector3<f64>>, Vec<f64>, Vec<[u3
     (pos, rad, pairs, y)
 }
 
+/// Process CPU time (user + system, all threads) [s] from /proc/self/stat (0 where unavailable).
+pub fn cpu_seconds() -> f64 {
+    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else { return 0.0 };
+    let Some(rest) = stat.rfind(')').map(|k| &stat[k + 2..]) else { return 0.0 };
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    // fields 14 and 15 of stat (utime, stime) are 11 and 12 after the state field
+    let ticks = f.get(11).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0) + f.get(12).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
+    ticks / 100.0
+}
+
+/// AMG parameters with the overrides of `MECH_AMG` (experiments), e.g.
+/// `MECH_AMG=smooth_p=false,sweeps=2,max_coarse=3000,strength=0.08,reuse=false,smoother_omega=1.0`.
+pub fn amg_params_from_env() -> Result<super::amg::AmgParams, Error> {
+    let mut a = super::amg::AmgParams::default();
+    let Ok(spec) = std::env::var("MECH_AMG") else { return Ok(a) };
+    for kv in spec.split(',').filter(|s| !s.is_empty()) {
+        let (k, v) = kv.split_once('=').ok_or_else(|| crate::error::ConfigError::invalid(format!("MECH_AMG: {kv}")))?;
+        let bad = || crate::error::ConfigError::invalid(format!("MECH_AMG: {kv}"));
+        match k {
+            "smooth_p" => a.smooth_p = v.parse().map_err(|_| bad())?,
+            "reuse" => a.reuse = v.parse().map_err(|_| bad())?,
+            "sweeps" => a.sweeps = v.parse().map_err(|_| bad())?,
+            "max_coarse" => a.max_coarse = v.parse().map_err(|_| bad())?,
+            "max_levels" => a.max_levels = v.parse().map_err(|_| bad())?,
+            "strength" => a.strength = v.parse().map_err(|_| bad())?,
+            "smoother_omega" => a.smoother_omega = v.parse().map_err(|_| bad())?,
+            _ => return Err(bad().into()),
+        }
+    }
+    Ok(a)
+}
+
 /// Runs the benchmark for packings of about `sizes[k]` particles and returns the table.
 pub fn bench_mechanics(sizes: &[usize]) -> Result<String, Error> {
+    bench_mechanics_with(sizes, usize::MAX)
+}
+
+/// [`bench_mechanics`], the Cholesky columns only up to `cholesky_max` particles.
+pub fn bench_mechanics_with(sizes: &[usize], cholesky_max: usize) -> Result<String, Error> {
     let mut out = String::new();
     let _ = writeln!(out, "# one bonded quasi-static step (6 DOF/particle, scaled rotations, rtol 1e-10), {} rayon threads", rayon::current_num_threads());
-    let _ = writeln!(out, "# times in s; chol = numeric factorisation of a second step (symbolic reused); step_reuse = a third step reusing the factor (modified Newton) after 1e-3 relative geometry change");
+    let _ = writeln!(out, "# times in s (wall; cpu = process CPU time); chol = numeric factorisation of a second step (symbolic reused); *_reuse / *_stale = a third step after 1e-3 relative geometry change");
+    let _ = writeln!(out, "# reuse = stale Cholesky factor as modified-Newton operator; reuse_cg = stale factor as CG preconditioner; amg_stale = AMG hierarchy of the first step reused (fine smoother refreshed)");
     let _ = writeln!(
         out,
-        "{:>8} {:>8} {:>8} {:>5} {:>5} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>10} {:>6} {:>9} {:>9}",
-        "nodes", "bonds", "eqs", "rattl", "pins", "analysis", "assemble", "symbolic", "chol", "solve", "step_chol", "res_chol", "step_reuse", "pcg_it", "step_pcg", "res_pcg"
+        "{:>7} {:>7} {:>7} {:>5} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} | {:>5} {:>8} {:>8} {:>7} | {:>8} {:>5} {:>8} {:>8} {:>8} {:>7} {:>8} {:>5}",
+        "nodes", "bonds", "eqs", "rattl", "assemble", "symbolic", "chol", "solve", "stepchol", "reuse", "reuse_cg", "cg_it", "pcg_it", "step_pcg", "cpu_pcg", "res_pcg", "amg_set", "amg_it", "amg_sol", "step_amg", "cpu_amg", "res_amg", "amg_stal", "st_it"
     );
+    let mut notes = String::new();
     for &n in sizes {
         let (pos, rad, pairs, y) = fcc_packing(n, 7 + n as u64);
-        let params = MechParams { young_modulus: 110e9, poisson_ratio: 0.34, ..Default::default() };
+        let params = MechParams { young_modulus: 110e9, poisson_ratio: 0.34, amg: amg_params_from_env()?, ..Default::default() };
         let mut s = 99u64;
         let load: Vec<f64> = pairs
             .iter()
@@ -76,57 +115,101 @@ pub fn bench_mechanics(sizes: &[usize]) -> Result<String, Error> {
             .collect();
         let cons = Constraints::principal_planes(&pos, &rad, 0.01)?;
         let inp = StepInput { positions: &pos, radii: &rad, y4_y7: &y, load: &load, external: None };
-        // Cholesky: first step (analysis + symbolic), second step (numeric only)
-        let mut sys = BondedSystem::new(pos.len(), MechParams { solver: LinearSolver::Cholesky, ..params }, cons.clone())?;
-        sys.set_topology(&pairs)?;
-        let first = sys.step(&inp)?;
-        let second = sys.step(&inp)?;
-        let fill = sys.factor_nnz().unwrap_or(0);
-        // factor reuse: move the particles by 10 increments plus 1e-3·R noise, step with the old factor
-        sys.set_params(MechParams { solver: LinearSolver::Cholesky, reuse_factor: true, ..params })?;
-        let pos2: Vec<Vector3<f64>> =
-            pos.iter().zip(&first.du).map(|(x, d)| x + d * 10.0 + Vector3::repeat(1e-3 * rad[0] * rng(&mut s))).collect();
-        let third = sys.step(&StepInput { positions: &pos2, ..inp })?;
-        // PCG
-        let mut sys_p = BondedSystem::new(pos.len(), MechParams { solver: LinearSolver::Pcg, ..params }, cons)?;
+        let noise: Vec<f64> = (0..pos.len()).map(|_| rng(&mut s)).collect();
+        // AMG first (fresh hierarchy), then a step with the stale hierarchy
+        let mut sys_a = BondedSystem::new(pos.len(), MechParams { solver: LinearSolver::Amg, ..params }, cons.clone())?;
+        sys_a.set_topology(&pairs)?;
+        let (t0, c0) = (Instant::now(), cpu_seconds());
+        let amg = sys_a.step(&inp)?;
+        let (t_amg, c_amg) = (t0.elapsed().as_secs_f64(), cpu_seconds() - c0);
+        let pos2: Vec<Vector3<f64>> = pos.iter().zip(&amg.du).zip(&noise).map(|((x, d), e)| x + d * 10.0 + Vector3::repeat(1e-3 * rad[0] * e)).collect();
+        let amg_stale = sys_a.step(&StepInput { positions: &pos2, ..inp })?;
+        drop(sys_a);
+        // PCG (MECH_BENCH_NO_PCG=1 skips it, for experiments)
+        let skip_pcg = std::env::var("MECH_BENCH_NO_PCG").is_ok();
+        let mut sys_p = BondedSystem::new(pos.len(), MechParams { solver: LinearSolver::Pcg, ..params }, cons.clone())?;
         sys_p.set_topology(&pairs)?;
-        let t0 = Instant::now();
-        let pcg = sys_p.step(&inp)?;
-        let t_pcg = t0.elapsed().as_secs_f64();
-        let diff = first.du.iter().zip(&pcg.du).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
-        let scale = first.du.iter().map(|a| a.norm()).fold(0.0, f64::max);
-        let i1 = &first.info;
-        let i2 = &second.info;
+        let (t0, c0) = (Instant::now(), cpu_seconds());
+        let pcg = if skip_pcg { amg.clone() } else { sys_p.step(&inp)? };
+        let (t_pcg, c_pcg) = (t0.elapsed().as_secs_f64(), cpu_seconds() - c0);
+        drop(sys_p);
+        let scale = amg.du.iter().map(|a| a.norm()).fold(0.0, f64::max).max(f64::MIN_POSITIVE);
+        let diff_pa = amg.du.iter().zip(&pcg.du).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
+        let ia = &amg.info;
+        let chol_cols = if pos.len() <= cholesky_max {
+            // Cholesky: first step (analysis + symbolic), second step (numeric only)
+            let mut sys = BondedSystem::new(pos.len(), MechParams { solver: LinearSolver::Cholesky, ..params }, cons.clone())?;
+            sys.set_topology(&pairs)?;
+            let first = sys.step(&inp)?;
+            let second = sys.step(&inp)?;
+            let fill = sys.factor_nnz().unwrap_or(0);
+            // factor reuse: the moved packing with the old factor, as modified Newton and as CG preconditioner
+            sys.set_params(MechParams { solver: LinearSolver::Cholesky, reuse_factor: true, ..params })?;
+            let third = sys.step(&StepInput { positions: &pos2, ..inp })?;
+            let mut sys_cg = BondedSystem::new(pos.len(), MechParams { solver: LinearSolver::Cholesky, ..params }, cons.clone())?;
+            sys_cg.set_topology(&pairs)?;
+            sys_cg.step(&inp)?;
+            sys_cg.set_params(MechParams { solver: LinearSolver::Cholesky, reuse_factor: true, stale_factor_cg: true, ..params })?;
+            let fourth = sys_cg.step(&StepInput { positions: &pos2, ..inp })?;
+            let diff = first.du.iter().zip(&amg.du).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
+            let diff3 = third.du.iter().zip(&fourth.du).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
+            let i1 = &first.info;
+            let i2 = &second.info;
+            let _ = writeln!(
+                notes,
+                "#   n = {}: nnz(L) = {:.3e}, chol residual {:.1e}; reuse step {} Newton iterations, {} factorisations; reuse_cg {} CG iterations, {} factorisations, |Δu| difference to reuse {:.1e}; AMG vs Cholesky max |Δu| difference {:.1e} of max |Δu| {:.2e} m",
+                pos.len(),
+                fill as f64,
+                i2.residuals.last().copied().unwrap_or(0.0),
+                third.info.newton_iterations,
+                third.info.factorizations,
+                fourth.info.pcg_iterations,
+                fourth.info.factorizations,
+                diff3 / scale,
+                diff / scale,
+                scale
+            );
+            format!(
+                "{:>8.4} {:>8.4} {:>8.4} {:>8.4} {:>8.4} {:>8.4} {:>8}",
+                i1.symbolic_seconds, i2.factor_seconds, i2.solve_seconds, i2.total_seconds, third.info.total_seconds, fourth.info.total_seconds, fourth.info.pcg_iterations
+            )
+        } else {
+            format!("{:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8}", "-", "-", "-", "-", "-", "-", "-")
+        };
         let _ = writeln!(
             out,
-            "{:>8} {:>8} {:>8} {:>5} {:>5} {:>9.4} {:>9.4} {:>9.4} {:>9.4} {:>9.4} {:>9.4} {:>9.1e} {:>10.4} {:>6} {:>9.4} {:>9.1e}",
+            "{:>7} {:>7} {:>7} {:>5} {:>8.4} {} | {:>5} {:>8.4} {:>8.2} {:>7.1e} | {:>8.4} {:>5} {:>8.4} {:>8.4} {:>8.2} {:>7.1e} {:>8.4} {:>5}",
             pos.len(),
             pairs.len(),
-            i1.equations,
-            i1.rattlers,
-            i1.pinned,
-            i1.analysis_seconds,
-            i2.assemble_seconds,
-            i1.symbolic_seconds,
-            i2.factor_seconds,
-            i2.solve_seconds,
-            i2.total_seconds,
-            i2.residuals.last().copied().unwrap_or(0.0),
-            third.info.total_seconds,
+            ia.equations,
+            ia.rattlers,
+            ia.assemble_seconds,
+            chol_cols,
             pcg.info.pcg_iterations,
             t_pcg,
+            c_pcg,
             pcg.info.residuals.last().copied().unwrap_or(0.0),
+            ia.factor_seconds,
+            ia.pcg_iterations,
+            ia.solve_seconds,
+            t_amg,
+            c_amg,
+            ia.residuals.last().copied().unwrap_or(0.0),
+            amg_stale.info.total_seconds,
+            amg_stale.info.pcg_iterations,
         );
         let _ = writeln!(
-            out,
-            "#   n = {}: nnz(L) = {:.3e}; reuse step {} Newton iterations, {} factorisations; PCG vs Cholesky max |Δu| difference {:.1e} of max |Δu| {:.2e} m",
+            notes,
+            "#   n = {}: AMG {:?}, Newton {} / stale step Newton {} (rebuilds {}); PCG vs AMG max |Δu| difference {:.1e} of max |Δu| {:.2e} m",
             pos.len(),
-            fill as f64,
-            third.info.newton_iterations,
-            third.info.factorizations,
-            diff / scale.max(f64::MIN_POSITIVE),
+            ia.amg,
+            ia.newton_iterations,
+            amg_stale.info.newton_iterations,
+            amg_stale.info.amg_builds,
+            diff_pa / scale,
             scale
         );
     }
+    out.push_str(&notes);
     Ok(out)
 }

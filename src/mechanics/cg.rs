@@ -50,6 +50,30 @@ impl BlockJacobi {
         Ok(BlockJacobi { inv: inv? })
     }
 
+    /// Number of blocks (particles).
+    pub fn len(&self) -> usize {
+        self.inv.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.inv.is_empty()
+    }
+
+    /// The inverse block of particle `i`.
+    pub fn inv(&self, i: usize) -> &Matrix6<f64> {
+        &self.inv[i]
+    }
+
+    /// `x += ω M⁻¹ r`.
+    pub fn apply_add(&self, r: &[f64], x: &mut [f64], omega: f64) {
+        x.par_chunks_mut(6).zip(r.par_chunks(6)).zip(self.inv.par_iter()).for_each(|((xi, ri), m)| {
+            let v = m * Vector6::from_column_slice(ri);
+            for k in 0..6 {
+                xi[k] += omega * v[k];
+            }
+        });
+    }
+
     /// `z = M⁻¹ r`.
     pub fn apply(&self, r: &[f64], z: &mut [f64]) {
         z.par_chunks_mut(6).zip(r.par_chunks(6)).zip(self.inv.par_iter()).for_each(|((zi, ri), m)| {
@@ -74,6 +98,19 @@ pub fn pcg<F>(apply_a: F, prec: &BlockJacobi, b: &[f64], x: &mut [f64], rtol: f6
 where
     F: Fn(&[f64], &mut [f64]),
 {
+    pcg_with(apply_a, |r, z| {
+        prec.apply(r, z);
+        Ok(())
+    }, b, x, rtol, max_iter)
+}
+
+/// [`pcg`] with any symmetric positive definite preconditioner `apply_m(r, z)`: `z = M⁻¹ r`. A
+/// non-positive `rᵀM⁻¹r` (a preconditioner that is not SPD) is a [`SolveError`].
+pub fn pcg_with<F, M>(apply_a: F, mut apply_m: M, b: &[f64], x: &mut [f64], rtol: f64, max_iter: usize) -> Result<PcgInfo, SolveError>
+where
+    F: Fn(&[f64], &mut [f64]),
+    M: FnMut(&[f64], &mut [f64]) -> Result<(), SolveError>,
+{
     let n = b.len();
     let b_norm = dot(b, b).sqrt();
     if b_norm == 0.0 {
@@ -84,7 +121,7 @@ where
     apply_a(x, &mut r);
     r.par_iter_mut().zip(b.par_iter()).for_each(|(ri, bi)| *ri = bi - *ri);
     let mut z = vec![0.0; n];
-    prec.apply(&r, &mut z);
+    apply_m(&r, &mut z)?;
     let mut p = z.clone();
     let mut q = vec![0.0; n];
     let mut rz = dot(&r, &z);
@@ -113,8 +150,16 @@ where
         let alpha = rz / pq;
         x.par_iter_mut().zip(p.par_iter()).for_each(|(xi, pi)| *xi += alpha * pi);
         r.par_iter_mut().zip(q.par_iter()).for_each(|(ri, qi)| *ri -= alpha * qi);
-        prec.apply(&r, &mut z);
+        apply_m(&r, &mut z)?;
         let rz_new = dot(&r, &z);
+        if !(rz_new > 0.0) && dot(&r, &r) > 0.0 {
+            history.push(rel);
+            return Err(SolveError {
+                stage: "mechanics PCG".into(),
+                message: format!("the preconditioner is not positive definite (rᵀM⁻¹r = {rz_new:.3e} at iteration {it})"),
+                residuals: history,
+            });
+        }
         let beta = rz_new / rz;
         rz = rz_new;
         p.par_iter_mut().zip(z.par_iter()).for_each(|(pi, zi)| *pi = zi + beta * *pi);

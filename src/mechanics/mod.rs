@@ -19,6 +19,7 @@
 //! Modules: [`bond`] element, [`assembly`] block assembly, [`constraints`] rattlers/planes/pins,
 //! [`solve`] parameters, Newton report, solver choice, [`cg`] PCG, [`bench`] the benchmark.
 
+pub mod amg;
 pub mod assembly;
 pub mod bench;
 pub mod bond;
@@ -29,11 +30,11 @@ pub mod solve;
 
 pub use bond::{element_matrix, frame, h_matrix, kinematics, link_stiffness, skew, BondGeometry};
 pub use constraints::{dof, Constraints, TopologyReport};
-pub use solve::{LinearSolver, MechInfo, MechParams, SolverUsed, PCG_ABOVE_EQUATIONS};
+pub use solve::{LinearSolver, MechInfo, MechParams, SolverUsed, AMG_ABOVE_EQUATIONS, AMG_ABOVE_EQUATIONS_FRESH};
 
 use crate::error::{ConfigError, Error, ModelError, SolveError};
 use cholesky::BondCholesky;
-use assembly::{BlockMatrix, Incidence};
+pub use assembly::{BlockMatrix, Incidence};
 use nalgebra::Vector3;
 use rayon::prelude::*;
 use std::time::Instant;
@@ -99,6 +100,9 @@ pub struct BondedSystem {
     inc: Incidence,
     report: Option<TopologyReport>,
     chol: Option<BondCholesky>,
+    amg: Option<amg::Amg>,
+    /// CG iterations of the first solve after the last AMG build (the stale-reuse yardstick).
+    amg_fresh_iterations: usize,
 }
 
 impl BondedSystem {
@@ -120,6 +124,8 @@ impl BondedSystem {
             inc: Incidence::new(n_particles, &[]),
             report: None,
             chol: None,
+            amg: None,
+            amg_fresh_iterations: 0,
         })
     }
 
@@ -170,6 +176,7 @@ impl BondedSystem {
         self.inc = Incidence::new(self.n, pairs);
         self.report = None;
         self.chol = None;
+        self.amg = None;
         Ok(())
     }
 
@@ -181,6 +188,7 @@ impl BondedSystem {
         self.constraints = constraints;
         self.report = None;
         self.chol = None;
+        self.amg = None;
         Ok(())
     }
 
@@ -231,6 +239,37 @@ impl BondedSystem {
         let n = self.n;
         let mut info = MechInfo { bonds: self.pairs.len(), ..Default::default() };
 
+        let (geom, blocks, rhs, r_scale) = self.prepare(inp, &mut info)?;
+        let Some(rep) = self.report.as_ref() else { unreachable!() };
+        let b_norm = cg::dot(&rhs, &rhs).sqrt();
+        let mut x = vec![0.0; 6 * n];
+        if b_norm > 0.0 && rep.n_eq > 0 {
+            let solver = match self.params.solver {
+                LinearSolver::Auto if rep.n_eq > if self.params.reuse_factor { AMG_ABOVE_EQUATIONS } else { AMG_ABOVE_EQUATIONS_FRESH } => LinearSolver::Amg,
+                LinearSolver::Auto => LinearSolver::Cholesky,
+                s => s,
+            };
+            match solver {
+                LinearSolver::Pcg => self.newton_pcg(&blocks, &rhs, b_norm, &mut x, &mut info)?,
+                LinearSolver::Amg => self.newton_amg(inp.positions, r_scale, &blocks, &rhs, b_norm, &mut x, &mut info)?,
+                _ => self.newton_cholesky(inp.positions, &blocks, &rhs, b_norm, &mut x, &mut info)?,
+            }
+        }
+
+        let du: Vec<Vector3<f64>> = x.chunks(6).map(|c| Vector3::new(c[0], c[1], c[2])).collect();
+        let dtheta: Vec<Vector3<f64>> = x.chunks(6).map(|c| Vector3::new(c[3], c[4], c[5]) / r_scale).collect();
+        let xi: Vec<f64> = self.pairs.iter().zip(&geom).map(|(&[a, b], g)| (du[a as usize] - du[b as usize]).dot(&g.e3)).collect();
+        if let Some(c) = xi.iter().position(|v| !v.is_finite()) {
+            return Err(SolveError::new("mechanics", format!("non-finite approach at contact {c}")).into());
+        }
+        info.total_seconds = t_start.elapsed().as_secs_f64();
+        Ok(MechStep { du, dtheta, xi, e3: geom.iter().map(|g| g.e3).collect(), info })
+    }
+
+    /// Topology analysis (once per topology), geometry, assembly and the scaled load vector:
+    /// `(geometry per bond, blocks, rhs, r̄)`.
+    fn prepare(&mut self, inp: &StepInput, info: &mut MechInfo) -> Result<(Vec<BondGeometry>, BlockMatrix, Vec<f64>, f64), Error> {
+        let n = self.n;
         // topology analysis (once per topology)
         if self.report.is_none() {
             let t0 = Instant::now();
@@ -282,29 +321,17 @@ impl BondedSystem {
         });
         info.assemble_seconds = t0.elapsed().as_secs_f64();
 
-        let b_norm = cg::dot(&rhs, &rhs).sqrt();
-        let mut x = vec![0.0; 6 * n];
-        if b_norm > 0.0 && rep.n_eq > 0 {
-            let use_pcg = match self.params.solver {
-                LinearSolver::Pcg => true,
-                LinearSolver::Cholesky => false,
-                LinearSolver::Auto => rep.n_eq > PCG_ABOVE_EQUATIONS,
-            };
-            if use_pcg {
-                self.newton_pcg(&blocks, &rhs, b_norm, &mut x, &mut info)?;
-            } else {
-                self.newton_cholesky(inp.positions, &blocks, &rhs, b_norm, &mut x, &mut info)?;
-            }
-        }
+        Ok((geom, blocks, rhs, r_scale))
+    }
 
-        let du: Vec<Vector3<f64>> = x.chunks(6).map(|c| Vector3::new(c[0], c[1], c[2])).collect();
-        let dtheta: Vec<Vector3<f64>> = x.chunks(6).map(|c| Vector3::new(c[3], c[4], c[5]) / r_scale).collect();
-        let xi: Vec<f64> = self.pairs.iter().zip(&geom).map(|(&[a, b], g)| (du[a as usize] - du[b as usize]).dot(&g.e3)).collect();
-        if let Some(c) = xi.iter().position(|v| !v.is_finite()) {
-            return Err(SolveError::new("mechanics", format!("non-finite approach at contact {c}")).into());
-        }
-        info.total_seconds = t_start.elapsed().as_secs_f64();
-        Ok(MechStep { du, dtheta, xi, e3: geom.iter().map(|g| g.e3).collect(), info })
+    /// The assembled scaled system of `inp` (tests and experiments): blocks, right-hand side, r̄,
+    /// the topology report and the incidence.
+    pub fn assembled(&mut self, inp: &StepInput) -> Result<(BlockMatrix, Vec<f64>, f64, TopologyReport, Incidence), Error> {
+        self.check_input(inp)?;
+        let mut info = MechInfo::default();
+        let (_, blocks, rhs, r_scale) = self.prepare(inp, &mut info)?;
+        let Some(rep) = self.report.clone() else { unreachable!() };
+        Ok((blocks, rhs, r_scale, rep, self.inc.clone()))
     }
 
     /// Scaled residual `r = b − K x` (full vectors) and its relative norm.
@@ -349,7 +376,58 @@ impl BondedSystem {
             info.factorizations += 1;
             fresh = true;
         }
+        if !fresh && self.params.stale_factor_cg {
+            // stale factor as the preconditioner of CG on the current stiffness
+            let eq = &rep.eq;
+            let mut red = vec![0.0; rep.n_eq];
+            let mut solve_s = 0.0;
+            let max_it = 30;
+            let res = {
+                let mut prec = |r: &[f64], z: &mut [f64]| -> Result<(), SolveError> {
+                    for (d, &e) in eq.iter().enumerate() {
+                        if e != u32::MAX {
+                            red[e as usize] = r[d];
+                        }
+                    }
+                    solve_s += chol.solve_in_place(&mut red)?;
+                    for (d, &e) in eq.iter().enumerate() {
+                        z[d] = if e != u32::MAX { red[e as usize] } else { 0.0 };
+                    }
+                    Ok(())
+                };
+                cg::pcg_with(|v, out| blocks.matvec(&self.pairs, &self.inc, &rep.fixed, v, out), &mut prec, b, x, 0.5 * self.params.rtol, max_it)
+            };
+            info.solve_seconds += solve_s;
+            let mut r = vec![0.0; b.len()];
+            match res {
+                Ok(pi) => {
+                    info.pcg_iterations += pi.iterations;
+                    info.newton_iterations += 1;
+                    blocks.matvec(&self.pairs, &self.inc, &rep.fixed, x, &mut r);
+                    r.par_iter_mut().zip(b.par_iter()).for_each(|(ri, bi)| *ri = bi - *ri);
+                    let rel = cg::dot(&r, &r).sqrt() / b_norm;
+                    info.residuals.push(rel);
+                    if rel <= self.params.rtol {
+                        return Ok(());
+                    }
+                }
+                Err(_) => {
+                    info.pcg_iterations += max_it;
+                }
+            }
+            // too stale: a fresh factor and Newton from where CG stopped (or from zero)
+            if !x.iter().all(|v| v.is_finite()) {
+                x.iter_mut().for_each(|v| *v = 0.0);
+            }
+            info.factor_seconds += chol.factorize(&values)?;
+            info.factorizations += 1;
+            fresh = true;
+        }
         let mut r = b.to_vec();
+        if x.iter().any(|&v| v != 0.0) {
+            blocks.matvec(&self.pairs, &self.inc, &rep.fixed, x, &mut r);
+            r.par_iter_mut().zip(b.par_iter()).for_each(|(ri, bi)| *ri = bi - *ri);
+        }
         let mut rel = 1.0;
         let mut red = vec![0.0; rep.n_eq];
         while info.newton_iterations < self.params.max_newton {
@@ -415,6 +493,98 @@ impl BondedSystem {
             }
         }
         Err(solve::not_converged(info, self.params.rtol, "PCG").into())
+    }
+}
+
+impl BondedSystem {
+    /// Newton with CG preconditioned by the AMG hierarchy ([`amg`]): built once per topology and,
+    /// with `amg.reuse`, kept as a (stale, still SPD) preconditioner across steps with only the fine
+    /// smoother refreshed, until CG needs more than 1.5× the iterations of the last fresh build + 5.
+    #[allow(clippy::too_many_arguments)]
+    fn newton_amg(
+        &mut self,
+        positions: &[Vector3<f64>],
+        r_scale: f64,
+        blocks: &BlockMatrix,
+        b: &[f64],
+        b_norm: f64,
+        x: &mut [f64],
+        info: &mut MechInfo,
+    ) -> Result<(), Error> {
+        info.solver = SolverUsed::Amg;
+        let Some(rep) = self.report.as_ref() else { unreachable!() };
+        let fine = amg::FineOp { blocks, pairs: &self.pairs, inc: &self.inc, fixed: &rep.fixed };
+        let ap = self.params.amg;
+        let mut fresh = false;
+        let t0 = Instant::now();
+        match self.amg.take() {
+            Some(mut h) if ap.reuse && !h.is_stale() => {
+                h.refresh_fine_smoother(&blocks.diag)?;
+                self.amg = Some(h);
+            }
+            old => {
+                self.amg = Some(amg::Amg::build(fine, positions, r_scale, ap, old)?);
+                info.amg_builds += 1;
+                fresh = true;
+            }
+        }
+        info.factor_seconds += t0.elapsed().as_secs_f64();
+        let mut r = b.to_vec();
+        let mut rel = 1.0f64;
+        let mut dx = vec![0.0; x.len()];
+        while info.newton_iterations < self.params.max_newton {
+            let inner = (0.5 * self.params.rtol / rel).min(0.1);
+            dx.iter_mut().for_each(|v| *v = 0.0);
+            let t1 = Instant::now();
+            let Some(h) = self.amg.as_mut() else { unreachable!() };
+            info.amg_levels = h.info.equations.clone();
+            info.amg = Some(h.info.clone());
+            let mut work = h.work();
+            let pi = cg::pcg_with(
+                |v, out| blocks.matvec(&self.pairs, &self.inc, &rep.fixed, v, out),
+                |rr, z| h.apply(fine, rr, z, &mut work),
+                &r,
+                &mut dx,
+                inner,
+                self.params.pcg_max_iter,
+            );
+            info.solve_seconds += t1.elapsed().as_secs_f64();
+            let pi = match pi {
+                Ok(pi) => pi,
+                Err(e) if !fresh => {
+                    // a stale hierarchy that fails: rebuild it and retry this Newton iteration
+                    let _ = e;
+                    let t2 = Instant::now();
+                    let old = self.amg.take();
+                    self.amg = Some(amg::Amg::build(fine, positions, r_scale, ap, old)?);
+                    info.amg_builds += 1;
+                    info.factor_seconds += t2.elapsed().as_secs_f64();
+                    fresh = true;
+                    continue;
+                }
+                Err(e) => return Err(e.into()),
+            };
+            info.pcg_iterations += pi.iterations;
+            if fresh && info.newton_iterations == 0 {
+                self.amg_fresh_iterations = pi.iterations;
+            }
+            x.par_iter_mut().zip(dx.par_iter()).for_each(|(xi, d)| *xi += d);
+            info.newton_iterations += 1;
+            rel = self.residual(blocks, &rep.fixed, b, b_norm, x, &mut r);
+            info.residuals.push(rel);
+            if !rel.is_finite() {
+                return Err(not_finite(info).into());
+            }
+            if rel <= self.params.rtol {
+                // a stale hierarchy that has become slow is rebuilt at the next step
+                if !fresh && info.pcg_iterations * 2 > 3 * self.amg_fresh_iterations + 10 {
+                    let old = self.amg.take();
+                    self.amg = old.map(|h| h.into_stale());
+                }
+                return Ok(());
+            }
+        }
+        Err(solve::not_converged(info, self.params.rtol, "AMG-PCG").into())
     }
 }
 

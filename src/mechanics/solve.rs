@@ -15,23 +15,34 @@ use serde::{Deserialize, Serialize};
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "snake_case")]
 pub enum LinearSolver {
-    /// Cholesky up to [`PCG_ABOVE_EQUATIONS`] equations, PCG above (the measured crossover, see
-    /// docs/mechanics.md).
+    /// Cholesky up to [`AMG_ABOVE_EQUATIONS`] equations ([`AMG_ABOVE_EQUATIONS_FRESH`] without
+    /// `reuse_factor`), AMG-preconditioned CG above (the measured crossovers, docs/mechanics.md).
     #[default]
     Auto,
     /// Sparse Cholesky (faer).
     Cholesky,
     /// Conjugate gradients with a 6×6 block-Jacobi preconditioner.
     Pcg,
+    /// Conjugate gradients with the smoothed-aggregation multigrid preconditioner ([`super::amg`]).
+    Amg,
 }
 
-/// Automatic choice: PCG above this many equations. Measured by `bench_mechanics` (random FCC
-/// bonded packings, docs/mechanics.md), one step with a fresh factor: Cholesky 2–3× faster than
-/// block-Jacobi PCG at 4.6·10³ equations, 1.2× slower at 6·10⁴, 3–5× slower at 5.4·10⁵
-/// (nnz(L) grows ≈ N^1.5, its factorisation ≈ N²; PCG iterations only ≈ N^0.25). The crossover,
-/// ≈ 4–5·10⁴ equations (≈ 8·10³ particles), is where this switch sits. With `reuse_factor` the
-/// Cholesky stays ahead for as long as one factor serves many steps.
-pub const PCG_ABOVE_EQUATIONS: usize = 50_000;
+/// Automatic choice with `reuse_factor`: AMG-preconditioned CG above this many equations, Cholesky
+/// below. Measured 2026-11-26 (`sinterdem bench mechanics`, random FCC bonded packings,
+/// docs/mechanics.md; loaded 2-core machine): a step with the previous factor (modified Newton,
+/// 4 triangular solves) costs 0.003 / 0.01–0.025 / 0.05–0.06 / 0.23–0.37 s at 4.6·10³ / 1.1·10⁴ /
+/// 2.2·10⁴ / 6.0·10⁴ equations, an AMG step with the previous hierarchy 0.013 / 0.03 / 0.10–0.12 /
+/// 0.34–0.75 s; but every new topology costs the Cholesky a fresh factorisation (1.1–2.1 s at
+/// 6·10⁴, ≈ 400 s and 14 GB at 5.4·10⁵) against an AMG setup of 0.17–0.25 s (2.4 s at 5.4·10⁵).
+/// In the coupled loop at 1.1·10⁴ particles (6.5·10⁴ equations) the two were within the noise
+/// (0.33 vs 0.28–0.41 s per step). So the switch stays at 5·10⁴ equations (≈ 8·10³ particles).
+pub const AMG_ABOVE_EQUATIONS: usize = 50_000;
+
+/// Automatic choice without `reuse_factor` (a fresh factor every step): AMG above this many
+/// equations. Measured with the same benchmark: Cholesky step 0.006 / 0.03–0.06 / 0.18 / 1.5–2.2 s
+/// at 4.6·10³ / 1.1·10⁴ / 2.2·10⁴ / 6.0·10⁴ equations, AMG step (fresh hierarchy) 0.02 / 0.04 /
+/// 0.13–0.14 / 0.55–0.57 s: even at ≈ 1.1·10⁴, AMG ahead above.
+pub const AMG_ABOVE_EQUATIONS_FRESH: usize = 15_000;
 
 /// The solver that was used.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -42,6 +53,7 @@ pub enum SolverUsed {
     None,
     Cholesky,
     Pcg,
+    Amg,
 }
 
 /// Parameters of the mechanical solve.
@@ -66,6 +78,11 @@ pub struct MechParams {
     pub reuse_factor: bool,
     /// PCG iterations at most per Newton iteration [1].
     pub pcg_max_iter: usize,
+    /// With `reuse_factor`: use the stale Cholesky factor as the preconditioner of CG instead of
+    /// as a modified-Newton operator [flag].
+    pub stale_factor_cg: bool,
+    /// The AMG preconditioner.
+    pub amg: super::amg::AmgParams,
 }
 
 impl Default for MechParams {
@@ -79,6 +96,8 @@ impl Default for MechParams {
             ordering: super::cholesky::Ordering::Amd,
             reuse_factor: false,
             pcg_max_iter: 50_000,
+            stale_factor_cg: false,
+            amg: Default::default(),
         }
     }
 }
@@ -104,6 +123,22 @@ impl MechParams {
         if self.pcg_max_iter == 0 {
             return bad("pcg_max_iter", 0.0, "[1, ∞)", "1");
         }
+        let a = &self.amg;
+        if !(1..=10).contains(&a.sweeps) {
+            return bad("amg.sweeps", a.sweeps as f64, "[1, 10]", "1");
+        }
+        if !(a.smoother_omega > 0.0 && a.smoother_omega < 2.0) {
+            return bad("amg.smoother_omega", a.smoother_omega, "(0, 2)", "1");
+        }
+        if !(6..100_000).contains(&a.max_coarse) {
+            return bad("amg.max_coarse", a.max_coarse as f64, "[6, 1e5)", "1");
+        }
+        if !(1..=20).contains(&a.max_levels) {
+            return bad("amg.max_levels", a.max_levels as f64, "[1, 20]", "1");
+        }
+        if !(a.strength >= 0.0 && a.strength < 1.0) {
+            return bad("amg.strength", a.strength, "[0, 1)", "1");
+        }
         Ok(())
     }
 }
@@ -121,6 +156,11 @@ pub struct MechInfo {
     pub pcg_iterations: usize,
     /// Numeric Cholesky factorisations in this step [1].
     pub factorizations: usize,
+    /// AMG hierarchies built in this step [1], and the equations per AMG level (fine first).
+    pub amg_builds: usize,
+    pub amg_levels: Vec<usize>,
+    /// The last AMG setup's report (levels, coarse sizes, setup times).
+    pub amg: Option<super::amg::AmgInfo>,
     /// Equations (free DOF) [1].
     pub equations: usize,
     /// Bonds [1].
