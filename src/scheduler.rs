@@ -444,7 +444,16 @@ impl Simulation {
             let iso = self.prep.isothermal.as_ref();
             let mats = &self.d7_materials;
             let factors = self.settings.factors;
-            let solver = self.settings.solver;
+            let strategy1 = self.settings.strategy == 1 && dt > self.settings.dt_min;
+            let mut solver = self.settings.solver;
+            if strategy1 {
+                // strategy 1 (spec §10): every contact tries one step of the whole Δt; the first
+                // rejection anywhere rejects the global step (no adaptive retries)
+                solver.stop_on_reject = true;
+                for c in self.contacts.state.iter_mut() {
+                    c.h_last = dt * (1.0 + 1e-9);
+                }
+            }
             let harmonic = self.settings.harmonic;
             let ct = |a: f64, b: f64| if harmonic { 2.0 * a * b / (a + b) } else { 0.5 * (a + b) };
             let results: Vec<Result<OdeStats, ModelError>> = self
@@ -467,12 +476,20 @@ impl Simulation {
                 })
                 .collect();
             let mut stats = Vec::with_capacity(results.len());
+            let mut trial_rejected = 0usize;
             for r in results {
-                stats.push(r?);
+                match r {
+                    Ok(s) => stats.push(s),
+                    Err(e) if strategy1 && e.message == crate::models::ode::STEP_REJECTED => {
+                        trial_rejected += 1;
+                        stats.push(OdeStats { rejected: 1, ..Default::default() });
+                    }
+                    Err(e) => return Err(e.into()),
+                }
             }
             self.timing.diffusion += tic.elapsed().as_secs_f64();
-            let subdivided = stats.iter().filter(|s| s.steps > self.settings.substeps_allowed).count();
-            if self.settings.strategy == 1 && subdivided > 0 && dt > self.settings.dt_min {
+            let subdivided = if strategy1 { trial_rejected } else { stats.iter().filter(|s| s.steps > self.settings.substeps_allowed).count() };
+            if strategy1 && subdivided > 0 {
                 // strategy 1: any contact that needed more than one step rejects the global step
                 for c in &mut self.contacts.state {
                     c.y = c.y_prev;
@@ -579,6 +596,12 @@ impl Simulation {
             // 6. step control
             self.t = if t1 >= end * (1.0 - 1e-12) { end } else { t1 };
             self.step += 1;
+            if let Some(prof) = &self.prep.isothermal {
+                // isothermal: the particles carry the furnace temperature (output only; the
+                // contacts read the profile itself)
+                let temp = prof.temperature(self.t);
+                self.prep.scene.particles.temperature.iter_mut().for_each(|v| *v = temp);
+            }
             let frac = if m > 0 { subdivided as f64 / m as f64 } else { 0.0 };
             let s = &self.settings;
             self.dt = match s.strategy {
