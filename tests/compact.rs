@@ -195,3 +195,25 @@ fn hot_plate_compact_densifies_from_the_bottom_and_conserves_heat() {
     assert!(bal < 1e-8, "coupled heat balance {bal:e}");
     assert!(s["max_temperature_K"].as_f64().unwrap() <= 1373.0 + 1e-9);
 }
+
+/// `time.stop_relative_density` ends the run at the first step whose relative density reaches
+/// it: the summary says so, the density is at or above the threshold, and the step before was
+/// below it (the last series rows straddle it).
+#[test]
+fn run_stops_at_the_relative_density_asked_for() {
+    let dir = tmp("stoprho");
+    let csv = small_packing(&dir, 0.2e-3);
+    let (full, _) = run_case(compact_case(&csv, &["time.end=300.0"]), &dir.join("full"));
+    let (rho0, rho_end) = (full["relative_density_initial"].as_f64().unwrap(), full["relative_density"].as_f64().unwrap());
+    let target = 0.5 * (rho0 + rho_end);
+    let (s, last) = run_case(compact_case(&csv, &["time.end=300.0", &format!("time.stop_relative_density={target}")]), &dir.join("stop"));
+    assert_eq!(s["completed"], serde_json::Value::Bool(false));
+    assert!(s["stop_reason"].as_str().unwrap().contains("relative density"));
+    let (t, rho) = (s["final_time_s"].as_f64().unwrap(), s["relative_density"].as_f64().unwrap());
+    assert!(t < 300.0 && rho >= target, "t = {t}, rho = {rho}, target {target}");
+    assert_eq!(last[5], rho);
+    let series = std::fs::read_to_string(dir.join("stop/series.csv")).unwrap();
+    let rows: Vec<Vec<f64>> = series.lines().skip(1).map(|l| l.split(',').map(|x| x.parse().unwrap()).collect()).collect();
+    assert!(rows[rows.len() - 2][5] < target);
+    assert_eq!(full["completed"], serde_json::Value::Bool(true));
+}
