@@ -217,3 +217,36 @@ fn run_stops_at_the_relative_density_asked_for() {
     assert!(rows[rows.len() - 2][5] < target);
     assert_eq!(full["completed"], serde_json::Value::Bool(true));
 }
+
+/// A compact of equal spheres on an FCC lattice with the mechanics on: by symmetry every bonded
+/// contact is loaded like every other, so each must shrink exactly as the free pair (the bonded
+/// solve and the y4/y7 correction add nothing), and the centre lattice shrinks by the same strain.
+#[test]
+fn fcc_compact_of_equal_spheres_shrinks_like_the_free_pair() {
+    let dir = tmp("fcc");
+    let text = "kind = \"compact\"\n[time]\nend = 1000.0\ndt = 1.0e-6\ndt_max = 10.0\n[output]\nsnapshots = 0\nvtu = false\nhdf5 = false\n[[materials]]\nname = \"copper\"\npreset = \"copper\"\n[particles]\nsource = \"lattice\"\nlattice = \"fcc\"\ncells = [2, 2, 2]\nradius = 25e-6\noverlap = 0.0\n[thermal]\nmode = \"isothermal\"\nfurnace = { profile = { constant = 1293.0 } }\n[contacts]\ndetect_new = false\n";
+    let v = toml::Value::Table(text.parse::<toml::Table>().unwrap());
+    let mut sim = scheduler::prepare(v, Path::new("."), &mut |_| {}).unwrap();
+    assert!(sim.contacts.len() > 50);
+    let x0 = sim.x0.clone();
+    while sim.t < sim.settings.end {
+        sim.advance_step(&mut |_| {}).unwrap();
+    }
+    let pair_toml: toml::Value = toml::Value::Table(
+        "kind = \"pair\"\n[pair]\nmaterial = \"copper\"\nradius = 25e-6\nend_time = 1000.0\n[temperature]\nconstant = 1293.0\n".parse().unwrap(),
+    );
+    let spec = sinterdem::models::diffusion7::pair::parse_pair_case(&pair_toml).unwrap();
+    let free = sinterdem::models::diffusion7::pair::run_pair(&spec, false, false).unwrap();
+    let free_strain = free.contact.approach() / 50e-6;
+    assert!(free_strain > 0.01, "{free_strain}");
+    let mut worst: f64 = 0.0;
+    for (c, &[i, j]) in sim.contacts.state.iter().zip(&sim.contacts.pairs) {
+        worst = worst.max((c.shrinkage() / free_strain - 1.0).abs());
+        // the centres moved together by the same strain
+        let p = &sim.prep.scene.particles.position;
+        let (d0, d) = ((x0[j as usize] - x0[i as usize]).norm(), (p[j as usize] - p[i as usize]).norm());
+        assert!(((1.0 - d / d0) / free_strain - 1.0).abs() < 1e-6, "centre strain {} vs {free_strain}", 1.0 - d / d0);
+    }
+    assert!(worst < 1e-6, "largest relative deviation of a contact's shrinkage from the free pair: {worst:e}");
+    let _ = dir;
+}
