@@ -267,3 +267,24 @@ fn bundled_hot_plate_scene_has_a_monotone_densification_gradient() {
     }
     assert!(s["energy_balance_rel"].as_f64().unwrap() < 1e-8);
 }
+
+/// A 10:1 copper pair leaves the 7-DOF model's domain (the small sphere is absorbed) after some
+/// hundred seconds: the run ends with the ModelError, after writing the summary of the last
+/// completed step with `completed = false` and the reason.
+#[test]
+fn model_error_stops_the_run_with_a_summary() {
+    let dir = tmp("modelerror");
+    let csv = dir.join("pair.csv");
+    std::fs::write(&csv, "x,y,z,r\n0,0,0,25e-6\n27.5e-6,0,0,2.5e-6\n").unwrap();
+    let v = compact_case(&csv, &["time.end=5000.0"]);
+    let sim = scheduler::prepare(v, Path::new("."), &mut |_| {}).unwrap();
+    let out = dir.join("out");
+    let e = scheduler::run(sim, &out, false, &mut |_| {}).unwrap_err();
+    assert!(matches!(e, sinterdem::error::Error::Model(_)), "{e}");
+    let s: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(s["completed"], serde_json::Value::Bool(false));
+    let t = s["final_time_s"].as_f64().unwrap();
+    assert!(t > 10.0 && t < 5000.0, "{t}");
+    assert!(s["stop_reason"].as_str().unwrap().contains("model error"));
+    assert!(s["neck_ratio"].as_f64().unwrap().is_finite() && s["shrinkage_x"].as_f64().unwrap() > 0.0);
+}
