@@ -382,6 +382,19 @@ fn max_overlap(p: &Particles, walls: &[Wall], pairs: &[(u32, u32)]) -> f64 {
     m
 }
 
+/// Morton (Z-order) key of a lattice cell: the bits of the three indices interleaved.
+fn morton(ix: usize, iy: usize, iz: usize) -> u64 {
+    fn spread(v: usize) -> u64 {
+        let mut x = (v as u64) & 0x1f_ffff;
+        x = (x | x << 32) & 0x1f00000000ffff;
+        x = (x | x << 16) & 0x1f0000ff0000ff;
+        x = (x | x << 8) & 0x100f00f00f00f00f;
+        x = (x | x << 4) & 0x10c30c30c30c30c3;
+        (x | x << 2) & 0x1249249249249249
+    }
+    spread(ix) | spread(iy) << 1 | spread(iz) << 2
+}
+
 /// Generates the packing of a validated case in scaled units (module docs) and returns it in SI.
 pub fn generate(case: &GenerateCase, progress: bool) -> Result<(Packing, GenerateSummary), Error> {
     let pr = Progress { on: progress, t0: Instant::now() };
@@ -419,8 +432,7 @@ pub fn generate(case: &GenerateCase, progress: bool) -> Result<(Packing, Generat
     let (ax, ay, az) = (foot[0] / nx as f64, foot[1] / ny as f64, h_cloud / nz as f64);
     let mut cells: Vec<usize> = (0..nx * ny * nz).collect();
     rng.shuffle(&mut cells);
-    let mut p = Particles::default();
-    let density = 3.0 / (4.0 * std::f64::consts::PI);
+    let mut cloud = Vec::with_capacity(n);
     for k in 0..n {
         let c = cells[k];
         let (ix, iy, iz) = (c % nx, (c / nx) % ny, c / (nx * ny));
@@ -431,10 +443,21 @@ pub fn generate(case: &GenerateCase, progress: bool) -> Result<(Packing, Generat
             (iy as f64 + 0.5) * ay + jit(&mut rng, ay),
             (iz as f64 + 0.5) * az + jit(&mut rng, az),
         );
-        p.push(x, r, 0, density, 1.0, 300.0);
-        p.velocity[k] = V3::new(rng.normal(), rng.normal(), rng.normal()) * 0.01;
+        let v = V3::new(rng.normal(), rng.normal(), rng.normal()) * 0.01;
+        cloud.push((x, v, morton(ix, iy, iz)));
     }
-    let law = LinearSpringDashpot { stiffness: 1.0, damping: Damping::Restitution(proto.restitution) };
+    // memory order: along a Morton (Z-order) curve of the lattice cells, so that neighbours are
+    // near in memory (large packings were dominated by cache misses); `order[m]` is the draw
+    // index of the particle stored at m, and the output restores the draw order
+    let mut order: Vec<usize> = (0..n).collect();
+    order.sort_by_key(|&k| cloud[k].2);
+    let mut p = Particles::default();
+    let density = 3.0 / (4.0 * std::f64::consts::PI);
+    for (m, &k) in order.iter().enumerate() {
+        p.push(cloud[k].0, radii[k], 0, density, 1.0, 300.0);
+        p.velocity[m] = cloud[k].1;
+    }
+    let law = LinearSpringDashpot { stiffness: 1.0, damping: Damping::restitution_ratio(proto.restitution) };
     let (dt, tc) = time_step(&law, &p, proto.dt_fraction, 0.0, true)?;
     pr.say(format!("{n} particles, mean radius {r_unit:.4e} m, target box {:.3?} r, cloud height {h_cloud:.2} r, dt = {dt:.4} (t_c = {tc:.4}, scaled units)", target));
     let mut settings = Settings::new(dt, 1.0);
@@ -469,7 +492,7 @@ pub fn generate(case: &GenerateCase, progress: bool) -> Result<(Packing, Generat
         }
     }
     let zmax = p.position.iter().zip(&p.radius).map(|(x, r)| x[2] + r).fold(0.0, f64::max);
-    pr.say(format!("settled after {steps_settle} steps, top at {zmax:.2} r (target height {:.2} r)", target[2]));
+    pr.say(format!("settled after {steps_settle} steps ({} neighbour-list builds so far), top at {zmax:.2} r (target height {:.2} r)", sim.counters.rebuilds, target[2]));
     // 3. triaxial compaction
     sim.settings.gravity = V3::zeros();
     sim.walls[5].offset = -zmax;
@@ -566,7 +589,8 @@ pub fn generate(case: &GenerateCase, progress: bool) -> Result<(Packing, Generat
     }
     set_areas(&mut sim.walls);
     pr.say(format!(
-        "compacted to the target box ({taps} taps) after {steps_compact} steps, friction {mu:.4}, wall pressure {:.3e} (p_c = {p_c:.3e})",
+        "compacted to the target box ({taps} taps) after {steps_compact} steps ({} neighbour-list builds so far), friction {mu:.4}, wall pressure {:.3e} (p_c = {p_c:.3e})",
+        sim.counters.rebuilds,
         (0..3).map(|a| sim.walls[2 * a + 1].pressure()).sum::<f64>() / 3.0
     ));
     // 4. unload and relax
@@ -623,19 +647,25 @@ pub fn generate(case: &GenerateCase, progress: bool) -> Result<(Packing, Generat
             set_areas(&mut sim.walls);
         }
         if steps_relax % 2000 == 0 {
-            pr.say(format!("relax: kinetic energy/particle {:.2e}, largest overlap {ov:.2e} r, pressure/p_c {:.3e}, backing off {backing_off}", ke / n as f64, pm / p_c));
+            let free: f64 = (0..n).filter(|&a| sim.forces()[a] == V3::zeros()).map(|a| 0.5 * p.mass[a] * p.velocity[a].norm_squared() + 0.5 * p.inertia[a] * p.angular_velocity[a].norm_squared()).sum();
+            let nfree = (0..n).filter(|&a| sim.forces()[a] == V3::zeros()).count();
+            pr.say(format!("relax: kinetic energy/particle {:.2e} (force-free {nfree}: {:.2e}), largest overlap {ov:.2e} r, pressure/p_c {:.3e}, backing off {backing_off}", ke / n as f64, free / n as f64, pm / p_c));
         }
         if sim.counters.steps > budget {
             break false;
         }
     };
     let steps_total = sim.counters.steps;
-    pr.say(format!("relaxed after {steps_relax} steps (kinetic energy {:.3e}, thresholds met: {met})", sim.energy.kinetic / n as f64));
+    pr.say(format!("relaxed after {steps_relax} steps (kinetic energy {:.3e}, thresholds met: {met}; {} neighbour-list builds in all)", sim.energy.kinetic / n as f64, sim.counters.rebuilds));
     // report (scaled → SI)
     let lbox = box_of(&sim.walls);
     let lo = V3::new(sim.walls[0].offset, sim.walls[2].offset, sim.walls[4].offset);
-    let pos_si: Vec<V3> = p.position.iter().map(|x| (x - lo) * r_unit).collect();
-    let rad_si: Vec<f64> = p.radius.iter().map(|r| r * r_unit).collect();
+    let mut pos_si = vec![V3::zeros(); n];
+    let mut rad_si = vec![0.0; n];
+    for (m, &k) in order.iter().enumerate() {
+        pos_si[k] = (p.position[m] - lo) * r_unit;
+        rad_si[k] = p.radius[m] * r_unit;
+    }
     let box_si = lbox.map(|l| l * r_unit);
     let summary = summarise(case, &pos_si, &rad_si, box_si, r_unit, sim.energy.kinetic / n as f64, mu, [steps_settle, steps_compact, steps_relax], steps_total, t0.elapsed().as_secs_f64(), met);
     Ok((Packing { positions: pos_si, radii: rad_si, box_size: box_si }, summary))
