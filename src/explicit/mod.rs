@@ -56,6 +56,10 @@ pub struct Settings {
     /// Cundall's local non-viscous damping λ ∈ [0, 1): each force component is reduced by
     /// `λ|F| sign(v)` (Yade's NewtonIntegrator damping). For quasi-static packing only; 0 for dynamics.
     pub local_damping: f64,
+    /// Background viscous damping rate c [1/s]: force `−c m v` and torque `−c I ω` on every
+    /// particle. Unlike the local damping it also stops particles that carry no force (a loose,
+    /// stress-free packing). For quasi-static relaxation only; 0 (default) for dynamics.
+    pub viscous_damping: f64,
     /// Verlet skin [m]: pairs closer than this gap are kept in the neighbour list.
     pub skin: f64,
     /// Integrate rotations (false: spheres do not spin, torques ignored).
@@ -73,6 +77,7 @@ impl Settings {
             tangential_stiffness_ratio: 0.2,
             tangential_damping_ratio: 0.0,
             local_damping: 0.0,
+            viscous_damping: 0.0,
             skin: 0.1 * mean_radius,
             rotation: true,
         }
@@ -97,6 +102,9 @@ impl Settings {
         }
         if !(0.0..1.0).contains(&self.local_damping) {
             return bad("explicit.local_damping", self.local_damping, "in [0, 1)");
+        }
+        if !(self.viscous_damping >= 0.0 && self.viscous_damping.is_finite()) {
+            return bad("explicit.viscous_damping", self.viscous_damping, ">= 0 (1/s)");
         }
         if !(self.skin >= 0.0 && self.skin.is_finite()) {
             return bad("explicit.skin", self.skin, ">= 0 (m)");
@@ -631,7 +639,7 @@ impl<M: ContactModel> Explicit<M> {
         let nw = self.walls.len();
         let par = self.parallel();
         let st = &self.settings;
-        let (dt, rot, g, lam) = (st.dt, st.rotation, st.gravity, st.local_damping);
+        let (dt, rot, g, lam, visc) = (st.dt, st.rotation, st.gravity, st.local_damping, st.viscous_damping);
         let h = 0.5 * dt;
         let (muw, alpha, beta) = (st.wall_friction, st.tangential_stiffness_ratio, st.tangential_damping_ratio);
         let law = &self.law;
@@ -718,6 +726,14 @@ impl<M: ContactModel> Explicit<M> {
                             ta[d] -= dmp;
                             s.dissipation += dmp * w;
                         }
+                    }
+                }
+                if visc > 0.0 {
+                    fa -= visc * mass[a] * va;
+                    s.dissipation += visc * mass[a] * va.norm_squared();
+                    if rot {
+                        ta -= visc * inertia[a] * wa;
+                        s.dissipation += visc * inertia[a] * wa.norm_squared();
                     }
                 }
                 ch.force[k] = fa;
