@@ -65,13 +65,16 @@ pub fn touching_pairs(position: &[Vector3<f64>], radius: &[f64], margin: f64) ->
         order[fill[c] as usize] = i as u32;
         fill[c] += 1;
     }
+    // positions and radii in cell order: the inner loop reads contiguous memory
+    let sorted: Vec<(Vector3<f64>, f64)> = order.iter().map(|&j| (position[j as usize], radius[j as usize])).collect();
     // pairs of particle i in cells around its own, j > i, sorted by j: concatenated in order of i
     // they form the sorted list. Fixed chunks of i, so the result is the same in parallel.
     let pairs_of = |range: std::ops::Range<usize>| -> Vec<(u32, u32)> {
         let mut pairs = Vec::new();
         for i in range {
             let first = pairs.len();
-            let ci = index_of(&position[i]);
+            let (xi, ri) = (position[i], radius[i]);
+            let ci = index_of(&xi);
             for dz in -1i64..=1 {
                 for dy in -1i64..=1 {
                     for dx in -1i64..=1 {
@@ -80,14 +83,14 @@ pub fn touching_pairs(position: &[Vector3<f64>], radius: &[f64], margin: f64) ->
                             continue;
                         }
                         let l = lin([c[0] as usize, c[1] as usize, c[2] as usize]);
-                        for &j in &order[start[l] as usize..start[l + 1] as usize] {
-                            let j = j as usize;
-                            if j <= i {
+                        let (s0, s1) = (start[l] as usize, start[l + 1] as usize);
+                        for (&j, (xj, rj)) in order[s0..s1].iter().zip(&sorted[s0..s1]) {
+                            if j as usize <= i {
                                 continue;
                             }
-                            let reach = radius[i] + radius[j] + margin;
-                            if (position[i] - position[j]).norm_squared() < reach * reach {
-                                pairs.push((i as u32, j as u32));
+                            let reach = ri + rj + margin;
+                            if (xi - xj).norm_squared() < reach * reach {
+                                pairs.push((i as u32, j));
                             }
                         }
                     }
