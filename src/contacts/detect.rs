@@ -75,23 +75,18 @@ pub fn touching_pairs(position: &[Vector3<f64>], radius: &[f64], margin: f64) ->
             let first = pairs.len();
             let (xi, ri) = (position[i], radius[i]);
             let ci = index_of(&xi);
-            for dz in -1i64..=1 {
-                for dy in -1i64..=1 {
-                    for dx in -1i64..=1 {
-                        let c = [ci[0] as i64 + dx, ci[1] as i64 + dy, ci[2] as i64 + dz];
-                        if (0..3).any(|a| c[a] < 0 || c[a] >= dims[a] as i64) {
+            // the three cells of a row along x are contiguous in the cell order: 9 runs
+            let (x0, x1) = (ci[0].saturating_sub(1), (ci[0] + 1).min(dims[0] - 1));
+            for z in ci[2].saturating_sub(1)..=(ci[2] + 1).min(dims[2] - 1) {
+                for y in ci[1].saturating_sub(1)..=(ci[1] + 1).min(dims[1] - 1) {
+                    let (s0, s1) = (start[lin([x0, y, z])] as usize, start[lin([x1, y, z]) + 1] as usize);
+                    for (&j, (xj, rj)) in order[s0..s1].iter().zip(&sorted[s0..s1]) {
+                        if j as usize <= i {
                             continue;
                         }
-                        let l = lin([c[0] as usize, c[1] as usize, c[2] as usize]);
-                        let (s0, s1) = (start[l] as usize, start[l + 1] as usize);
-                        for (&j, (xj, rj)) in order[s0..s1].iter().zip(&sorted[s0..s1]) {
-                            if j as usize <= i {
-                                continue;
-                            }
-                            let reach = ri + rj + margin;
-                            if (xi - xj).norm_squared() < reach * reach {
-                                pairs.push((i as u32, j));
-                            }
+                        let reach = ri + rj + margin;
+                        if (xi - xj).norm_squared() < reach * reach {
+                            pairs.push((i as u32, j));
                         }
                     }
                 }
