@@ -43,6 +43,8 @@ pub struct Settings {
     pub grow_below: f64,
     pub shrink_above: f64,
     pub substeps_allowed: u64,
+    /// Stop once the relative density reaches this value [1].
+    pub stop_relative_density: Option<f64>,
     pub detect_new: bool,
     pub detect_every: u64,
     /// Gap [m] below which a pair counts as touching.
@@ -97,6 +99,7 @@ impl Settings {
             grow_below: config::check("time.grow_below", t.grow_below.unwrap_or(0.05))?,
             shrink_above: config::check("time.shrink_above", t.shrink_above.unwrap_or(0.15))?,
             substeps_allowed: config::check("time.substeps_allowed", t.substeps_allowed.unwrap_or(1.0))? as u64,
+            stop_relative_density: t.stop_relative_density.map(|v| config::check("time.stop_relative_density", v)).transpose()?,
             detect_new: c.detect_new,
             detect_every: every as u64,
             gap: config::check("contacts.gap_tolerance", c.gap_tolerance)?,
@@ -444,7 +447,16 @@ impl Simulation {
             let iso = self.prep.isothermal.as_ref();
             let mats = &self.d7_materials;
             let factors = self.settings.factors;
-            let solver = self.settings.solver;
+            let strategy1 = self.settings.strategy == 1 && dt > self.settings.dt_min;
+            let mut solver = self.settings.solver;
+            if strategy1 {
+                // strategy 1 (spec §10): every contact tries one step of the whole Δt; the first
+                // rejection anywhere rejects the global step (no adaptive retries)
+                solver.stop_on_reject = true;
+                for c in self.contacts.state.iter_mut() {
+                    c.h_last = dt * (1.0 + 1e-9);
+                }
+            }
             let harmonic = self.settings.harmonic;
             let ct = |a: f64, b: f64| if harmonic { 2.0 * a * b / (a + b) } else { 0.5 * (a + b) };
             let results: Vec<Result<OdeStats, ModelError>> = self
@@ -467,12 +479,27 @@ impl Simulation {
                 })
                 .collect();
             let mut stats = Vec::with_capacity(results.len());
+            let mut trial_rejected = 0usize;
             for r in results {
-                stats.push(r?);
+                match r {
+                    Ok(s) => stats.push(s),
+                    Err(e) if strategy1 && e.message == crate::models::ode::STEP_REJECTED => {
+                        trial_rejected += 1;
+                        stats.push(OdeStats { rejected: 1, ..Default::default() });
+                    }
+                    Err(e) => {
+                        // the state stays that of the last completed step
+                        for c in &mut self.contacts.state {
+                            c.y = c.y_prev;
+                        }
+                        self.prep.scene.particles.temperature = temps_old;
+                        return Err(e.into());
+                    }
+                }
             }
             self.timing.diffusion += tic.elapsed().as_secs_f64();
-            let subdivided = stats.iter().filter(|s| s.steps > self.settings.substeps_allowed).count();
-            if self.settings.strategy == 1 && subdivided > 0 && dt > self.settings.dt_min {
+            let subdivided = if strategy1 { trial_rejected } else { stats.iter().filter(|s| s.steps > self.settings.substeps_allowed).count() };
+            if strategy1 && subdivided > 0 {
                 // strategy 1: any contact that needed more than one step rejects the global step
                 for c in &mut self.contacts.state {
                     c.y = c.y_prev;
@@ -579,6 +606,12 @@ impl Simulation {
             // 6. step control
             self.t = if t1 >= end * (1.0 - 1e-12) { end } else { t1 };
             self.step += 1;
+            if let Some(prof) = &self.prep.isothermal {
+                // isothermal: the particles carry the furnace temperature (output only; the
+                // contacts read the profile itself)
+                let temp = prof.temperature(self.t);
+                self.prep.scene.particles.temperature.iter_mut().for_each(|v| *v = temp);
+            }
             let frac = if m > 0 { subdivided as f64 / m as f64 } else { 0.0 };
             let s = &self.settings;
             self.dt = match s.strategy {
@@ -840,6 +873,8 @@ pub fn run_from(mut sim: Simulation, out: &Path, progress: bool, log: &mut dyn F
     let mut next_cond = st.next_cond;
     let mut cond_results = st.cond_results.clone();
     let bar = io::progress::Progress::new(end, progress);
+    let mut stop_reason: Option<String> = None;
+    let mut failure: Option<Error> = None;
     let write_row = |sim: &Simulation, series: &mut Series, dt: f64| -> Result<(), IoError> {
         let sh = sim.shrinkage();
         let t = &sim.prep.scene.particles.temperature;
@@ -868,38 +903,38 @@ pub fn run_from(mut sim: Simulation, out: &Path, progress: bool, log: &mut dyn F
     }
     loop {
         let tic = Instant::now();
-        while next_snap < snap_times.len() && snap_times[next_snap] <= sim.t * (1.0 + 1e-12) + 1e-300 {
-            write_snapshot(&sim, &mut snaps)?;
-            next_snap += 1;
-        }
-        while next_cond < sim.settings.conductivity_at.len() && sim.settings.conductivity_at[next_cond] <= sim.t * (1.0 + 1e-12) {
-            let k = compact_conductivity(&sim)?;
-            log(&format!("t = {:.6e} s: effective conductivity diag = [{:.4e}, {:.4e}, {:.4e}] W/(m K)", sim.t, k[0], k[1], k[2]));
-            cond_results.push(json!({"time_s": sim.t, "kappa_eff_W_per_mK": k}));
-            next_cond += 1;
-        }
+        write_due(&sim, &mut snaps, &snap_times, &mut next_snap, &mut next_cond, &mut cond_results, log)?;
         sim.timing.output += tic.elapsed().as_secs_f64();
         if sim.t >= end {
             break;
         }
         let dt_used = sim.dt.min(end - sim.t);
-        sim.advance_step(log)?;
+        if let Err(e) = sim.advance_step(log) {
+            match e {
+                // the model's validity ends (a contact's geometry or integrator breaks down): the
+                // run stops with the last completed step summarised, then reports the error
+                Error::Model(ref m) => {
+                    log(&format!("stopped at t = {} s (step {}): {m}", sim.t, sim.step));
+                    stop_reason = Some(format!("model error after t = {} s: {m}", sim.t));
+                    failure = Some(e);
+                    break;
+                }
+                _ => return Err(e),
+            }
+        }
         let tic = Instant::now();
-        if sim.step % sim.settings.series_every == 0 || sim.t >= end {
+        let rho_stop = sim.settings.stop_relative_density.filter(|&r| sim.relative_density() >= r);
+        if let Some(r) = rho_stop {
+            log(&format!("t = {} s: relative density {:.4} reached time.stop_relative_density = {r}: the run ends here", sim.t, sim.relative_density()));
+            stop_reason = Some(format!("relative density {r} reached"));
+        }
+        if sim.step % sim.settings.series_every == 0 || sim.t >= end || rho_stop.is_some() {
             write_row(&sim, &mut series, dt_used)?;
             series_lines += 1;
         }
         if sim.settings.checkpoint_every > 0 && sim.step % sim.settings.checkpoint_every == 0 && sim.t < end {
             // snapshots and analyses due at this time are written before the checkpoint
-            while next_snap < snap_times.len() && snap_times[next_snap] <= sim.t * (1.0 + 1e-12) {
-                write_snapshot(&sim, &mut snaps)?;
-                next_snap += 1;
-            }
-            while next_cond < sim.settings.conductivity_at.len() && sim.settings.conductivity_at[next_cond] <= sim.t * (1.0 + 1e-12) {
-                let k = compact_conductivity(&sim)?;
-                cond_results.push(json!({"time_s": sim.t, "kappa_eff_W_per_mK": k}));
-                next_cond += 1;
-            }
+            write_due(&sim, &mut snaps, &snap_times, &mut next_snap, &mut next_cond, &mut cond_results, log)?;
             sim.mechanics.drop_factor()?;
             let os = OutputState {
                 next_snap,
@@ -917,9 +952,16 @@ pub fn run_from(mut sim: Simulation, out: &Path, progress: bool, log: &mut dyn F
             }
         }
         sim.timing.output += tic.elapsed().as_secs_f64();
+        if rho_stop.is_some() {
+            break;
+        }
         bar.set(sim.t, &format!("step {}, Δt = {:.3e} s, contacts {}", sim.step, sim.dt, sim.contacts.len()));
     }
     bar.finish();
+    if stop_reason.is_some() && sim.settings.snapshots > 0 {
+        // a run that ends before its end time keeps its last state as a snapshot
+        write_snapshot(&sim, &mut snaps)?;
+    }
     let sh = sim.shrinkage();
     let balance = if sim.heat.is_some() { (sim.heat_stored - sim.heat_in).abs() / sim.heat_scale.max(sim.heat_stored.abs()).max(1e-300) } else { 0.0 };
     let t = &sim.prep.scene.particles.temperature;
@@ -958,6 +1000,8 @@ pub fn run_from(mut sim: Simulation, out: &Path, progress: bool, log: &mut dyn F
         "skipped": sim.skipped,
         "warnings": sim.warnings,
         "threads": rayon::current_num_threads(),
+        "completed": stop_reason.is_none(),
+        "stop_reason": stop_reason,
     });
     let mut summary = summary;
     let prof = sim.layer_profile(5);
@@ -979,7 +1023,34 @@ pub fn run_from(mut sim: Simulation, out: &Path, progress: bool, log: &mut dyn F
         sim.relative_density(),
         sim.mean_neck_ratio()
     ));
-    Ok(summary)
+    match failure {
+        Some(e) => Err(e),
+        None => Ok(summary),
+    }
+}
+
+/// Writes the snapshots and conductivity analyses due at the current time.
+fn write_due(
+    sim: &Simulation,
+    snaps: &mut SnapshotWriter,
+    snap_times: &[f64],
+    next_snap: &mut usize,
+    next_cond: &mut usize,
+    cond_results: &mut Vec<serde_json::Value>,
+    log: &mut dyn FnMut(&str),
+) -> Result<(), Error> {
+    while *next_snap < snap_times.len() && snap_times[*next_snap] <= sim.t * (1.0 + 1e-12) + 1e-300 {
+        write_snapshot(sim, snaps)?;
+        *next_snap += 1;
+    }
+    let at = &sim.settings.conductivity_at;
+    while *next_cond < at.len() && at[*next_cond] <= sim.t * (1.0 + 1e-12) {
+        let k = compact_conductivity(sim)?;
+        log(&format!("t = {:.6e} s: effective conductivity diag = [{:.4e}, {:.4e}, {:.4e}] W/(m K)", sim.t, k[0], k[1], k[2]));
+        cond_results.push(json!({"time_s": sim.t, "kappa_eff_W_per_mK": k}));
+        *next_cond += 1;
+    }
+    Ok(())
 }
 
 fn write_snapshot(sim: &Simulation, snaps: &mut SnapshotWriter) -> Result<(), IoError> {

@@ -195,3 +195,96 @@ fn hot_plate_compact_densifies_from_the_bottom_and_conserves_heat() {
     assert!(bal < 1e-8, "coupled heat balance {bal:e}");
     assert!(s["max_temperature_K"].as_f64().unwrap() <= 1373.0 + 1e-9);
 }
+
+/// `time.stop_relative_density` ends the run at the first step whose relative density reaches
+/// it: the summary says so, the density is at or above the threshold, and the step before was
+/// below it (the last series rows straddle it).
+#[test]
+fn run_stops_at_the_relative_density_asked_for() {
+    let dir = tmp("stoprho");
+    let csv = small_packing(&dir, 0.2e-3);
+    let (full, _) = run_case(compact_case(&csv, &["time.end=300.0"]), &dir.join("full"));
+    let (rho0, rho_end) = (full["relative_density_initial"].as_f64().unwrap(), full["relative_density"].as_f64().unwrap());
+    let target = 0.5 * (rho0 + rho_end);
+    let (s, last) = run_case(compact_case(&csv, &["time.end=300.0", &format!("time.stop_relative_density={target}")]), &dir.join("stop"));
+    assert_eq!(s["completed"], serde_json::Value::Bool(false));
+    assert!(s["stop_reason"].as_str().unwrap().contains("relative density"));
+    let (t, rho) = (s["final_time_s"].as_f64().unwrap(), s["relative_density"].as_f64().unwrap());
+    assert!(t < 300.0 && rho >= target, "t = {t}, rho = {rho}, target {target}");
+    assert_eq!(last[5], rho);
+    let series = std::fs::read_to_string(dir.join("stop/series.csv")).unwrap();
+    let rows: Vec<Vec<f64>> = series.lines().skip(1).map(|l| l.split(',').map(|x| x.parse().unwrap()).collect()).collect();
+    assert!(rows[rows.len() - 2][5] < target);
+    assert_eq!(full["completed"], serde_json::Value::Bool(true));
+}
+
+/// A compact of equal spheres on an FCC lattice with the mechanics on: by symmetry every bonded
+/// contact is loaded like every other, so each must shrink exactly as the free pair (the bonded
+/// solve and the y4/y7 correction add nothing), and the centre lattice shrinks by the same strain.
+#[test]
+fn fcc_compact_of_equal_spheres_shrinks_like_the_free_pair() {
+    let dir = tmp("fcc");
+    let text = "kind = \"compact\"\n[time]\nend = 1000.0\ndt = 1.0e-6\ndt_max = 10.0\n[output]\nsnapshots = 0\nvtu = false\nhdf5 = false\n[[materials]]\nname = \"copper\"\npreset = \"copper\"\n[particles]\nsource = \"lattice\"\nlattice = \"fcc\"\ncells = [2, 2, 2]\nradius = 25e-6\noverlap = 0.0\n[thermal]\nmode = \"isothermal\"\nfurnace = { profile = { constant = 1293.0 } }\n[contacts]\ndetect_new = false\n";
+    let v = toml::Value::Table(text.parse::<toml::Table>().unwrap());
+    let mut sim = scheduler::prepare(v, Path::new("."), &mut |_| {}).unwrap();
+    assert!(sim.contacts.len() > 50);
+    let x0 = sim.x0.clone();
+    while sim.t < sim.settings.end {
+        sim.advance_step(&mut |_| {}).unwrap();
+    }
+    let pair_toml: toml::Value = toml::Value::Table(
+        "kind = \"pair\"\n[pair]\nmaterial = \"copper\"\nradius = 25e-6\nend_time = 1000.0\n[temperature]\nconstant = 1293.0\n".parse().unwrap(),
+    );
+    let spec = sinterdem::models::diffusion7::pair::parse_pair_case(&pair_toml).unwrap();
+    let free = sinterdem::models::diffusion7::pair::run_pair(&spec, false, false).unwrap();
+    let free_strain = free.contact.approach() / 50e-6;
+    assert!(free_strain > 0.01, "{free_strain}");
+    let mut worst: f64 = 0.0;
+    for (c, &[i, j]) in sim.contacts.state.iter().zip(&sim.contacts.pairs) {
+        worst = worst.max((c.shrinkage() / free_strain - 1.0).abs());
+        // the centres moved together by the same strain
+        let p = &sim.prep.scene.particles.position;
+        let (d0, d) = ((x0[j as usize] - x0[i as usize]).norm(), (p[j as usize] - p[i as usize]).norm());
+        assert!(((1.0 - d / d0) / free_strain - 1.0).abs() < 1e-6, "centre strain {} vs {free_strain}", 1.0 - d / d0);
+    }
+    assert!(worst < 1e-6, "largest relative deviation of a contact's shrinkage from the free pair: {worst:e}");
+    let _ = dir;
+}
+
+/// The bundled hot-plate scene: densification and neck growth fall monotonically from the plate
+/// to the radiating top, and the heat balance closes.
+#[test]
+fn bundled_hot_plate_scene_has_a_monotone_densification_gradient() {
+    let dir = tmp("hotplate-case");
+    let v = sinterdem::config::load_case(Path::new("cases/hot-plate-compact.toml"), &["output.snapshots=0".into(), "output.checkpoint_every=0".into()]).unwrap();
+    let sim = scheduler::prepare(v, Path::new("cases"), &mut |_| {}).unwrap();
+    let s = scheduler::run(sim, &dir, false, &mut |_| {}).unwrap();
+    // measured: shrinkage 5.04 % at the bottom, 4.60 % at the top; neck ratio 0.496 and 0.479
+    for (key, ratio) in [("layer_contact_shrinkage", 1.05), ("layer_neck_ratio", 1.02)] {
+        let l: Vec<f64> = s[key].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+        assert!(l.windows(2).all(|w| w[0] > w[1]), "{key} not monotone from the plate up: {l:?}");
+        assert!(l[0] > ratio * l[4], "{key}: bottom {} vs top {}: no clear gradient", l[0], l[4]);
+    }
+    assert!(s["energy_balance_rel"].as_f64().unwrap() < 1e-8);
+}
+
+/// A 10:1 copper pair leaves the 7-DOF model's domain (the small sphere is absorbed) after some
+/// hundred seconds: the run ends with the ModelError, after writing the summary of the last
+/// completed step with `completed = false` and the reason.
+#[test]
+fn model_error_stops_the_run_with_a_summary() {
+    let dir = tmp("modelerror");
+    let csv = dir.join("pair.csv");
+    std::fs::write(&csv, "x,y,z,r\n0,0,0,25e-6\n27.5e-6,0,0,2.5e-6\n").unwrap();
+    let v = compact_case(&csv, &["time.end=5000.0"]);
+    let sim = scheduler::prepare(v, Path::new("."), &mut |_| {}).unwrap();
+    let out = dir.join("out");
+    let e = scheduler::run(sim, &out, false, &mut |_| {}).unwrap_err();
+    assert!(matches!(e, sinterdem::error::Error::Model(_)), "{e}");
+    let s: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(s["completed"], serde_json::Value::Bool(false));
+    let t = s["final_time_s"].as_f64().unwrap();
+    assert!(t > 10.0 && t < 5000.0, "{t}");
+    assert!(s["stop_reason"].as_str().unwrap().contains("model error"));
+    assert!(s["neck_ratio"].as_f64().unwrap().is_finite() && s["shrinkage_x"].as_f64().unwrap() > 0.0);
+}

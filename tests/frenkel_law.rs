@@ -3,13 +3,11 @@
 //! constant rate → steady ṙ = 2k_s·D* and Frenkel's (a/R)² = (3/2)γ_s t/(ηR) with its 1/R size
 //! effect; temperature_frenkel → Arrhenius factor; Parhami–McMeeking and Bouvard–McMeeking → δ³ ∝ t.
 
-use sinterdem::error::ConfigError;
+mod common;
+use common::{doc_snippets, key_of, rel};
 use sinterdem::models::frenkel::*;
 use sinterdem::units::{BOLTZMANN, GAS_CONSTANT};
 
-fn rel(a: f64, b: f64) -> f64 {
-    (a - b).abs() / b.abs().max(f64::MIN_POSITIVE)
-}
 
 fn base() -> FrenkelSpec {
     FrenkelSpec {
@@ -292,12 +290,6 @@ fn bouvard_mcmeeking_gives_its_closed_form() {
     assert!(res < 2e-3);
 }
 
-fn key_of(e: &ConfigError) -> String {
-    match e {
-        ConfigError::OutOfRange { key, .. } | ConfigError::Inconsistent { key, .. } => key.clone(),
-        ConfigError::Invalid(m) => m.clone(),
-    }
-}
 
 #[test]
 fn bad_parameters_are_rejected_with_the_key_named() {
@@ -359,22 +351,6 @@ contact_temperature = "arithmetic"
 }
 
 
-/// The `{section}` TOML snippets of `{doc}`, each validated.
-fn doc_snippets(doc: &str, section: &str) -> Vec<toml::Value> {
-    let text = std::fs::read_to_string(doc).unwrap();
-    let mut out = Vec::new();
-    let mut rest = text.as_str();
-    while let Some(i) = rest.find("```toml\n") {
-        let body = &rest[i + 8..];
-        let j = body.find("```").unwrap();
-        let t: toml::Table = body[..j].parse().unwrap();
-        if let Some(v) = t.get(section) {
-            out.push(v.clone());
-        }
-        rest = &body[j + 3..];
-    }
-    out
-}
 
 #[test]
 fn docs_snippets_are_valid_sections() {

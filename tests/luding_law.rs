@@ -4,6 +4,8 @@
 //! rejection of bad parameters.
 
 use nalgebra::Vector3;
+mod common;
+use common::{doc_snippets, key_of, rel};
 use sinterdem::error::ConfigError;
 use sinterdem::models::luding::*;
 
@@ -19,9 +21,6 @@ fn cold(p: &LudingParams) -> LudingState {
     LudingState::new(p, C0 + 20.0)
 }
 
-fn rel(a: f64, b: f64) -> f64 {
-    (a - b).abs() / b.abs().max(f64::MIN_POSITIVE)
-}
 
 #[test]
 fn k1_of_temperature_matches_eq10_at_the_papers_temperatures() {
@@ -466,12 +465,6 @@ fn surface_velocity_is_eq18() {
     assert!((v - (pi - pj)).norm() < 1e-15);
 }
 
-fn key_of(e: &ConfigError) -> String {
-    match e {
-        ConfigError::OutOfRange { key, .. } | ConfigError::Inconsistent { key, .. } => key.clone(),
-        ConfigError::Invalid(m) => m.clone(),
-    }
-}
 
 #[test]
 fn bad_parameters_are_rejected_with_the_key_named() {
@@ -617,22 +610,6 @@ fn confined_pair_creeps_along_the_loading_line_as_k1_relaxes() {
 }
 
 
-/// The `{section}` TOML snippets of `{doc}`, each validated.
-fn doc_snippets(doc: &str, section: &str) -> Vec<toml::Value> {
-    let text = std::fs::read_to_string(doc).unwrap();
-    let mut out = Vec::new();
-    let mut rest = text.as_str();
-    while let Some(i) = rest.find("```toml\n") {
-        let body = &rest[i + 8..];
-        let j = body.find("```").unwrap();
-        let t: toml::Table = body[..j].parse().unwrap();
-        if let Some(v) = t.get(section) {
-            out.push(v.clone());
-        }
-        rest = &body[j + 3..];
-    }
-    out
-}
 
 #[test]
 fn docs_snippet_is_a_valid_section_equal_to_the_defaults() {

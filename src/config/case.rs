@@ -138,6 +138,9 @@ pub struct TimeSpec {
     /// Strategy 2: a contact counts as subdivided when it needed more than this many substeps
     /// (default 1, the paper's rule).
     pub substeps_allowed: Option<f64>,
+    /// Compact runs: end the run once the relative density (eq. 49) reaches this value, e.g. 0.8,
+    /// the end of the 7-DOF model's validity (Ivannikov et al. 2022 §4) [1].
+    pub stop_relative_density: Option<f64>,
 }
 
 #[derive(Debug, Clone, Deserialize, Serialize)]

@@ -79,6 +79,7 @@ pub static TABLE: &[Range] = &[
     c("time.alpha", 1.01, 10.0, "1", "step growth/shrink factor alpha (spec: below 1.58 for 4th-order pairs)"),
     c("time.grow_below", 0.0, 1.0, "1", "strategy 2: grow when fewer contacts than this fraction subdivided"),
     c("time.substeps_allowed", 1.0, 1e6, "1", "strategy 2: a contact needing more substeps than this counts as subdivided"),
+    p("time.stop_relative_density", 0.0, 1.0, "1", "compact runs: stop once the relative density (eq. 49) reaches this value"),
     c("time.shrink_above", 0.0, 1.0, "1", "strategy 2: shrink when more contacts than this fraction subdivided"),
     // output
     c("output.snapshots", 0.0, 1e5, "1", "number of VTU/HDF5 snapshots, evenly spaced in time"),

@@ -66,7 +66,13 @@ pub struct Control<const N: usize> {
     pub min_step_rel: f64,
     /// ModelError after this many substeps in one call.
     pub max_substeps: u64,
+    /// A trial step (spec §10, strategy 1): the first rejected step ends the call with the
+    /// ModelError [`STEP_REJECTED`] instead of retrying with a smaller step.
+    pub stop_on_reject: bool,
 }
+
+/// Message of the ModelError that ends a [`Control::stop_on_reject`] call at a rejected step.
+pub const STEP_REJECTED: &str = "trial step rejected by the error control (e > 1)";
 
 /// Work counters.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, serde::Deserialize)]
@@ -311,6 +317,10 @@ where
         } else {
             stats.rejected += 1;
             hh = step * fac;
+            if ctl.stop_on_reject {
+                *h = hh;
+                return Err(ModelError::new(STEP_REJECTED));
+            }
             if hh < ctl.min_step_rel * t || !(hh > 0.0) {
                 return Err(ModelError::new(format!(
                     "step size collapsed: proposed substep {hh:.3e} s is below {:.0e} of the contact age {t:.6e} s",
@@ -505,7 +515,7 @@ mod tests {
     use super::*;
 
     fn ctl(method: Method, rtol: f64) -> Control<2> {
-        Control { method, rtol, floor: [1e-3; 2], h_max: 1e9, min_step_rel: 1e-12, max_substeps: 1_000_000 }
+        Control { method, rtol, floor: [1e-3; 2], h_max: 1e9, min_step_rel: 1e-12, max_substeps: 1_000_000, stop_on_reject: false }
     }
 
     /// y'' = −y as a system, with a time-dependent forcing: y1' = y2 + cos t·0, exact sin/cos.
@@ -537,7 +547,7 @@ mod tests {
             let mut st = OdeStats::default();
             let mut h = 0.0;
             let mut f = |t: f64, y: &[f64; 1]| Ok([-y[0] + t]);
-            let c = Control { method: m, rtol: 1e-8, floor: [1e-6], h_max: 1e9, min_step_rel: 1e-12, max_substeps: 100000 };
+            let c = Control { method: m, rtol: 1e-8, floor: [1e-6], h_max: 1e9, min_step_rel: 1e-12, max_substeps: 100000, stop_on_reject: false };
             let y = integrate(&mut f, 0.0, 5.0, [1.0], &mut h, &c, &mut st, |_, _| {}).unwrap();
             let exact = 5.0 - 1.0 + 2.0 * (-5f64).exp();
             assert!((y[0] - exact).abs() < 1e-6, "{m:?}: {} vs {exact}", y[0]);
@@ -569,8 +579,28 @@ mod tests {
         let mut f = |_t: f64, y: &[f64; 1]| {
             if y[0] > 1e12 { Err(ModelError::new("too large")) } else { Ok([y[0] * y[0]]) }
         };
-        let c = Control { method: Method::Dopri5, rtol: 1e-6, floor: [1e-6], h_max: 1e9, min_step_rel: 1e-12, max_substeps: 100000 };
+        let c = Control { method: Method::Dopri5, rtol: 1e-6, floor: [1e-6], h_max: 1e9, min_step_rel: 1e-12, max_substeps: 100000, stop_on_reject: false };
         let r = integrate(&mut f, 0.0, 2.0, [1.0], &mut h, &c, &mut st, |_, _| {});
         assert!(r.is_err());
+    }
+
+    /// Strategy-1 trial: a step of the whole interval is taken once; the decay y' = −y over Δt
+    /// has the Dormand–Prince local error ≈ C·Δt⁵, so Δt = 0.1 passes at rtol 1e-6 and Δt = 2
+    /// is rejected at once (one trial, no retries), with the proposal below Δt.
+    #[test]
+    fn stop_on_reject_tries_one_step() {
+        let mut f = |_t: f64, y: &[f64; 1]| Ok([-y[0]]);
+        let c = Control { method: Method::Dopri5, rtol: 1e-6, floor: [1e-6], h_max: 1e9, min_step_rel: 1e-12, max_substeps: 100000, stop_on_reject: true };
+        let mut st = OdeStats::default();
+        let mut h = 0.1 * (1.0 + 1e-9);
+        let y = integrate(&mut f, 0.0, 0.1, [1.0], &mut h, &c, &mut st, |_, _| {}).unwrap();
+        assert_eq!((st.steps, st.rejected), (1, 0));
+        assert!((y[0] - (-0.1f64).exp()).abs() < 1e-7);
+        let mut st = OdeStats::default();
+        let mut h = 2.0 * (1.0 + 1e-9);
+        let e = integrate(&mut f, 0.0, 2.0, [1.0], &mut h, &c, &mut st, |_, _| {}).unwrap_err();
+        assert_eq!(e.message, STEP_REJECTED);
+        assert_eq!((st.steps, st.rejected), (0, 1));
+        assert!(h > 0.0 && h < 2.0, "{h}");
     }
 }

@@ -29,11 +29,15 @@ pub struct SolverOptions {
     pub min_step_rel: f64,
     /// ModelError after this many substeps in one call [1].
     pub max_substeps: f64,
+    /// Strategy-1 trial (not a case key): the first rejected step ends [`advance`] with the
+    /// ModelError `ode::STEP_REJECTED` (spec §10).
+    #[serde(skip)]
+    pub stop_on_reject: bool,
 }
 
 impl Default for SolverOptions {
     fn default() -> Self {
-        SolverOptions { method: Method::Dopri5, rtol: 1e-6, norm_floor: 1e-4, max_substep: 1e9, min_step_rel: 1e-12, max_substeps: 2e6 }
+        SolverOptions { method: Method::Dopri5, rtol: 1e-6, norm_floor: 1e-4, max_substep: 1e9, min_step_rel: 1e-12, max_substeps: 2e6, stop_on_reject: false }
     }
 }
 
@@ -57,6 +61,7 @@ impl SolverOptions {
             h_max: self.max_substep,
             min_step_rel: self.min_step_rel,
             max_substeps: self.max_substeps as u64,
+            stop_on_reject: self.stop_on_reject,
         }
     }
 }
