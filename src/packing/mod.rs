@@ -12,7 +12,9 @@
 //! Protocol (`generate`):
 //! 1. **Cloud**: radii drawn from the size distribution; particles on a jittered cubic lattice
 //!    (spacing > the largest diameter, so no overlap) in random order, in a box whose footprint is
-//!    the target footprint and whose height gives `cloud_solid_fraction`.
+//!    the target footprint and whose height gives `cloud_solid_fraction`. In memory the particles
+//!    are ordered along a Morton curve of their lattice cells (neighbours near in memory); the
+//!    outputs list them in the order their diameters were drawn.
 //! 2. **Settle** under gravity (−z) until the kinetic energy falls below 1 % of `m̄ g r̄` per
 //!    particle; gravity is chosen so that the impact speed is ≈ 0.2 √(k_n/m̄) r̄.
 //! 3. **Triaxial compaction**: gravity off, top wall lowered onto the highest particle; the three
@@ -22,9 +24,10 @@
 //!    above p_c the friction coefficient is lowered step by step (Yade's "decrease friction until the
 //!    target porosity" recipe), so the packing rearranges instead of building up stress.
 //! 4. **Unload and relax**: walls held at the target box; if the largest overlap stays above
-//!    `max_overlap_rel·r̄`, the walls back off slowly until the pressure is ≈ 0; then relax until the
-//!    kinetic energy per particle falls below `kinetic_energy_rel·k_n r̄²` and the largest overlap
-//!    below `max_overlap_rel·r̄`.
+//!    `max_overlap_rel·r̄`, the walls back off slowly (a fixed strain rate) until the pressure is ≈ 0;
+//!    then relax until the kinetic energy per particle falls below `kinetic_energy_rel·k_n r̄²` and
+//!    the largest overlap below `max_overlap_rel·r̄`. Once the walls are final and the overlaps
+//!    below the threshold, a background viscous damping drains the kinetic energy.
 
 pub mod dist;
 pub mod import;
