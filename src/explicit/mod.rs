@@ -526,6 +526,7 @@ impl<M: ContactModel> Explicit<M> {
             moved
         };
         const C: usize = PARTICLE_CHUNK;
+        #[allow(clippy::unnecessary_fold)]
         let moved = if par {
             position
                 .par_chunks_mut(C)
@@ -543,6 +544,7 @@ impl<M: ContactModel> Explicit<M> {
                 .zip(rotation.chunks_mut(C))
                 .enumerate()
                 .map(body)
+                // not `any`: it would stop early and skip the remaining chunks' drift
                 .fold(false, |a, b| a || b)
         };
         !check || moved
