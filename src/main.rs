@@ -33,6 +33,9 @@ enum Command {
         /// No progress bar.
         #[arg(long)]
         quiet: bool,
+        /// Compact runs: write DIR/checkpoint.json every N steps (same as --set output.checkpoint_every=N).
+        #[arg(long, value_name = "N")]
+        checkpoint_every: Option<u64>,
     },
     /// Generate a green packing (kind = "generate"): packing.csv, packing.vtu, summary.json, laminae.
     Generate {
@@ -209,8 +212,12 @@ fn real_main(cli: Cli) -> Result<(), Error> {
             eprintln!("{s:?}");
             Ok(())
         }
-        Command::Run { case, out, quiet } => {
-            let value = sinterdem::config::load_case(&case.case, &case.set)?;
+        Command::Run { case, out, quiet, checkpoint_every } => {
+            let mut sets = case.set.clone();
+            if let Some(n) = checkpoint_every {
+                sets.push(format!("output.checkpoint_every={n}"));
+            }
+            let value = sinterdem::config::load_case(&case.case, &sets)?;
             let stem = case.case.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| "case".into());
             let out = out.unwrap_or_else(|| PathBuf::from("out").join(stem));
             sinterdem::io::ensure_dir(&out)?;

@@ -70,6 +70,11 @@ fn linear_spring_dashpot_restitution_matches_closed_form() {
         let law = LinearSpringDashpot { stiffness: 2e3, damping: Damping::Restitution(e_req) };
         let (e, _, _) = collide(law, 0.1, 0.002, 0.0);
         assert!((e - e_req).abs() < 2e-3, "requested {e_req}, got {e}");
+        // the precomputed ratio form gives the same damping, bit for bit
+        let ratio = LinearSpringDashpot { stiffness: 2e3, damping: Damping::restitution_ratio(e_req) };
+        for m in [1e-3, 0.1, 7.0] {
+            assert_eq!(ratio.gamma(m), law.gamma(m));
+        }
     }
 }
 
@@ -161,7 +166,7 @@ fn random_cloud(n: usize, seed: u64) -> Particles {
     p
 }
 
-fn run_cloud(threads: usize) -> Particles {
+fn run_cloud(threads: usize, parallel_threshold: usize) -> Particles {
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
     pool.install(|| {
         let mut p = random_cloud(1500, 3);
@@ -178,7 +183,7 @@ fn run_cloud(threads: usize) -> Particles {
             })
             .collect();
         let mut sim = Explicit::new(s, law, walls).unwrap();
-        sim.parallel_threshold = 0;
+        sim.parallel_threshold = parallel_threshold;
         sim.run(&mut p, 300).unwrap();
         // the driver's contacts equal a brute-force search
         let overlapping = touching_pairs_brute(&p.position, &p.radius, 0.0);
@@ -193,10 +198,16 @@ fn run_cloud(threads: usize) -> Particles {
 
 #[test]
 fn results_are_bit_identical_for_any_thread_count_and_contacts_match_brute_force() {
-    let a = run_cloud(1);
-    let b = run_cloud(2);
+    // 1500 particles: two chunks of the per-particle sweeps, whose sums are formed per chunk
+    let a = run_cloud(1, 0);
+    let b = run_cloud(2, 0);
     assert_eq!(a.position, b.position);
     assert_eq!(a.angular_velocity, b.angular_velocity);
+    assert_eq!(a.velocity, b.velocity);
+    // the serial sweeps (below the parallel threshold) give the same bits
+    let c = run_cloud(2, usize::MAX);
+    assert_eq!(a.position, c.position);
+    assert_eq!(a.velocity, c.velocity);
 }
 
 #[test]

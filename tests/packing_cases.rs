@@ -1,5 +1,5 @@
-//! Bundled packing cases. The copper green body (805 particles, ≈ 6 s of CPU in release) is checked
-//! against the acceptance numbers; the titanium one (3619 particles, about a minute) is
+//! Bundled packing cases. The copper green body (805 particles, ≈ 4 s of CPU in release) is checked
+//! against the acceptance numbers; the titanium one (3619 particles, ≈ 17 s) is
 //! ignored (run with `cargo test --release --test packing_cases -- --ignored`).
 use std::path::Path;
 

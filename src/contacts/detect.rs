@@ -3,9 +3,11 @@
 //!
 //! The cell edge is the largest sphere diameter plus the margin, so any touching pair lies in the
 //! same or adjacent cells. Cells are sorted (counting sort by linear cell index), so the result
-//! is deterministic and independent of thread count.
+//! is deterministic and independent of thread count; large searches run on rayon by fixed chunks
+//! of particles.
 
 use nalgebra::Vector3;
+use rayon::prelude::*;
 
 /// All pairs `(i, j)`, `i < j`, with `|x_i − x_j| < r_i + r_j + margin`, sorted lexicographically.
 /// `margin` [m] ≥ 0 lets a caller find pairs that are about to touch.
@@ -63,33 +65,42 @@ pub fn touching_pairs(position: &[Vector3<f64>], radius: &[f64], margin: f64) ->
         order[fill[c] as usize] = i as u32;
         fill[c] += 1;
     }
-    let mut pairs = Vec::new();
-    for i in 0..n {
-        let ci = index_of(&position[i]);
-        for dz in -1i64..=1 {
-            for dy in -1i64..=1 {
-                for dx in -1i64..=1 {
-                    let c = [ci[0] as i64 + dx, ci[1] as i64 + dy, ci[2] as i64 + dz];
-                    if (0..3).any(|a| c[a] < 0 || c[a] >= dims[a] as i64) {
-                        continue;
-                    }
-                    let l = lin([c[0] as usize, c[1] as usize, c[2] as usize]);
-                    for &j in &order[start[l] as usize..start[l + 1] as usize] {
-                        let j = j as usize;
-                        if j <= i {
+    // positions and radii in cell order: the inner loop reads contiguous memory
+    let sorted: Vec<(Vector3<f64>, f64)> = order.iter().map(|&j| (position[j as usize], radius[j as usize])).collect();
+    // pairs of particle i in cells around its own, j > i, sorted by j: concatenated in order of i
+    // they form the sorted list. Fixed chunks of i, so the result is the same in parallel.
+    let pairs_of = |range: std::ops::Range<usize>| -> Vec<(u32, u32)> {
+        let mut pairs = Vec::new();
+        for i in range {
+            let first = pairs.len();
+            let (xi, ri) = (position[i], radius[i]);
+            let ci = index_of(&xi);
+            // the three cells of a row along x are contiguous in the cell order: 9 runs
+            let (x0, x1) = (ci[0].saturating_sub(1), (ci[0] + 1).min(dims[0] - 1));
+            for z in ci[2].saturating_sub(1)..=(ci[2] + 1).min(dims[2] - 1) {
+                for y in ci[1].saturating_sub(1)..=(ci[1] + 1).min(dims[1] - 1) {
+                    let (s0, s1) = (start[lin([x0, y, z])] as usize, start[lin([x1, y, z]) + 1] as usize);
+                    for (&j, (xj, rj)) in order[s0..s1].iter().zip(&sorted[s0..s1]) {
+                        if j as usize <= i {
                             continue;
                         }
-                        let reach = radius[i] + radius[j] + margin;
-                        if (position[i] - position[j]).norm_squared() < reach * reach {
-                            pairs.push((i as u32, j as u32));
+                        let reach = ri + rj + margin;
+                        if (xi - xj).norm_squared() < reach * reach {
+                            pairs.push((i as u32, j));
                         }
                     }
                 }
             }
+            pairs[first..].sort_unstable();
         }
+        pairs
+    };
+    const CHUNK: usize = 2048;
+    if n < 4 * CHUNK {
+        return pairs_of(0..n);
     }
-    pairs.sort_unstable();
-    pairs
+    let parts: Vec<Vec<(u32, u32)>> = (0..n.div_ceil(CHUNK)).into_par_iter().map(|c| pairs_of(c * CHUNK..((c + 1) * CHUNK).min(n))).collect();
+    parts.concat()
 }
 
 /// Brute-force O(N²) reference for [`touching_pairs`] (tests and debugging).

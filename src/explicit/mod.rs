@@ -56,6 +56,10 @@ pub struct Settings {
     /// Cundall's local non-viscous damping λ ∈ [0, 1): each force component is reduced by
     /// `λ|F| sign(v)` (Yade's NewtonIntegrator damping). For quasi-static packing only; 0 for dynamics.
     pub local_damping: f64,
+    /// Background viscous damping rate c [1/s]: force `−c m v` and torque `−c I ω` on every
+    /// particle. Unlike the local damping it also stops particles that carry no force (a loose,
+    /// stress-free packing). For quasi-static relaxation only; 0 (default) for dynamics.
+    pub viscous_damping: f64,
     /// Verlet skin [m]: pairs closer than this gap are kept in the neighbour list.
     pub skin: f64,
     /// Integrate rotations (false: spheres do not spin, torques ignored).
@@ -73,6 +77,7 @@ impl Settings {
             tangential_stiffness_ratio: 0.2,
             tangential_damping_ratio: 0.0,
             local_damping: 0.0,
+            viscous_damping: 0.0,
             skin: 0.1 * mean_radius,
             rotation: true,
         }
@@ -97,6 +102,9 @@ impl Settings {
         }
         if !(0.0..1.0).contains(&self.local_damping) {
             return bad("explicit.local_damping", self.local_damping, "in [0, 1)");
+        }
+        if !(self.viscous_damping >= 0.0 && self.viscous_damping.is_finite()) {
+            return bad("explicit.viscous_damping", self.viscous_damping, ">= 0 (1/s)");
         }
         if !(self.skin >= 0.0 && self.skin.is_finite()) {
             return bad("explicit.skin", self.skin, ">= 0 (m)");
@@ -208,6 +216,12 @@ pub fn time_step<M: ContactModel>(law: &M, p: &Particles, fraction: f64, impact_
     Ok((fraction * best, best))
 }
 
+/// Particles per chunk of the per-particle sweeps, contacts per chunk of the contact sweep. Sums
+/// (energies, wall forces, the rebuild test) are formed per fixed chunk and the chunk sums added in
+/// chunk order, so they depend neither on the thread count nor on whether a sweep runs in parallel.
+const PARTICLE_CHUNK: usize = 1024;
+const CONTACT_CHUNK: usize = 4096;
+
 /// Per-contact history carried across neighbour-list rebuilds.
 #[derive(Debug, Clone, Copy, Default)]
 struct Slot<S> {
@@ -223,12 +237,8 @@ struct Out {
     f: V3,
     /// n × f_t [N]; torque on i is `−r_i n×f_t`, on j `−r_j n×f_t`.
     nxft: V3,
-    elastic: f64,
-    /// Power dissipated in this contact [W].
-    dissipation: f64,
     /// Normal force on i along +n [N] (positive repulsive).
     normal_force: f64,
-    in_contact: bool,
 }
 
 /// Counters of a run.
@@ -236,6 +246,28 @@ struct Out {
 pub struct Counters {
     pub steps: u64,
     pub rebuilds: u64,
+}
+
+/// Sums of one chunk of the per-particle sweep.
+#[derive(Debug, Clone, Default)]
+struct ParticleSums {
+    elastic: f64,
+    dissipation: f64,
+    kinetic: f64,
+    potential: f64,
+    /// Normal force of the chunk's particles on each wall [N].
+    wall_force: Vec<f64>,
+}
+
+/// The mutable per-particle slices of one chunk of the particle sweep.
+struct ParticleChunk<'a> {
+    first: usize,
+    force: &'a mut [V3],
+    torque: &'a mut [V3],
+    velocity: &'a mut [V3],
+    angular_velocity: &'a mut [V3],
+    /// Tangential springs of the chunk's particle–wall candidates.
+    wall_spring: &'a mut [V3],
 }
 
 /// The driver, generic over the contact law.
@@ -250,18 +282,22 @@ pub struct Explicit<M: ContactModel> {
     pub counters: Counters,
     pairs: Vec<(u32, u32)>,
     slots: Vec<Slot<M::State>>,
+    /// Per pair: in contact at the last force evaluation; `out` is valid only where true (the
+    /// sweeps skip the other pairs without touching their slots).
+    touching: Vec<bool>,
     out: Vec<Out>,
     /// CSR incidence particle → (contact, is_i).
     inc_start: Vec<u32>,
     inc: Vec<(u32, bool)>,
-    /// Positions and wall offsets at the last neighbour build.
+    /// Positions at the last neighbour build.
     built_at: Vec<V3>,
-    wall_built_at: Vec<f64>,
-    /// Tangential springs of particle–wall contacts, `[particle * walls + wall]`.
-    wall_xi: Vec<V3>,
-    /// Particle–wall candidates `(wall, particle)`, sorted: gap below 1.5 skins at the last build
-    /// (particles move < skin since then and walls < skin/2 before a rebuild, so no contact is missed).
-    wall_list: Vec<(u32, u32)>,
+    /// Particle–wall candidates, CSR particle → walls in ascending order (`wall_start`, `wall_of`):
+    /// gap below 1.5 skins at the last build (particles move < skin since then and walls < skin/2
+    /// before a rebuild, so no contact is missed). `wall_spring` holds each candidate's tangential
+    /// spring; a spring leaving the list is dropped (it is out of contact).
+    wall_start: Vec<u32>,
+    wall_of: Vec<u32>,
+    wall_spring: Vec<V3>,
     /// Wall offsets at the last wall-list build.
     wall_list_at: Vec<f64>,
     force: Vec<V3>,
@@ -269,7 +305,8 @@ pub struct Explicit<M: ContactModel> {
     wall_power: Vec<f64>,
     last_dissipation: f64,
     ready: bool,
-    /// Use rayon when the contact count exceeds this.
+    /// Run the sweeps on rayon when the neighbour-pair count exceeds this (the results do not
+    /// depend on it).
     pub parallel_threshold: usize,
 }
 
@@ -295,13 +332,14 @@ impl<M: ContactModel> Explicit<M> {
             counters: Counters::default(),
             pairs: Vec::new(),
             slots: Vec::new(),
+            touching: Vec::new(),
             out: Vec::new(),
             inc_start: Vec::new(),
             inc: Vec::new(),
             built_at: Vec::new(),
-            wall_built_at: Vec::new(),
-            wall_xi: Vec::new(),
-            wall_list: Vec::new(),
+            wall_start: Vec::new(),
+            wall_of: Vec::new(),
+            wall_spring: Vec::new(),
             wall_list_at: Vec::new(),
             force: Vec::new(),
             torque: Vec::new(),
@@ -319,7 +357,7 @@ impl<M: ContactModel> Explicit<M> {
 
     /// Pairs currently in contact (overlap > 0) at the last force evaluation.
     pub fn contacts(&self) -> Vec<(u32, u32)> {
-        self.pairs.iter().zip(&self.out).filter(|(_, o)| o.in_contact).map(|(p, _)| *p).collect()
+        self.pairs.iter().zip(&self.touching).filter(|(_, t)| **t).map(|(p, _)| *p).collect()
     }
 
     /// Particle–particle contacts at the last force evaluation with their normal force [N]
@@ -329,8 +367,9 @@ impl<M: ContactModel> Explicit<M> {
             .iter()
             .zip(&self.out)
             .zip(&self.slots)
-            .filter(|((_, o), _)| o.in_contact)
-            .map(|((p, o), s)| (*p, o.normal_force, s.state))
+            .zip(&self.touching)
+            .filter(|(_, t)| **t)
+            .map(|(((p, o), s), _)| (*p, o.normal_force, s.state))
             .collect()
     }
 
@@ -344,10 +383,16 @@ impl<M: ContactModel> Explicit<M> {
         self.ready = false;
     }
 
+    fn parallel(&self) -> bool {
+        self.pairs.len() > self.parallel_threshold
+    }
+
     fn rebuild(&mut self, p: &Particles) {
         let new_pairs = touching_pairs(&p.position, &p.radius, self.settings.skin);
         // carry history over by pair (both lists sorted)
         let mut new_slots = vec![Slot::<M::State>::default(); new_pairs.len()];
+        let mut new_out = vec![Out::default(); new_pairs.len()];
+        let mut new_touching = vec![false; new_pairs.len()];
         let mut k = 0;
         for (a, np) in new_pairs.iter().enumerate() {
             while k < self.pairs.len() && self.pairs[k] < *np {
@@ -355,11 +400,14 @@ impl<M: ContactModel> Explicit<M> {
             }
             if k < self.pairs.len() && self.pairs[k] == *np {
                 new_slots[a] = self.slots[k];
+                new_out[a] = self.out[k];
+                new_touching[a] = self.touching[k];
             }
         }
         self.pairs = new_pairs;
         self.slots = new_slots;
-        self.out = vec![Out::default(); self.pairs.len()];
+        self.out = new_out;
+        self.touching = new_touching;
         let n = p.len();
         let mut start = vec![0u32; n + 1];
         for &(i, j) in &self.pairs {
@@ -379,8 +427,7 @@ impl<M: ContactModel> Explicit<M> {
         }
         self.inc_start = start;
         self.inc = inc;
-        self.built_at = p.position.clone();
-        self.wall_built_at = self.walls.iter().map(|w| w.offset).collect();
+        self.built_at.clone_from(&p.position);
         self.rebuild_wall_list(p);
         self.counters.rebuilds += 1;
     }
@@ -388,31 +435,57 @@ impl<M: ContactModel> Explicit<M> {
     /// Particle–wall candidates: gap < 1.5 skins. Springs of pairs leaving the list are reset
     /// (they are out of contact: a pair in contact stays within the margin).
     fn rebuild_wall_list(&mut self, p: &Particles) {
-        let nw = self.walls.len();
-        if self.wall_xi.len() != p.len() * nw {
-            self.wall_xi = vec![V3::zeros(); p.len() * nw];
-            self.wall_list.clear();
-        }
+        let n = p.len();
         let margin = 1.5 * self.settings.skin;
-        let mut list = Vec::with_capacity(self.wall_list.len());
-        for (w, wall) in self.walls.iter().enumerate() {
-            for a in 0..p.len() {
-                if wall.normal.dot(&p.position[a]) - wall.offset - p.radius[a] < margin {
-                    list.push((w as u32, a as u32));
+        let walls = &self.walls;
+        let (position, radius) = (&p.position, &p.radius);
+        // walls of each particle in ascending order, by fixed chunks of particles
+        let body = |c: usize| -> (Vec<u32>, Vec<u32>) {
+            let (a0, a1) = (c * PARTICLE_CHUNK, ((c + 1) * PARTICLE_CHUNK).min(n));
+            let mut count = Vec::with_capacity(a1 - a0);
+            let mut of = Vec::new();
+            for a in a0..a1 {
+                let before = of.len();
+                for (w, wall) in walls.iter().enumerate() {
+                    if wall.normal.dot(&position[a]) - wall.offset - radius[a] < margin {
+                        of.push(w as u32);
+                    }
+                }
+                count.push((of.len() - before) as u32);
+            }
+            (count, of)
+        };
+        let chunks = n.div_ceil(PARTICLE_CHUNK);
+        let parts: Vec<(Vec<u32>, Vec<u32>)> =
+            if self.parallel() { (0..chunks).into_par_iter().map(body).collect() } else { (0..chunks).map(body).collect() };
+        let mut start = Vec::with_capacity(n + 1);
+        start.push(0u32);
+        let mut of = Vec::with_capacity(parts.iter().map(|x| x.1.len()).sum());
+        for (count, o) in parts {
+            for c in count {
+                let last = *start.last().unwrap();
+                start.push(last + c);
+            }
+            of.extend(o);
+        }
+        // carry the springs of kept candidates over
+        let mut spring = vec![V3::zeros(); of.len()];
+        if self.wall_start.len() == n + 1 {
+            for a in 0..n {
+                let (o0, o1) = (self.wall_start[a] as usize, self.wall_start[a + 1] as usize);
+                if o0 == o1 {
+                    continue;
+                }
+                for q in start[a] as usize..start[a + 1] as usize {
+                    if let Some(k) = self.wall_of[o0..o1].iter().position(|&w| w == of[q]) {
+                        spring[q] = self.wall_spring[o0 + k];
+                    }
                 }
             }
         }
-        // reset the springs of dropped candidates (both lists sorted)
-        let mut k = 0;
-        for &(w, a) in &self.wall_list {
-            while k < list.len() && list[k] < (w, a) {
-                k += 1;
-            }
-            if k >= list.len() || list[k] != (w, a) {
-                self.wall_xi[a as usize * nw + w as usize] = V3::zeros();
-            }
-        }
-        self.wall_list = list;
+        self.wall_start = start;
+        self.wall_of = of;
+        self.wall_spring = spring;
         self.wall_list_at = self.walls.iter().map(|w| w.offset).collect();
     }
 
@@ -421,38 +494,92 @@ impl<M: ContactModel> Explicit<M> {
         self.wall_list_at.len() != self.walls.len() || self.walls.iter().zip(&self.wall_list_at).any(|(w, &o)| (w.offset - o).abs() >= half)
     }
 
-    fn needs_rebuild(&self, p: &Particles) -> bool {
-        if !self.ready || self.built_at.len() != p.len() {
-            return true;
-        }
+    /// First half kick and drift (steps 1–2 of the module docs); returns whether the neighbour list
+    /// must be rebuilt (a particle moved half a skin since the last build, or the list is stale).
+    fn kick_drift(&mut self, p: &mut Particles) -> bool {
+        let dt = self.settings.dt;
+        let h = 0.5 * dt;
+        let rot = self.settings.rotation;
         let half = 0.5 * self.settings.skin;
         let h2 = half * half;
-        if self.built_at.iter().zip(&p.position).any(|(a, b)| (a - b).norm_squared() >= h2) {
-            return true;
-        }
-        false
+        let check = self.ready && self.built_at.len() == p.len();
+        let par = self.parallel();
+        let (force, torque, built) = (&self.force, &self.torque, &self.built_at);
+        let Particles { position, velocity, angular_velocity, rotation, mass, inertia, .. } = p;
+        let (mass, inertia) = (&*mass, &*inertia);
+        type Chunk<'a> = (usize, (((&'a mut [V3], &'a mut [V3]), &'a mut [V3]), &'a mut [V3]));
+        let body = |(c, (((x, v), w), th)): Chunk| -> bool {
+            let a0 = c * PARTICLE_CHUNK;
+            let mut moved = false;
+            for k in 0..x.len() {
+                let a = a0 + k;
+                v[k] += force[a] * (h / mass[a]);
+                x[k] += v[k] * dt;
+                if rot {
+                    w[k] += torque[a] * (h / inertia[a]);
+                    th[k] += w[k] * dt;
+                }
+                if check && (x[k] - built[a]).norm_squared() >= h2 {
+                    moved = true;
+                }
+            }
+            moved
+        };
+        const C: usize = PARTICLE_CHUNK;
+        #[allow(clippy::unnecessary_fold)]
+        let moved = if par {
+            position
+                .par_chunks_mut(C)
+                .zip(velocity.par_chunks_mut(C))
+                .zip(angular_velocity.par_chunks_mut(C))
+                .zip(rotation.par_chunks_mut(C))
+                .enumerate()
+                .map(body)
+                .reduce(|| false, |a, b| a || b)
+        } else {
+            position
+                .chunks_mut(C)
+                .zip(velocity.chunks_mut(C))
+                .zip(angular_velocity.chunks_mut(C))
+                .zip(rotation.chunks_mut(C))
+                .enumerate()
+                .map(body)
+                // not `any`: it would stop early and skip the remaining chunks' drift
+                .fold(false, |a, b| a || b)
+        };
+        !check || moved
     }
 
-    /// Contact forces at the current positions; gathers onto particles and walls; returns
-    /// (elastic energy, dissipated power).
-    fn compute_forces(&mut self, p: &Particles) -> (f64, f64) {
-        let n = p.len();
+    /// Contact forces at the current positions (one slot per neighbour pair); returns (elastic
+    /// energy, dissipated power) of the particle–particle contacts.
+    fn contact_sweep(&mut self, p: &Particles) -> (f64, f64) {
         let st = &self.settings;
         let law = &self.law;
         let dt = st.dt;
-        let (mu, alpha, beta) = (st.friction, st.tangential_stiffness_ratio, st.tangential_damping_ratio);
         let rot = st.rotation;
         let pairs = &self.pairs;
-        let tan = TangentialParams { friction: mu, stiffness_ratio: alpha, damping_ratio: beta, dt };
-        let kernel = |(c, (slot, out)): (usize, (&mut Slot<M::State>, &mut Out))| {
+        let par = self.pairs.len() > self.parallel_threshold;
+        let tan = TangentialParams { friction: st.friction, stiffness_ratio: st.tangential_stiffness_ratio, damping_ratio: st.tangential_damping_ratio, dt };
+        let kernel = |c: usize, slot: &mut Slot<M::State>, out: &mut Out, touching: &mut bool| -> (f64, f64) {
             let (i, j) = (pairs[c].0 as usize, pairs[c].1 as usize);
             let d = p.position[i] - p.position[j];
-            let dist = d.norm();
-            let overlap = p.radius[i] + p.radius[j] - dist;
-            if overlap <= 0.0 || dist == 0.0 {
-                *out = Out::default();
+            let dist2 = d.norm_squared();
+            let reach = p.radius[i] + p.radius[j];
+            if dist2 >= reach * reach || dist2 == 0.0 {
+                // the slot of a pair out of contact is clear already (rebuilds carry the flag over
+                // with the spring): write only on separation, to spare the memory traffic
+                if *touching {
+                    *touching = false;
+                    slot.xi = V3::zeros();
+                }
+                return (0.0, 0.0);
+            }
+            let dist = dist2.sqrt();
+            let overlap = reach - dist;
+            if overlap <= 0.0 {
+                *touching = false;
                 slot.xi = V3::zeros();
-                return;
+                return (0.0, 0.0);
             }
             let nrm = d / dist;
             let (wi, wj) = if rot { (p.angular_velocity[i], p.angular_velocity[j]) } else { (V3::zeros(), V3::zeros()) };
@@ -476,119 +603,174 @@ impl<M: ContactModel> Explicit<M> {
                 temperature_j: p.temperature.get(j).copied().unwrap_or(0.0),
             };
             let co = law.contact(&ctx, &mut slot.state, &mut slot.xi, &tan);
-            *out = Out {
-                f: nrm * co.normal_force + co.tangential,
-                nxft: nrm.cross(&co.tangential),
-                elastic: co.elastic_energy,
-                dissipation: co.dissipation,
-                normal_force: co.normal_force,
-                in_contact: true,
-            };
+            *out = Out { f: nrm * co.normal_force + co.tangential, nxft: nrm.cross(&co.tangential), normal_force: co.normal_force };
+            *touching = true;
+            (co.elastic_energy, co.dissipation)
         };
-        if self.pairs.len() > self.parallel_threshold {
-            self.slots.par_iter_mut().zip(self.out.par_iter_mut()).enumerate().for_each(kernel);
-        } else {
-            self.slots.iter_mut().zip(self.out.iter_mut()).enumerate().for_each(kernel);
-        }
-        // gather onto particles in a fixed order
-        let out = &self.out;
-        let inc = &self.inc;
-        let inc_start = &self.inc_start;
-        let g = st.gravity;
-        let gather = |(a, (f, t)): (usize, (&mut V3, &mut V3))| {
-            let mut fa = p.mass[a] * g;
-            let mut ta = V3::zeros();
-            for &(c, is_i) in &inc[inc_start[a] as usize..inc_start[a + 1] as usize] {
-                let o = &out[c as usize];
-                if is_i {
-                    fa += o.f;
-                } else {
-                    fa -= o.f;
-                }
-                ta -= p.radius[a] * o.nxft;
+        type Chunk<'a, S> = (usize, ((&'a mut [Slot<S>], &'a mut [Out]), &'a mut [bool]));
+        let body = |(c, ((slots, outs), touching)): Chunk<M::State>| -> (f64, f64) {
+            let c0 = c * CONTACT_CHUNK;
+            let (mut el, mut di) = (0.0, 0.0);
+            for (k, ((s, o), t)) in slots.iter_mut().zip(outs.iter_mut()).zip(touching.iter_mut()).enumerate() {
+                let (e, d) = kernel(c0 + k, s, o, t);
+                el += e;
+                di += d;
             }
-            *f = fa;
-            *t = ta;
+            (el, di)
         };
-        self.force.resize(n, V3::zeros());
-        self.torque.resize(n, V3::zeros());
-        if self.pairs.len() > self.parallel_threshold {
-            self.force.par_iter_mut().zip(self.torque.par_iter_mut()).enumerate().for_each(gather);
+        let sums: Vec<(f64, f64)> = if par {
+            self.slots
+                .par_chunks_mut(CONTACT_CHUNK)
+                .zip(self.out.par_chunks_mut(CONTACT_CHUNK))
+                .zip(self.touching.par_chunks_mut(CONTACT_CHUNK))
+                .enumerate()
+                .map(body)
+                .collect()
         } else {
-            self.force.iter_mut().zip(self.torque.iter_mut()).enumerate().for_each(gather);
-        }
-        let mut elastic: f64 = self.out.iter().map(|o| o.elastic).sum();
-        let mut dissipation: f64 = self.out.iter().map(|o| o.dissipation).sum();
-        // walls (sequential over particles, fixed order)
-        let nw = self.walls.len();
-        self.wall_power.resize(nw, 0.0);
-        let muw = st.wall_friction;
-        let mut fw = vec![0.0; nw];
-        self.wall_power.iter_mut().for_each(|x| *x = 0.0);
-        for &(w, a) in &self.wall_list {
-            let (w, a) = (w as usize, a as usize);
-            let wall = &self.walls[w];
-            let gap = wall.normal.dot(&p.position[a]) - wall.offset - p.radius[a];
-            let xi = &mut self.wall_xi[a * nw + w];
-            if gap >= 0.0 {
-                *xi = V3::zeros();
-                continue;
-            }
-            let nrm = wall.normal;
-            let wa = if rot { p.angular_velocity[a] } else { V3::zeros() };
-            let vij = p.velocity[a] - nrm * wall.velocity + p.radius[a] * nrm.cross(&wa);
-            let vn = vij.dot(&nrm);
-            let g = PairGeom { overlap: -gap, overlap_rate: -vn, mass: p.mass[a], radius: p.radius[a] };
-            let mut s = M::State::default();
-            let no = self.law.normal(&g, &mut s);
-            let vt = vij - nrm * vn;
-            let (ft, el_t, diss_t) = tangential(xi, &nrm, &vt, &no, muw, alpha, beta, dt);
-            self.force[a] += nrm * no.force + ft;
-            self.torque[a] -= p.radius[a] * nrm.cross(&ft);
-            elastic += no.elastic_energy + el_t;
-            dissipation += no.damping_force * g.overlap_rate + diss_t;
-            fw[w] += no.force;
-            self.wall_power[w] += no.force * wall.velocity;
-        }
-        for (wall, f) in self.walls.iter_mut().zip(fw) {
-            wall.force = f;
-        }
-        // Cundall local damping
-        let lam = st.local_damping;
-        if lam > 0.0 {
-            for a in 0..n {
-                for k in 0..3 {
-                    let v = p.velocity[a][k];
-                    let fk = self.force[a][k];
-                    let dmp = lam * fk.abs() * v.signum() * if v == 0.0 { 0.0 } else { 1.0 };
-                    self.force[a][k] -= dmp;
-                    dissipation += dmp * v;
-                }
-                if rot {
-                    for k in 0..3 {
-                        let w = p.angular_velocity[a][k];
-                        let tk = self.torque[a][k];
-                        let dmp = lam * tk.abs() * w.signum() * if w == 0.0 { 0.0 } else { 1.0 };
-                        self.torque[a][k] -= dmp;
-                        dissipation += dmp * w;
-                    }
-                }
-            }
-        }
-        (elastic, dissipation)
+            self.slots.chunks_mut(CONTACT_CHUNK).zip(self.out.chunks_mut(CONTACT_CHUNK)).zip(self.touching.chunks_mut(CONTACT_CHUNK)).enumerate().map(body).collect()
+        };
+        sums.iter().fold((0.0, 0.0), |(a, b), (e, d)| (a + e, b + d))
     }
 
-    fn kinetic_and_potential(&self, p: &Particles) -> (f64, f64) {
-        let mut ke = 0.0;
-        let mut pe = 0.0;
-        for a in 0..p.len() {
-            ke += 0.5 * p.mass[a] * p.velocity[a].norm_squared();
-            if self.settings.rotation {
-                ke += 0.5 * p.inertia[a] * p.angular_velocity[a].norm_squared();
-            }
-            pe -= p.mass[a] * self.settings.gravity.dot(&p.position[a]);
+    /// Per particle, in a fixed order: gravity, the contact forces through the incidence table,
+    /// the wall contacts (walls in ascending order), Cundall's local damping; then, if `kick`, the
+    /// second half kick (step 5); sums the kinetic and potential energy after it. Sets the walls'
+    /// forces and powers.
+    fn particle_sweep(&mut self, p: &mut Particles, kick: bool) -> ParticleSums {
+        let n = p.len();
+        let nw = self.walls.len();
+        let par = self.parallel();
+        let st = &self.settings;
+        let (dt, rot, g, lam, visc) = (st.dt, st.rotation, st.gravity, st.local_damping, st.viscous_damping);
+        let h = 0.5 * dt;
+        let (muw, alpha, beta) = (st.wall_friction, st.tangential_stiffness_ratio, st.tangential_damping_ratio);
+        let law = &self.law;
+        let walls = &self.walls;
+        let (out, touching, inc, inc_start) = (&self.out, &self.touching, &self.inc, &self.inc_start);
+        let (wall_start, wall_of) = (&self.wall_start, &self.wall_of);
+        self.force.resize(n, V3::zeros());
+        self.torque.resize(n, V3::zeros());
+        let Particles { position, velocity, angular_velocity, radius, mass, inertia, .. } = p;
+        let (position, radius, mass, inertia) = (&*position, &*radius, &*mass, &*inertia);
+        // the chunks' mutable slices (wall springs: the candidates of the chunk's particles)
+        let mut chunks = Vec::with_capacity(n.div_ceil(PARTICLE_CHUNK));
+        let mut rest: &mut [V3] = &mut self.wall_spring[..];
+        for (c, (((f, t), v), w)) in self
+            .force
+            .chunks_mut(PARTICLE_CHUNK)
+            .zip(self.torque.chunks_mut(PARTICLE_CHUNK))
+            .zip(velocity.chunks_mut(PARTICLE_CHUNK))
+            .zip(angular_velocity.chunks_mut(PARTICLE_CHUNK))
+            .enumerate()
+        {
+            let a0 = c * PARTICLE_CHUNK;
+            let len = (wall_start[a0 + f.len()] - wall_start[a0]) as usize;
+            let (head, tail) = std::mem::take(&mut rest).split_at_mut(len);
+            rest = tail;
+            chunks.push(ParticleChunk { first: a0, force: f, torque: t, velocity: v, angular_velocity: w, wall_spring: head });
         }
-        (ke, pe)
+        let body = |ch: ParticleChunk| -> ParticleSums {
+            let mut s = ParticleSums { wall_force: vec![0.0; nw], ..Default::default() };
+            let q0 = wall_start[ch.first] as usize;
+            for k in 0..ch.force.len() {
+                let a = ch.first + k;
+                let mut fa = mass[a] * g;
+                let mut ta = V3::zeros();
+                for &(c, is_i) in &inc[inc_start[a] as usize..inc_start[a + 1] as usize] {
+                    if !touching[c as usize] {
+                        continue;
+                    }
+                    let o = &out[c as usize];
+                    if is_i {
+                        fa += o.f;
+                    } else {
+                        fa -= o.f;
+                    }
+                    ta -= radius[a] * o.nxft;
+                }
+                let va = ch.velocity[k];
+                let wa = if rot { ch.angular_velocity[k] } else { V3::zeros() };
+                for q in wall_start[a] as usize..wall_start[a + 1] as usize {
+                    let w = wall_of[q] as usize;
+                    let wall = &walls[w];
+                    let xi = &mut ch.wall_spring[q - q0];
+                    let gap = wall.normal.dot(&position[a]) - wall.offset - radius[a];
+                    if gap >= 0.0 {
+                        *xi = V3::zeros();
+                        continue;
+                    }
+                    let nrm = wall.normal;
+                    let vij = va - nrm * wall.velocity + radius[a] * nrm.cross(&wa);
+                    let vn = vij.dot(&nrm);
+                    let gm = PairGeom { overlap: -gap, overlap_rate: -vn, mass: mass[a], radius: radius[a] };
+                    let mut state = M::State::default();
+                    let no = law.normal(&gm, &mut state);
+                    let vt = vij - nrm * vn;
+                    let (ft, el_t, diss_t) = tangential(xi, &nrm, &vt, &no, muw, alpha, beta, dt);
+                    fa += nrm * no.force + ft;
+                    ta -= radius[a] * nrm.cross(&ft);
+                    s.elastic += no.elastic_energy + el_t;
+                    s.dissipation += no.damping_force * gm.overlap_rate + diss_t;
+                    s.wall_force[w] += no.force;
+                }
+                // Cundall local damping
+                if lam > 0.0 {
+                    for d in 0..3 {
+                        let v = va[d];
+                        let dmp = lam * fa[d].abs() * v.signum() * if v == 0.0 { 0.0 } else { 1.0 };
+                        fa[d] -= dmp;
+                        s.dissipation += dmp * v;
+                    }
+                    if rot {
+                        for d in 0..3 {
+                            let w = wa[d];
+                            let dmp = lam * ta[d].abs() * w.signum() * if w == 0.0 { 0.0 } else { 1.0 };
+                            ta[d] -= dmp;
+                            s.dissipation += dmp * w;
+                        }
+                    }
+                }
+                if visc > 0.0 {
+                    fa -= visc * mass[a] * va;
+                    s.dissipation += visc * mass[a] * va.norm_squared();
+                    if rot {
+                        ta -= visc * inertia[a] * wa;
+                        s.dissipation += visc * inertia[a] * wa.norm_squared();
+                    }
+                }
+                ch.force[k] = fa;
+                ch.torque[k] = ta;
+                if kick {
+                    ch.velocity[k] += fa * (h / mass[a]);
+                    if rot {
+                        ch.angular_velocity[k] += ta * (h / inertia[a]);
+                    }
+                }
+                s.kinetic += 0.5 * mass[a] * ch.velocity[k].norm_squared();
+                if rot {
+                    s.kinetic += 0.5 * inertia[a] * ch.angular_velocity[k].norm_squared();
+                }
+                s.potential -= mass[a] * g.dot(&position[a]);
+            }
+            s
+        };
+        let parts: Vec<ParticleSums> = if par { chunks.into_par_iter().map(body).collect() } else { chunks.into_iter().map(body).collect() };
+        let mut total = ParticleSums { wall_force: vec![0.0; nw], ..Default::default() };
+        for s in &parts {
+            total.elastic += s.elastic;
+            total.dissipation += s.dissipation;
+            total.kinetic += s.kinetic;
+            total.potential += s.potential;
+            for (a, b) in total.wall_force.iter_mut().zip(&s.wall_force) {
+                *a += b;
+            }
+        }
+        self.wall_power.resize(nw, 0.0);
+        for ((wall, pw), &f) in self.walls.iter_mut().zip(self.wall_power.iter_mut()).zip(&total.wall_force) {
+            wall.force = f;
+            *pw = f * wall.velocity;
+        }
+        total
     }
 
     /// Prepares forces and energies at the current state (called by the first [`Self::step`]).
@@ -596,12 +778,12 @@ impl<M: ContactModel> Explicit<M> {
         check_particles(p)?;
         self.rebuild(p);
         self.ready = true;
-        let (el, d) = self.compute_forces(p);
-        self.last_dissipation = d;
-        let (ke, pe) = self.kinetic_and_potential(p);
-        self.energy.kinetic = ke;
-        self.energy.potential = pe;
-        self.energy.elastic = el;
+        let (el, d) = self.contact_sweep(p);
+        let s = self.particle_sweep(p, false);
+        self.last_dissipation = d + s.dissipation;
+        self.energy.kinetic = s.kinetic;
+        self.energy.potential = s.potential;
+        self.energy.elastic = el + s.elastic;
         Ok(())
     }
 
@@ -612,18 +794,10 @@ impl<M: ContactModel> Explicit<M> {
         }
         let dt = self.settings.dt;
         let h = 0.5 * dt;
-        let rot = self.settings.rotation;
         let diss_old: f64 = self.last_dissipation;
         let wall_power_old: f64 = self.wall_power.iter().sum();
         // half kick + drift
-        for a in 0..p.len() {
-            p.velocity[a] += self.force[a] * (h / p.mass[a]);
-            p.position[a] += p.velocity[a] * dt;
-            if rot {
-                p.angular_velocity[a] += self.torque[a] * (h / p.inertia[a]);
-                p.rotation[a] += p.angular_velocity[a] * dt;
-            }
-        }
+        let stale = self.kick_drift(p);
         for w in self.walls.iter_mut() {
             match w.control {
                 WallControl::Fixed => w.velocity = 0.0,
@@ -646,19 +820,15 @@ impl<M: ContactModel> Explicit<M> {
                 }
             }
         }
-        if self.needs_rebuild(p) {
+        if stale {
             self.rebuild(p);
             self.ready = true;
         } else if self.walls_moved() {
             self.rebuild_wall_list(p);
         }
-        let (el, diss_new) = self.compute_forces(p);
-        for a in 0..p.len() {
-            p.velocity[a] += self.force[a] * (h / p.mass[a]);
-            if rot {
-                p.angular_velocity[a] += self.torque[a] * (h / p.inertia[a]);
-            }
-        }
+        let (el_c, diss_c) = self.contact_sweep(p);
+        let s = self.particle_sweep(p, true);
+        let (el, diss_new, ke) = (el_c + s.elastic, diss_c + s.dissipation, s.kinetic);
         for w in self.walls.iter_mut() {
             if let WallControl::Stress { pressure, mass, damping } = w.control {
                 // semi-implicit in the damping term for the second half kick
@@ -667,9 +837,8 @@ impl<M: ContactModel> Explicit<M> {
             }
         }
         let wall_power_new: f64 = self.wall_power.iter().sum();
-        let (ke, pe) = self.kinetic_and_potential(p);
         self.energy.kinetic = ke;
-        self.energy.potential = pe;
+        self.energy.potential = s.potential;
         self.energy.elastic = el;
         self.energy.dissipated += h * (diss_old + diss_new);
         self.energy.wall_work += h * (wall_power_old + wall_power_new);
