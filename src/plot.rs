@@ -338,10 +338,9 @@ impl Plot {
                     continue;
                 }
                 let p = (px(x), py(y));
-                if s.line {
-                    if let Some(q) = last {
-                        cv.line(q.0, q.1, p.0, p.1, 2.5, col);
-                    }
+                if s.line
+                    && let Some(q) = last {
+                    cv.line(q.0, q.1, p.0, p.1, 2.5, col);
                 }
                 if s.markers {
                     cv.line(p.0 - 0.01, p.1, p.0 + 0.01, p.1, 7.0, col);

@@ -73,13 +73,12 @@ impl Profile {
                     unit: "s".into(),
                 });
             }
-            if let Some(&last) = times.last() {
-                if r[0] <= last {
-                    return Err(ConfigError::invalid(format!(
-                        "profile.table[{k}]: time {} s is not after the previous row's {} s",
-                        r[0], last
-                    )));
-                }
+            if let Some(&last) = times.last()
+                && r[0] <= last {
+                return Err(ConfigError::invalid(format!(
+                    "profile.table[{k}]: time {} s is not after the previous row's {} s",
+                    r[0], last
+                )));
             }
             times.push(r[0]);
             temps.push(check_temperature(&format!("profile.table[{k}].temperature"), r[1])?);

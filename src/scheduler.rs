@@ -425,7 +425,7 @@ impl Simulation {
             let t1 = t0 + dt;
             // 1. topology
             let tic = Instant::now();
-            if self.settings.detect_new && self.step > 0 && self.step % self.settings.detect_every == 0 {
+            if self.settings.detect_new && self.step > 0 && self.step.is_multiple_of(self.settings.detect_every) {
                 self.add_new_contacts(log)?;
             }
             self.timing.detection += tic.elapsed().as_secs_f64();
@@ -435,10 +435,10 @@ impl Simulation {
             let mut heat_info = None;
             if self.heat.is_some() {
                 let k = self.conductances()?;
-                let net = self.heat.as_mut().unwrap();
-                net.set_topology(&self.contacts.pairs)?;
-                let info = net.step(t0, dt, &mut self.prep.scene.particles.temperature, &k)?;
-                heat_info = Some(info);
+                if let Some(net) = self.heat.as_mut() {
+                    net.set_topology(&self.contacts.pairs)?;
+                    heat_info = Some(net.step(t0, dt, &mut self.prep.scene.particles.temperature, &k)?);
+                }
             }
             self.timing.heat += tic.elapsed().as_secs_f64();
             // 3. diffusion sweep
@@ -929,11 +929,11 @@ pub fn run_from(mut sim: Simulation, out: &Path, progress: bool, log: &mut dyn F
             log(&format!("t = {} s: relative density {:.4} reached time.stop_relative_density = {r}: the run ends here", sim.t, sim.relative_density()));
             stop_reason = Some(format!("relative density {r} reached"));
         }
-        if sim.step % sim.settings.series_every == 0 || sim.t >= end || rho_stop.is_some() {
+        if sim.step.is_multiple_of(sim.settings.series_every) || sim.t >= end || rho_stop.is_some() {
             write_row(&sim, &mut series, dt_used)?;
             series_lines += 1;
         }
-        if sim.settings.checkpoint_every > 0 && sim.step % sim.settings.checkpoint_every == 0 && sim.t < end {
+        if sim.settings.checkpoint_every > 0 && sim.step.is_multiple_of(sim.settings.checkpoint_every) && sim.t < end {
             // snapshots and analyses due at this time are written before the checkpoint
             write_due(&sim, &mut snaps, &snap_times, &mut next_snap, &mut next_cond, &mut cond_results, log)?;
             sim.mechanics.drop_factor()?;

@@ -317,10 +317,9 @@ impl<M: ContactModel> Explicit<M> {
             if !(w.normal.iter().all(|x| x.is_finite()) && (w.normal.norm() - 1.0).abs() < 1e-9 && w.offset.is_finite()) {
                 return Err(ConfigError::inconsistent(format!("walls.{k}"), "normal must be a finite unit vector and offset finite").into());
             }
-            if let WallControl::Stress { mass, damping, pressure } = w.control {
-                if !(mass > 0.0 && damping >= 0.0 && pressure.is_finite() && w.area > 0.0) {
-                    return Err(ConfigError::inconsistent(format!("walls.{k}"), "stress control needs mass > 0, damping >= 0, finite pressure, area > 0").into());
-                }
+            if let WallControl::Stress { mass, damping, pressure } = w.control
+                && !(mass > 0.0 && damping >= 0.0 && pressure.is_finite() && w.area > 0.0) {
+                return Err(ConfigError::inconsistent(format!("walls.{k}"), "stress control needs mass > 0, damping >= 0, finite pressure, area > 0").into());
             }
         }
         Ok(Explicit {

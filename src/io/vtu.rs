@@ -12,9 +12,9 @@ const VTK_LINE: u8 = 3;
 
 fn data_array(out: &mut String, name: &str, comps: usize, values: impl Iterator<Item = f64>) {
     if comps > 1 {
-        let _ = write!(out, "<DataArray type=\"Float64\" Name=\"{name}\" NumberOfComponents=\"{comps}\" format=\"ascii\">\n");
+        let _ = writeln!(out, "<DataArray type=\"Float64\" Name=\"{name}\" NumberOfComponents=\"{comps}\" format=\"ascii\">");
     } else {
-        let _ = write!(out, "<DataArray type=\"Float64\" Name=\"{name}\" format=\"ascii\">\n");
+        let _ = writeln!(out, "<DataArray type=\"Float64\" Name=\"{name}\" format=\"ascii\">");
     }
     for (k, v) in values.enumerate() {
         let _ = write!(out, "{v:e}");
@@ -24,7 +24,7 @@ fn data_array(out: &mut String, name: &str, comps: usize, values: impl Iterator<
 }
 
 fn int_array(out: &mut String, name: &str, ty: &str, values: impl Iterator<Item = u64>) {
-    let _ = write!(out, "<DataArray type=\"{ty}\" Name=\"{name}\" format=\"ascii\">\n");
+    let _ = writeln!(out, "<DataArray type=\"{ty}\" Name=\"{name}\" format=\"ascii\">");
     for (k, v) in values.enumerate() {
         let _ = write!(out, "{v}");
         out.push(if (k + 1) % 16 == 0 { '\n' } else { ' ' });

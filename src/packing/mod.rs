@@ -537,7 +537,7 @@ pub fn generate(case: &GenerateCase, progress: bool) -> Result<(Packing, Generat
             for a in 0..3 {
                 let want = -target[a];
                 let w = &mut sim.walls[2 * a + 1];
-                w.velocity = (w.offset - want) / dt * -1.0;
+                w.velocity = -((w.offset - want) / dt);
             }
         }
         if servo < 0.05 {
@@ -563,7 +563,7 @@ pub fn generate(case: &GenerateCase, progress: bool) -> Result<(Packing, Generat
             jammed_steps = 0;
             taps += 1;
             let phi = vp / box_of(&sim.walls).iter().product::<f64>();
-            if taps % stall_taps == 0 {
+            if taps.is_multiple_of(stall_taps) {
                 if phi - phi_at_check < 1e-3 {
                     pr.say(format!("jammed at solid fraction {phi:.4} after {taps} taps: accepting it"));
                     target = box_of(&sim.walls);
@@ -579,7 +579,7 @@ pub fn generate(case: &GenerateCase, progress: bool) -> Result<(Packing, Generat
         sim.step(&mut p)?;
         set_areas(&mut sim.walls);
         steps_compact += 1;
-        if steps_compact % 2000 == 0 {
+        if steps_compact.is_multiple_of(2000) {
             pr.say(format!(
                 "compaction: solid fraction {:.4}, pressure/p_c {:.3}, kinetic energy/particle {:.2e}, contacts/particle {:.2}",
                 vp / box_of(&sim.walls).iter().product::<f64>(),
@@ -666,7 +666,7 @@ pub fn generate(case: &GenerateCase, progress: bool) -> Result<(Packing, Generat
             sim.settings.viscous_damping = DRAIN_DAMPING;
             pr.say(format!("overlaps below {ov_tol:.1e} r: draining the kinetic energy ({:.2e} per particle) with viscous damping", ke / n as f64));
         }
-        if steps_relax % 2000 == 0 {
+        if steps_relax.is_multiple_of(2000) {
             pr.say(format!("relax: kinetic energy/particle {:.2e}, largest overlap {ov:.2e} r, pressure/p_c {:.3e}, backing off {backing_off}", ke / n as f64, pm / p_c));
         }
         if sim.counters.steps > budget {

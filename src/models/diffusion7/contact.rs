@@ -101,10 +101,9 @@ pub fn initial_state(r_a: f64, r_b: f64, d_ab: f64, eps: f64, eta: f64) -> Resul
         let c_a = d_a - (r_a * r_a - h0 * h0).sqrt();
         let c_b = d_b - (r_b * r_b - h0 * h0).sqrt();
         let y = [a0, r_a, c_a, d_a, r_b, c_b, d_b];
-        if let Ok((sa, sb)) = sides(&y) {
-            if sa.derivs().is_ok() && sb.derivs().is_ok() {
-                return Ok(y);
-            }
+        if let Ok((sa, sb)) = sides(&y)
+            && sa.derivs().is_ok() && sb.derivs().is_ok() {
+            return Ok(y);
         }
         eta *= 0.5;
     }
@@ -126,10 +125,9 @@ pub fn diagnose(y: &[f64; 7]) -> String {
             s.push_str(&format!("; side {} has more than a hemisphere cut away (p/R = {:.3})", if k == 0 { "A" } else { "B" }, p / r));
         }
     }
-    if let Some(th) = tangency(y) {
-        if th[0].max(th[1]) > 0.9 {
-            s.push_str(&format!("; cone near tangency (theta = {:.3}, {:.3})", th[0], th[1]));
-        }
+    if let Some(th) = tangency(y)
+        && th[0].max(th[1]) > 0.9 {
+        s.push_str(&format!("; cone near tangency (theta = {:.3}, {:.3})", th[0], th[1]));
     }
     s
 }

@@ -336,12 +336,12 @@ pub fn run_pair(spec: &PairSpec, record: bool, progress: bool) -> Result<PairRun
         count += 1;
         tlo = tlo.min(temp);
         thi = thi.max(temp);
-        if record && (count % every == 0 || t >= end) {
+        if record && (count.is_multiple_of(every) || t >= end) {
             times.push(t);
             states.push(*y);
             temps.push(temp);
         }
-        if count % 64 == 0 || t >= end {
+        if count.is_multiple_of(64) || t >= end {
             bar.set(t, &format!("T = {temp:.1} K, y1/R = {:.5}", y[0] / spec.radius_a.min(spec.radius_b)));
         }
     });
@@ -350,10 +350,9 @@ pub fn run_pair(spec: &PairSpec, record: bool, progress: bool) -> Result<PairRun
     res?;
     let mut warnings = Vec::new();
     for m in [&spec.material_a, &spec.material_b] {
-        if let Some(w) = calibrated_range_warning(m, tlo, thi) {
-            if !warnings.contains(&w) {
-                warnings.push(w);
-            }
+        if let Some(w) = calibrated_range_warning(m, tlo, thi)
+            && !warnings.contains(&w) {
+            warnings.push(w);
         }
     }
     Ok(PairRun { times, states, temperatures: temps, contact, volume0: v0, stats, wall_seconds, warnings })
