@@ -60,6 +60,7 @@ pub struct Settings {
     pub series_every: u64,
     pub checkpoint_every: u64,
     pub conductivity_at: Vec<f64>,
+    pub histogram_at: Vec<f64>,
 }
 
 impl Settings {
@@ -86,6 +87,9 @@ impl Settings {
         let ck = config::check("output.checkpoint_every", case.output.checkpoint_every)?;
         for (k, &tc) in case.output.conductivity_at.iter().enumerate() {
             config::check(&format!("output.conductivity_at.{k}"), tc)?;
+        }
+        for (k, &tc) in case.output.correction_histogram_at.iter().enumerate() {
+            config::check(&format!("output.correction_histogram_at.{k}"), tc)?;
         }
         let dt_max = config::check("time.dt_max", t.dt_max.unwrap_or(if strategy == 1 { 100.0 } else { 10.0 }))?;
         let dt_min = config::check("time.dt_min", t.dt_min.unwrap_or(1e-12))?;
@@ -114,6 +118,7 @@ impl Settings {
             series_every: config::check("output.series_every", case.output.series_every)? as u64,
             checkpoint_every: ck as u64,
             conductivity_at: case.output.conductivity_at.clone(),
+            histogram_at: case.output.correction_histogram_at.clone(),
         })
     }
 }
@@ -700,6 +705,10 @@ pub struct OutputState {
     pub next_snap: usize,
     pub next_cond: usize,
     pub cond_results: Vec<serde_json::Value>,
+    #[serde(default)]
+    pub next_hist: usize,
+    #[serde(default)]
+    pub hist_results: Vec<serde_json::Value>,
     /// Lines of series.csv (header included) at the checkpoint.
     pub series_lines: usize,
     pub snapshots: usize,
@@ -870,9 +879,14 @@ pub fn run_from(mut sim: Simulation, out: &Path, progress: bool, log: &mut dyn F
         1 => vec![end],
         k => (0..k).map(|i| end * i as f64 / (k - 1) as f64).collect(),
     };
-    let mut next_snap = st.next_snap;
-    let mut next_cond = st.next_cond;
-    let mut cond_results = st.cond_results.clone();
+    let mut due = Due {
+        snap_times,
+        next_snap: st.next_snap,
+        next_cond: st.next_cond,
+        cond_results: st.cond_results.clone(),
+        next_hist: st.next_hist,
+        hist_results: st.hist_results.clone(),
+    };
     let bar = io::progress::Progress::new(end, progress);
     let mut stop_reason: Option<String> = None;
     let mut failure: Option<Error> = None;
@@ -904,7 +918,7 @@ pub fn run_from(mut sim: Simulation, out: &Path, progress: bool, log: &mut dyn F
     }
     loop {
         let tic = Instant::now();
-        write_due(&sim, &mut snaps, &snap_times, &mut next_snap, &mut next_cond, &mut cond_results, log)?;
+        due.write(&sim, out, &mut snaps, log)?;
         sim.timing.output += tic.elapsed().as_secs_f64();
         if sim.t >= end {
             break;
@@ -935,12 +949,14 @@ pub fn run_from(mut sim: Simulation, out: &Path, progress: bool, log: &mut dyn F
         }
         if sim.settings.checkpoint_every > 0 && sim.step.is_multiple_of(sim.settings.checkpoint_every) && sim.t < end {
             // snapshots and analyses due at this time are written before the checkpoint
-            write_due(&sim, &mut snaps, &snap_times, &mut next_snap, &mut next_cond, &mut cond_results, log)?;
+            due.write(&sim, out, &mut snaps, log)?;
             sim.mechanics.drop_factor()?;
             let os = OutputState {
-                next_snap,
-                next_cond,
-                cond_results: cond_results.clone(),
+                next_snap: due.next_snap,
+                next_cond: due.next_cond,
+                cond_results: due.cond_results.clone(),
+                next_hist: due.next_hist,
+                hist_results: due.hist_results.clone(),
                 series_lines,
                 snapshots: snaps.count(),
                 vtu_entries: snaps.vtu_entries(),
@@ -997,7 +1013,8 @@ pub fn run_from(mut sim: Simulation, out: &Path, progress: bool, log: &mut dyn F
         "timing_seconds": sim.timing,
         "dl_bar_mean_m": dl_mean,
         "dl_bar_std_m": dl_std,
-        "conductivity": cond_results,
+        "conductivity": due.cond_results,
+        "correction_histograms": due.hist_results,
         "skipped": sim.skipped,
         "warnings": sim.warnings,
         "threads": rayon::current_num_threads(),
@@ -1030,28 +1047,44 @@ pub fn run_from(mut sim: Simulation, out: &Path, progress: bool, log: &mut dyn F
     }
 }
 
-/// Writes the snapshots and conductivity analyses due at the current time.
-fn write_due(
-    sim: &Simulation,
-    snaps: &mut SnapshotWriter,
-    snap_times: &[f64],
-    next_snap: &mut usize,
-    next_cond: &mut usize,
-    cond_results: &mut Vec<serde_json::Value>,
-    log: &mut dyn FnMut(&str),
-) -> Result<(), Error> {
-    while *next_snap < snap_times.len() && snap_times[*next_snap] <= sim.t * (1.0 + 1e-12) + 1e-300 {
-        write_snapshot(sim, snaps)?;
-        *next_snap += 1;
+/// Output analyses due at given times, and where each list stands (a checkpoint carries it).
+struct Due {
+    snap_times: Vec<f64>,
+    next_snap: usize,
+    next_cond: usize,
+    cond_results: Vec<serde_json::Value>,
+    next_hist: usize,
+    hist_results: Vec<serde_json::Value>,
+}
+
+impl Due {
+    /// Writes the snapshots, conductivity analyses and correction histograms due at the current time.
+    fn write(&mut self, sim: &Simulation, out: &Path, snaps: &mut SnapshotWriter, log: &mut dyn FnMut(&str)) -> Result<(), Error> {
+        let now = sim.t * (1.0 + 1e-12);
+        while self.next_snap < self.snap_times.len() && self.snap_times[self.next_snap] <= now + 1e-300 {
+            write_snapshot(sim, snaps)?;
+            self.next_snap += 1;
+        }
+        let at = &sim.settings.conductivity_at;
+        while self.next_cond < at.len() && at[self.next_cond] <= now {
+            let k = compact_conductivity(sim)?;
+            log(&format!("t = {:.6e} s: effective conductivity diag = [{:.4e}, {:.4e}, {:.4e}] W/(m K)", sim.t, k[0], k[1], k[2]));
+            self.cond_results.push(json!({"time_s": sim.t, "kappa_eff_W_per_mK": k}));
+            self.next_cond += 1;
+        }
+        let at = &sim.settings.histogram_at;
+        while self.next_hist < at.len() && at[self.next_hist] <= now {
+            // the corrections of the step that ended at (or first after) the asked time
+            if sim.step > 0 {
+                let tag = format!("t{:.0}s", at[self.next_hist]);
+                let h = write_correction_histogram(out, sim, &tag)?;
+                log(&format!("t = {:.6e} s: correction histogram {tag}: mean ΔL̄/L0 = {:.3e}, std {:.3e} ({} contacts)", sim.t, h.0, h.1, sim.contacts.len()));
+                self.hist_results.push(json!({"asked_time_s": at[self.next_hist], "time_s": sim.t, "dl_bar_rel_mean": h.0, "dl_bar_rel_std": h.1, "files": [format!("dl_bar_{tag}.csv"), format!("dl_bar_histogram_{tag}.png")]}));
+            }
+            self.next_hist += 1;
+        }
+        Ok(())
     }
-    let at = &sim.settings.conductivity_at;
-    while *next_cond < at.len() && at[*next_cond] <= sim.t * (1.0 + 1e-12) {
-        let k = compact_conductivity(sim)?;
-        log(&format!("t = {:.6e} s: effective conductivity diag = [{:.4e}, {:.4e}, {:.4e}] W/(m K)", sim.t, k[0], k[1], k[2]));
-        cond_results.push(json!({"time_s": sim.t, "kappa_eff_W_per_mK": k}));
-        *next_cond += 1;
-    }
-    Ok(())
 }
 
 fn write_snapshot(sim: &Simulation, snaps: &mut SnapshotWriter) -> Result<(), IoError> {
@@ -1080,6 +1113,45 @@ pub fn compact_conductivity(sim: &Simulation) -> Result<[f64; 3], Error> {
         *o = crate::heat::conductivity::faces(p, &pipes, a, 0.5 * p.mean_radius(), 1.0)?.kappa;
     }
     Ok(out)
+}
+
+/// The y4/y7 corrections of the last step, ΔL̄/L0 per contact (Ivannikov et al. 2022 eq. 44,
+/// Fig. 20): `dl_bar_TAG.csv` (pair, L0, ΔL̄, ΔL̄/L0) and `dl_bar_histogram_TAG.png` (30 bins);
+/// returns the mean and standard deviation of ΔL̄/L0.
+pub fn write_correction_histogram(out: &Path, sim: &Simulation, tag: &str) -> Result<(f64, f64), IoError> {
+    use crate::plot::{Plot, Series as Line};
+    let dl: Vec<f64> = sim.contacts.dl_bar.iter().zip(&sim.contacts.state).map(|(d, c)| d / c.l0).collect();
+    let csv_path = out.join(format!("dl_bar_{tag}.csv"));
+    let mut text = format!("# y4/y7 corrections of the step ending at t = {} s (eq. 44)\nparticle_a,particle_b,l0_m,dl_bar_m,dl_bar_rel\n", sim.t);
+    for (k, (&[a, b], c)) in sim.contacts.pairs.iter().zip(&sim.contacts.state).enumerate() {
+        text.push_str(&format!("{a},{b},{:e},{:e},{:e}\n", c.l0, sim.contacts.dl_bar[k], dl[k]));
+    }
+    std::fs::write(&csv_path, text).map_err(|e| IoError::new(&csv_path, e))?;
+    let n = dl.len().max(1) as f64;
+    let mean = dl.iter().sum::<f64>() / n;
+    let std = (dl.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n).sqrt();
+    if !dl.is_empty() {
+        let (lo, hi) = dl.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+        let bins = 30usize;
+        let w = ((hi - lo) / bins as f64).max(f64::MIN_POSITIVE);
+        let mut count = vec![0usize; bins];
+        for v in &dl {
+            count[(((v - lo) / w) as usize).min(bins - 1)] += 1;
+        }
+        let mut pts = Vec::new();
+        for (k, &c) in count.iter().enumerate() {
+            let (a, b) = (lo + k as f64 * w, lo + (k + 1) as f64 * w);
+            pts.push((a, 0.0));
+            pts.push((a, c as f64));
+            pts.push((b, c as f64));
+            pts.push((b, 0.0));
+        }
+        let mut p = Plot::new(&format!("y4/y7 corrections at t = {:.0} s (paper Fig. 20)", sim.t)).labels("dL_bar / L0 [1]", "contacts");
+        p.add(Line::new("histogram", pts));
+        let name = if tag == "end" { "dl_bar_histogram.png".to_string() } else { format!("dl_bar_histogram_{tag}.png") };
+        p.save_png(&out.join(name))?;
+    }
+    Ok((mean, std))
 }
 
 /// PNG plots of a compact run from its series.csv, the ΔL̄ histogram (Ivannikov et al. 2022
@@ -1114,28 +1186,7 @@ pub fn write_plots(out: &Path, sim: &Simulation) -> Result<(), IoError> {
         p.add(Line::new(name, col(key)));
     }
     p.save_png(&out.join("temperature.png"))?;
-    // histogram of the last step's ΔL̄, normalised by the contact's L0
-    let dl: Vec<f64> = sim.contacts.dl_bar.iter().zip(&sim.contacts.state).map(|(d, c)| d / c.l0).collect();
-    if !dl.is_empty() {
-        let (lo, hi) = dl.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
-        let bins = 30usize;
-        let w = ((hi - lo) / bins as f64).max(f64::MIN_POSITIVE);
-        let mut count = vec![0usize; bins];
-        for v in &dl {
-            count[(((v - lo) / w) as usize).min(bins - 1)] += 1;
-        }
-        let mut pts = Vec::new();
-        for (k, &c) in count.iter().enumerate() {
-            let (a, b) = (lo + k as f64 * w, lo + (k + 1) as f64 * w);
-            pts.push((a, 0.0));
-            pts.push((a, c as f64));
-            pts.push((b, c as f64));
-            pts.push((b, 0.0));
-        }
-        let mut p = Plot::new("correction of the last step (paper Fig. 20)").labels("dL_bar / L0 [1]", "contacts");
-        p.add(Line::new("histogram", pts));
-        p.save_png(&out.join("dl_bar_histogram.png"))?;
-    }
+    write_correction_histogram(out, sim, "end")?;
     let prof = sim.layer_profile(5);
     let mut p = Plot::new("densification through the height").labels("height z [m]", "mean contact shrinkage dL/L0 [1]");
     p.add(Line::new("contacts by layer", prof.iter().map(|l| (l.0, l.1)).collect()).with_markers());

@@ -288,3 +288,25 @@ fn model_error_stops_the_run_with_a_summary() {
     assert!(s["stop_reason"].as_str().unwrap().contains("model error"));
     assert!(s["neck_ratio"].as_f64().unwrap().is_finite() && s["shrinkage_x"].as_f64().unwrap() > 0.0);
 }
+
+/// `output.correction_histogram_at` writes the ΔL̄ of the step reaching that time, one row per
+/// contact, whose mean is the one reported; the end of the run always gets one.
+#[test]
+fn correction_histograms_at_asked_times() {
+    let dir = tmp("histograms");
+    let csv = small_packing(&dir, 0.2e-3);
+    let (s, _) = run_case(compact_case(&csv, &["time.end=300.0", "output.correction_histogram_at=[100.0]"]), &dir.join("out"));
+    let h = &s["correction_histograms"][0];
+    assert_eq!(h["asked_time_s"].as_f64(), Some(100.0));
+    let t = h["time_s"].as_f64().unwrap();
+    assert!((100.0..=110.0).contains(&t), "{t}");
+    let text = std::fs::read_to_string(dir.join("out/dl_bar_t100s.csv")).unwrap();
+    let rel: Vec<f64> = text.lines().skip(2).map(|l| l.split(',').nth(4).unwrap().parse().unwrap()).collect();
+    assert!(rel.len() > 30);
+    let mean = rel.iter().sum::<f64>() / rel.len() as f64;
+    let reported = h["dl_bar_rel_mean"].as_f64().unwrap();
+    assert!((mean - reported).abs() <= 1e-6 * h["dl_bar_rel_std"].as_f64().unwrap().max(1e-300), "{mean} vs {reported}");
+    // the packing moves the contacts away from their own prediction, in both directions
+    assert!(rel.iter().any(|&v| v > 0.0) && rel.iter().any(|&v| v < 0.0));
+    assert!(dir.join("out/dl_bar_histogram_t100s.png").exists() && dir.join("out/dl_bar_end.csv").exists());
+}

@@ -164,11 +164,15 @@ pub struct OutputSpec {
     /// Compact runs: times [s] at which the effective conductivity of the compact is computed.
     #[serde(default)]
     pub conductivity_at: Vec<f64>,
+    /// Compact runs: times [s] at which the histogram of the y4/y7 corrections ΔL̄ is written
+    /// (Ivannikov et al. 2022 Fig. 20: 30 min of E14B); the end of the run always gets one.
+    #[serde(default)]
+    pub correction_histogram_at: Vec<f64>,
 }
 
 impl Default for OutputSpec {
     fn default() -> Self {
-        OutputSpec { snapshots: default_snapshots(), series_every: 1.0, vtu: true, hdf5: true, checkpoint_every: 0.0, conductivity_at: Vec::new() }
+        OutputSpec { snapshots: default_snapshots(), series_every: 1.0, vtu: true, hdf5: true, checkpoint_every: 0.0, conductivity_at: Vec::new(), correction_histogram_at: Vec::new() }
     }
 }
 

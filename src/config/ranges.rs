@@ -86,6 +86,7 @@ pub static TABLE: &[Range] = &[
     c("output.series_every", 1.0, 1e9, "1", "write a series row every this many steps"),
     c("output.checkpoint_every", 0.0, 1e9, "1", "write a checkpoint every this many steps (0: never)"),
     c("output.conductivity_at.*", 0.0, 1e9, "s", "times of the effective-conductivity analyses of a compact run"),
+    c("output.correction_histogram_at.*", 0.0, 1e9, "s", "times of the y4/y7 correction histograms of a compact run"),
     // contacts and mechanics of compact runs
     c("contacts.detect_every", 1.0, 1e9, "1", "neighbour search every this many steps"),
     c("contacts.gap_tolerance", 0.0, 0.1, "1", "surface gap, relative to the mean radius, below which a pair counts as touching"),
