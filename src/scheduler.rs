@@ -737,6 +737,9 @@ pub struct Checkpoint {
     pub position: Vec<[f64; 3]>,
     pub temperature: Vec<f64>,
     pub rotation: Vec<[f64; 3]>,
+    /// Mechanics counters: Newton iterations, numeric factorisations, largest final scaled residual.
+    #[serde(default)]
+    pub mechanics_counters: (u64, u64, f64),
     pub pairs: Vec<[u32; 2]>,
     pub contacts: Vec<Contact7>,
     pub dl_bar: Vec<f64>,
@@ -768,6 +771,7 @@ impl Simulation {
             position: p.position.iter().map(|x| [x.x, x.y, x.z]).collect(),
             temperature: p.temperature.clone(),
             rotation: self.mechanics.rotation.iter().map(|x| [x.x, x.y, x.z]).collect(),
+            mechanics_counters: (self.mechanics.newton_iterations, self.mechanics.factorizations, self.mechanics.max_residual),
             pairs: self.contacts.pairs.clone(),
             contacts: self.contacts.state.clone(),
             dl_bar: self.contacts.dl_bar.clone(),
@@ -793,6 +797,7 @@ impl Simulation {
         p.position = ck.position.iter().map(|x| Vector3::new(x[0], x[1], x[2])).collect();
         p.temperature = ck.temperature.clone();
         sim.mechanics.rotation = ck.rotation.iter().map(|x| Vector3::new(x[0], x[1], x[2])).collect();
+        (sim.mechanics.newton_iterations, sim.mechanics.factorizations, sim.mechanics.max_residual) = ck.mechanics_counters;
         sim.contacts = Contacts { pairs: ck.pairs.clone(), state: ck.contacts.clone(), dl_bar: ck.dl_bar.clone(), substeps: ck.substeps.clone() };
         if let Some(h) = sim.heat.as_mut() {
             h.set_history(ck.heat_history.clone());
@@ -1015,6 +1020,12 @@ pub fn run_from(mut sim: Simulation, out: &Path, progress: bool, log: &mut dyn F
         "dl_bar_std_m": dl_std,
         "conductivity": due.cond_results,
         "correction_histograms": due.hist_results,
+        "mechanics": {
+            "newton_iterations": sim.mechanics.newton_iterations,
+            "factorizations": sim.mechanics.factorizations,
+            "max_final_residual": sim.mechanics.max_residual,
+            "rtol": MechParams::default().rtol,
+        },
         "skipped": sim.skipped,
         "warnings": sim.warnings,
         "threads": rayon::current_num_threads(),

@@ -140,9 +140,13 @@ fn resumed_run_is_bit_identical() {
     let ck = scheduler::read_checkpoint(&part).unwrap();
     assert_eq!(ck.step, 80);
     let s_res = scheduler::resume(&part, false, &mut |_| {}).unwrap();
-    for key in ["final_time_s", "steps", "shrinkage_x", "shrinkage_y", "shrinkage_z", "relative_density", "neck_ratio", "contacts", "rhs_evaluations"] {
+    for key in ["final_time_s", "steps", "shrinkage_x", "shrinkage_y", "shrinkage_z", "relative_density", "neck_ratio", "contacts", "rhs_evaluations", "mechanics"] {
         assert_eq!(s_full[key], s_res[key], "{key}");
     }
+    // the mechanics met its tolerance at every step
+    let m = &s_full["mechanics"];
+    assert!(m["newton_iterations"].as_u64().unwrap() >= s_full["steps"].as_u64().unwrap());
+    assert!(m["max_final_residual"].as_f64().unwrap() <= m["rtol"].as_f64().unwrap());
     let a = std::fs::read_to_string(full.join("series.csv")).unwrap();
     let b = std::fs::read_to_string(part.join("series.csv")).unwrap();
     assert_eq!(a, b, "series.csv of the resumed run differs");
