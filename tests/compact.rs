@@ -314,3 +314,39 @@ fn correction_histograms_at_asked_times() {
     assert!(rel.iter().any(|&v| v > 0.0) && rel.iter().any(|&v| v < 0.0));
     assert!(dir.join("out/dl_bar_histogram_t100s.png").exists() && dir.join("out/dl_bar_end.csv").exists());
 }
+
+/// With HDF5 on: a run stopped right after a checkpoint resumes and its HDF5 file holds the
+/// same snapshots as the uninterrupted run's; a file damaged by a kill in mid-write is moved
+/// aside (logged) and the resumed run still ends with the same results.
+#[cfg(feature = "h5")]
+#[test]
+fn resume_with_hdf5_snapshots_and_a_damaged_file() {
+    let dir = tmp("resume-h5");
+    let csv = small_packing(&dir, 0.2e-3);
+    let sets = ["time.end=200.0", "output.checkpoint_every=40", "output.hdf5=true", "output.snapshots=5"];
+    let (s_full, _) = run_case(compact_case(&csv, &sets), &dir.join("full"));
+    let count = |path: &Path| -> usize {
+        let f = hdf5_metno::File::open(path).unwrap();
+        f.group("snapshots").unwrap().member_names().unwrap().len()
+    };
+    assert_eq!(count(&dir.join("full/sinterdem.h5")), 5);
+    for damaged in [false, true] {
+        let part = dir.join(format!("part-{damaged}"));
+        let sim = scheduler::prepare(compact_case(&csv, &sets), Path::new("."), &mut |_| {}).unwrap();
+        assert!(scheduler::run_from(sim, &part, false, &mut |_| {}, None, Some(80)).unwrap().is_null());
+        if damaged {
+            std::fs::write(part.join("sinterdem.h5"), [0u8; 96]).unwrap();
+        }
+        let mut log = Vec::new();
+        let s = scheduler::resume(&part, false, &mut |m| log.push(m.to_string())).unwrap();
+        for key in ["steps", "shrinkage_x", "neck_ratio", "contacts"] {
+            assert_eq!(s_full[key], s[key], "{key}");
+        }
+        let noted = log.iter().any(|l| l.contains("could not be reopened"));
+        assert_eq!(noted, damaged, "{log:?}");
+        assert_eq!(part.join("sinterdem.h5.damaged").exists(), damaged);
+        // undamaged: every snapshot; damaged: those written after the checkpoint
+        let n = count(&part.join("sinterdem.h5"));
+        if damaged { assert!((1..5).contains(&n), "{n}") } else { assert_eq!(n, 5) }
+    }
+}

@@ -133,6 +133,9 @@ impl SnapshotWriter {
     pub fn resume(dir: &Path, vtu: bool, h5: bool, count: usize, entries: Vec<(f64, String, String)>, log: &mut dyn FnMut(&str)) -> Result<Self, IoError> {
         let vtu = if vtu { Some(vtu::PvdIndex::with_entries(entries)) } else { None };
         let h5 = if h5 { h5_or_off(hdf5::H5Writer::reopen(&dir.join("sinterdem.h5"), count), log)? } else { None };
+        if let Some(note) = h5.as_ref().and_then(|w| w.note.as_deref()) {
+            log(note);
+        }
         Ok(SnapshotWriter { dir: dir.to_path_buf(), vtu, h5, count })
     }
 
