@@ -59,6 +59,25 @@ pub fn prepare(value: toml::Value, base: &Path) -> Result<Prepared, Error> {
             return Err(ConfigError::inconsistent(key, "this section belongs to kind = \"compact\" cases; a heat case has a static packing").into());
         }
     }
+    // keys that only a compact run reads: refuse them rather than ignore them
+    let t = &c.time;
+    let o = &c.output;
+    let compact_only = [
+        (t.strategy.is_some(), "time.strategy"),
+        (t.dt_max.is_some(), "time.dt_max"),
+        (t.dt_min.is_some(), "time.dt_min"),
+        (t.alpha.is_some(), "time.alpha"),
+        (t.grow_below.is_some(), "time.grow_below"),
+        (t.shrink_above.is_some(), "time.shrink_above"),
+        (t.substeps_allowed.is_some(), "time.substeps_allowed"),
+        (t.stop_relative_density.is_some(), "time.stop_relative_density"),
+        (o.checkpoint_every != 0.0, "output.checkpoint_every"),
+        (!o.conductivity_at.is_empty(), "output.conductivity_at"),
+        (!o.correction_histogram_at.is_empty(), "output.correction_histogram_at"),
+    ];
+    if let Some((_, key)) = compact_only.iter().find(|(present, _)| *present) {
+        return Err(ConfigError::inconsistent(*key, "this key is read by kind = \"compact\" runs only (a heat run has no checkpoints, step control or sintering analyses)").into());
+    }
     Ok(prep)
 }
 
