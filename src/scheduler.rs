@@ -59,7 +59,9 @@ pub struct Settings {
     pub snapshots: usize,
     pub series_every: u64,
     pub checkpoint_every: u64,
+    /// Times of the conductivity analyses [s].
     pub conductivity_at: Vec<f64>,
+    /// Times of the y4/y7 correction histograms [s] (eq. 44).
     pub histogram_at: Vec<f64>,
 }
 
@@ -495,10 +497,7 @@ impl Simulation {
                     }
                     Err(e) => {
                         // the state stays that of the last completed step
-                        for c in &mut self.contacts.state {
-                            c.y = c.y_prev;
-                        }
-                        self.prep.scene.particles.temperature = temps_old;
+                        self.undo_sweep(temps_old);
                         return Err(e.into());
                     }
                 }
@@ -507,13 +506,7 @@ impl Simulation {
             let subdivided = if strategy1 { trial_rejected } else { stats.iter().filter(|s| s.steps > self.settings.substeps_allowed).count() };
             if strategy1 && subdivided > 0 {
                 // strategy 1: any contact that needed more than one step rejects the global step
-                for c in &mut self.contacts.state {
-                    c.y = c.y_prev;
-                }
-                self.prep.scene.particles.temperature = temps_old;
-                if let Some(net) = self.heat.as_mut() {
-                    net.reset_history();
-                }
+                self.undo_sweep(temps_old);
                 for s in &stats {
                     self.ode.add(s);
                 }
@@ -643,6 +636,19 @@ impl Simulation {
         }
     }
 
+    /// Undoes the heat step and the diffusion sweep of a step that is not kept: every contact
+    /// back to its last corrected state, the particles to `temps_old` [K], the heat network's
+    /// BDF2 history forgotten (its next step is backward Euler).
+    fn undo_sweep(&mut self, temps_old: Vec<f64>) {
+        for c in &mut self.contacts.state {
+            c.y = c.y_prev;
+        }
+        self.prep.scene.particles.temperature = temps_old;
+        if let Some(net) = self.heat.as_mut() {
+            net.reset_history();
+        }
+    }
+
     /// Mean neck ratio y1/R_min over contacts [1].
     pub fn mean_neck_ratio(&self) -> f64 {
         let m = self.contacts.len().max(1) as f64;
@@ -705,8 +711,10 @@ pub struct OutputState {
     pub next_snap: usize,
     pub next_cond: usize,
     pub cond_results: Vec<serde_json::Value>,
+    /// Next entry of `output.correction_histogram_at` to write [1].
     #[serde(default)]
     pub next_hist: usize,
+    /// The histograms written so far (time [s], mean and std of ΔL̄/L0 [1], files).
     #[serde(default)]
     pub hist_results: Vec<serde_json::Value>,
     /// Lines of series.csv (header included) at the checkpoint.
@@ -1157,7 +1165,7 @@ pub fn write_correction_histogram(out: &Path, sim: &Simulation, tag: &str) -> Re
             pts.push((b, c as f64));
             pts.push((b, 0.0));
         }
-        let mut p = Plot::new(&format!("y4/y7 corrections at t = {:.0} s (paper Fig. 20)", sim.t)).labels("dL_bar / L0 [1]", "contacts");
+        let mut p = Plot::new(format!("y4/y7 corrections at t = {:.0} s (paper Fig. 20)", sim.t)).labels("dL_bar / L0 [1]", "contacts");
         p.add(Line::new("histogram", pts));
         let name = if tag == "end" { "dl_bar_histogram.png".to_string() } else { format!("dl_bar_histogram_{tag}.png") };
         p.save_png(&out.join(name))?;

@@ -178,6 +178,19 @@ impl FineOp<'_> {
     fn n(&self) -> usize {
         self.blocks.diag.len()
     }
+
+    /// `y = K x` (fixed DOF zero).
+    pub fn matvec(&self, x: &[f64], y: &mut [f64]) {
+        self.blocks.matvec(self.pairs, self.inc, self.fixed, x, y);
+    }
+
+    /// The scaled residual `r = b − K x` (bonded-mechanics.md, "Scaling") and its norm relative
+    /// to `b_norm = ‖b‖₂` [1], the Newton acceptance measure.
+    pub fn residual(&self, b: &[f64], b_norm: f64, x: &[f64], r: &mut [f64]) -> f64 {
+        self.matvec(x, r);
+        r.par_iter_mut().zip(b.par_iter()).for_each(|(ri, bi)| *ri = bi - *ri);
+        cg::dot(r, r).sqrt() / b_norm
+    }
 }
 
 enum LevelA<'a> {
@@ -200,7 +213,7 @@ impl LevelA<'_> {
     }
     fn matvec(&self, x: &[f64], y: &mut [f64]) {
         match self {
-            LevelA::Fine(f) => f.blocks.matvec(f.pairs, f.inc, f.fixed, x, y),
+            LevelA::Fine(f) => f.matvec(x, y),
             LevelA::Csr(a, m) => a.matvec(m, x, y),
         }
     }

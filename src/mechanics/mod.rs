@@ -334,13 +334,6 @@ impl BondedSystem {
         Ok((blocks, rhs, r_scale, rep, self.inc.clone()))
     }
 
-    /// Scaled residual `r = b − K x` (full vectors) and its relative norm.
-    fn residual(&self, blocks: &BlockMatrix, fixed: &[u8], b: &[f64], b_norm: f64, x: &[f64], r: &mut [f64]) -> f64 {
-        blocks.matvec(&self.pairs, &self.inc, fixed, x, r);
-        r.par_iter_mut().zip(b.par_iter()).for_each(|(ri, bi)| *ri = bi - *ri);
-        cg::dot(r, r).sqrt() / b_norm
-    }
-
     fn newton_cholesky(
         &mut self,
         positions: &[Vector3<f64>],
@@ -352,6 +345,7 @@ impl BondedSystem {
     ) -> Result<(), Error> {
         info.solver = SolverUsed::Cholesky;
         let Some(rep) = self.report.as_ref() else { unreachable!() };
+        let op = amg::FineOp { blocks, pairs: &self.pairs, inc: &self.inc, fixed: &rep.fixed };
         crate::linsolve::set_parallelism_for(rep.n_eq);
         if self.chol.is_none() {
             let t0 = Instant::now();
@@ -395,7 +389,7 @@ impl BondedSystem {
                     }
                     Ok(())
                 };
-                cg::pcg_with(|v, out| blocks.matvec(&self.pairs, &self.inc, &rep.fixed, v, out), &mut prec, b, x, 0.5 * self.params.rtol, max_it)
+                cg::pcg_with(|v, out| op.matvec(v, out), &mut prec, b, x, 0.5 * self.params.rtol, max_it)
             };
             info.solve_seconds += solve_s;
             let mut r = vec![0.0; b.len()];
@@ -403,9 +397,7 @@ impl BondedSystem {
                 Ok(pi) => {
                     info.pcg_iterations += pi.iterations;
                     info.newton_iterations += 1;
-                    blocks.matvec(&self.pairs, &self.inc, &rep.fixed, x, &mut r);
-                    r.par_iter_mut().zip(b.par_iter()).for_each(|(ri, bi)| *ri = bi - *ri);
-                    let rel = cg::dot(&r, &r).sqrt() / b_norm;
+                    let rel = op.residual(b, b_norm, x, &mut r);
                     info.residuals.push(rel);
                     if rel <= self.params.rtol {
                         return Ok(());
@@ -425,8 +417,7 @@ impl BondedSystem {
         }
         let mut r = b.to_vec();
         if x.iter().any(|&v| v != 0.0) {
-            blocks.matvec(&self.pairs, &self.inc, &rep.fixed, x, &mut r);
-            r.par_iter_mut().zip(b.par_iter()).for_each(|(ri, bi)| *ri = bi - *ri);
+            op.residual(b, b_norm, x, &mut r);
         }
         let mut rel = 1.0;
         let mut red = vec![0.0; rep.n_eq];
@@ -443,9 +434,7 @@ impl BondedSystem {
                 }
             }
             info.newton_iterations += 1;
-            blocks.matvec(&self.pairs, &self.inc, &rep.fixed, x, &mut r);
-            r.par_iter_mut().zip(b.par_iter()).for_each(|(ri, bi)| *ri = bi - *ri);
-            let new_rel = cg::dot(&r, &r).sqrt() / b_norm;
+            let new_rel = op.residual(b, b_norm, x, &mut r);
             info.residuals.push(new_rel);
             if !new_rel.is_finite() {
                 return Err(not_finite(info).into());
@@ -467,6 +456,7 @@ impl BondedSystem {
     fn newton_pcg(&mut self, blocks: &BlockMatrix, b: &[f64], b_norm: f64, x: &mut [f64], info: &mut MechInfo) -> Result<(), Error> {
         info.solver = SolverUsed::Pcg;
         let Some(rep) = self.report.as_ref() else { unreachable!() };
+        let op = amg::FineOp { blocks, pairs: &self.pairs, inc: &self.inc, fixed: &rep.fixed };
         let t0 = Instant::now();
         let prec = cg::BlockJacobi::new(&blocks.diag, &rep.fixed)?;
         info.factor_seconds += t0.elapsed().as_secs_f64();
@@ -478,12 +468,12 @@ impl BondedSystem {
             let inner = (0.5 * self.params.rtol / rel).min(0.1);
             dx.iter_mut().for_each(|v| *v = 0.0);
             let t1 = Instant::now();
-            let pi = cg::pcg(|v, out| blocks.matvec(&self.pairs, &self.inc, &rep.fixed, v, out), &prec, &r, &mut dx, inner, self.params.pcg_max_iter)?;
+            let pi = cg::pcg(|v, out| op.matvec(v, out), &prec, &r, &mut dx, inner, self.params.pcg_max_iter)?;
             info.solve_seconds += t1.elapsed().as_secs_f64();
             info.pcg_iterations += pi.iterations;
             x.par_iter_mut().zip(dx.par_iter()).for_each(|(xi, d)| *xi += d);
             info.newton_iterations += 1;
-            rel = self.residual(blocks, &rep.fixed, b, b_norm, x, &mut r);
+            rel = op.residual(b, b_norm, x, &mut r);
             info.residuals.push(rel);
             if !rel.is_finite() {
                 return Err(not_finite(info).into());
@@ -541,7 +531,7 @@ impl BondedSystem {
             info.amg = Some(h.info.clone());
             let mut work = h.work();
             let pi = cg::pcg_with(
-                |v, out| blocks.matvec(&self.pairs, &self.inc, &rep.fixed, v, out),
+                |v, out| fine.matvec(v, out),
                 |rr, z| h.apply(fine, rr, z, &mut work),
                 &r,
                 &mut dx,
@@ -570,7 +560,7 @@ impl BondedSystem {
             }
             x.par_iter_mut().zip(dx.par_iter()).for_each(|(xi, d)| *xi += d);
             info.newton_iterations += 1;
-            rel = self.residual(blocks, &rep.fixed, b, b_norm, x, &mut r);
+            rel = fine.residual(b, b_norm, x, &mut r);
             info.residuals.push(rel);
             if !rel.is_finite() {
                 return Err(not_finite(info).into());
