@@ -233,8 +233,8 @@ fn real_main(cli: Cli) -> Result<(), Error> {
                     log(&format!("done: {s:?}"));
                 }
                 "compact" => {
-                    let sim = sinterdem::scheduler::prepare(value, &base_dir(&case.case), &mut log)?;
-                    sinterdem::scheduler::run(sim, &out, !quiet, &mut log)?;
+                    let sim = sinterdem::coupled::prepare(value, &base_dir(&case.case), &mut log)?;
+                    sinterdem::coupled::run(sim, &out, !quiet, &mut log)?;
                 }
                 "pair" => {
                     let s = sinterdem::models::diffusion7::pair::run_pair_case(&value, &out, !quiet)?;
@@ -261,7 +261,7 @@ fn real_main(cli: Cli) -> Result<(), Error> {
                     }
                 }
             };
-            sinterdem::scheduler::resume(&dir, !quiet, &mut file_log)?;
+            sinterdem::coupled::resume(&dir, !quiet, &mut file_log)?;
             Ok(())
         }
         Command::Check { case } => {
@@ -277,7 +277,7 @@ fn real_main(cli: Cli) -> Result<(), Error> {
                     );
                 }
                 "compact" => {
-                    let sim = sinterdem::scheduler::prepare(value, &base_dir(&case.case), &mut |_| {})?;
+                    let sim = sinterdem::coupled::prepare(value, &base_dir(&case.case), &mut |_| {})?;
                     println!("{}: ok (compact case, {} particles, {} contacts)", case.case.display(), sim.prep.scene.particles.len(), sim.contacts.len());
                 }
                 "generate" => {
@@ -345,7 +345,7 @@ fn real_main(cli: Cli) -> Result<(), Error> {
             }
             Bench::Coupled { case, particles, steps } => {
                 let c = (case != "none").then(|| PathBuf::from(&case));
-                println!("{}", sinterdem::scheduler::bench_coupled(c.as_deref(), &particles, steps)?);
+                println!("{}", sinterdem::coupled::bench_coupled(c.as_deref(), &particles, steps)?);
                 Ok(())
             }
             Bench::Generate { particles, out } => {
