@@ -29,6 +29,7 @@ pub mod packing;
 pub mod particles;
 pub mod plot;
 pub mod profile;
+pub mod run;
 pub mod coupled;
 pub mod scene;
 pub mod units;

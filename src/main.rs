@@ -164,27 +164,19 @@ enum Bench {
     },
 }
 
-fn log_to(path: Option<&Path>) -> impl FnMut(&str) + use<> {
-    let mut file = path.and_then(|p| std::fs::File::create(p).ok());
-    move |msg: &str| {
-        eprintln!("{msg}");
-        if let Some(f) = file.as_mut() {
-            use std::io::Write;
-            let _ = writeln!(f, "{msg}");
-        }
-    }
-}
-
-fn case_kind(v: &toml::Value) -> String {
-    v.get("kind").and_then(|k| k.as_str()).unwrap_or("heat").to_string()
-}
-
 fn base_dir(case: &Path) -> PathBuf {
     case.parent().map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from("."))
 }
 
-fn unknown_kind(kind: &str) -> Error {
-    sinterdem::ConfigError::invalid(format!("kind = \"{kind}\": expected heat, compact, pair, generate or explicit_sinter")).into()
+/// `run` and `generate`: the run API with the case's folder as base and log lines on stderr.
+fn run_case(case: &CaseArgs, value: toml::Value, out: Option<PathBuf>, quiet: bool, extra: Vec<String>) -> Result<(), Error> {
+    let stem = case.case.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| "case".into());
+    let out = out.unwrap_or_else(|| PathBuf::from("out").join(stem));
+    let mut sets = case.set.clone();
+    sets.extend(extra);
+    let params = sinterdem::run::RunParams { base_dir: base_dir(&case.case), progress: !quiet, echo_log: true, plots: true };
+    sinterdem::run::run(&value, &sets, &out, &params)?;
+    Ok(())
 }
 
 fn main() -> ExitCode {
@@ -201,99 +193,26 @@ fn main() -> ExitCode {
 fn real_main(cli: Cli) -> Result<(), Error> {
     match cli.command {
         Command::Generate { case, out, quiet } => {
-            let value = sinterdem::config::load_case(&case.case, &case.set)?;
-            if case_kind(&value) != "generate" {
+            let value = sinterdem::config::load_case(&case.case, &[])?;
+            if sinterdem::run::Kind::of(&value)? != sinterdem::run::Kind::Generate {
                 return Err(sinterdem::ConfigError::invalid(format!("{}: kind must be \"generate\"", case.case.display())).into());
             }
-            let stem = case.case.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| "case".into());
-            let out = out.unwrap_or_else(|| PathBuf::from("out").join(stem));
-            sinterdem::io::ensure_dir(&out)?;
-            let s = sinterdem::packing::generate_case(&value, &out, !quiet)?;
-            eprintln!("{s:?}");
-            Ok(())
+            run_case(&case, value, out, quiet, vec![])
         }
         Command::Run { case, out, quiet, checkpoint_every } => {
-            let mut sets = case.set.clone();
-            if let Some(n) = checkpoint_every {
-                sets.push(format!("output.checkpoint_every={n}"));
-            }
-            let value = sinterdem::config::load_case(&case.case, &sets)?;
-            let stem = case.case.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| "case".into());
-            let out = out.unwrap_or_else(|| PathBuf::from("out").join(stem));
-            sinterdem::io::ensure_dir(&out)?;
-            let mut log = log_to(Some(&out.join("log.txt")));
-            log(&format!("sinterdem {}: {} → {}", env!("CARGO_PKG_VERSION"), case.case.display(), out.display()));
-            match case_kind(&value).as_str() {
-                "heat" => {
-                    let prep = sinterdem::heat::run::prepare(value, &base_dir(&case.case))?;
-                    sinterdem::heat::run::run(prep, &out, !quiet, &mut log)?;
-                }
-                "generate" => {
-                    let s = sinterdem::packing::generate_case(&value, &out, !quiet)?;
-                    log(&format!("done: {s:?}"));
-                }
-                "compact" => {
-                    let sim = sinterdem::coupled::prepare(value, &base_dir(&case.case), &mut log)?;
-                    sinterdem::coupled::run(sim, &out, !quiet, &mut log)?;
-                }
-                "pair" => {
-                    let s = sinterdem::models::diffusion7::pair::run_pair_case(&value, &out, !quiet)?;
-                    log(&format!("done: {s:?}"));
-                }
-                "explicit_sinter" => {
-                    let s = sinterdem::explicit::protocol::run_explicit_case(&value, &out, !quiet)?;
-                    log(&format!("done: {s}"));
-                }
-                k => return Err(unknown_kind(k)),
-            }
-            Ok(())
+            let value = sinterdem::config::load_case(&case.case, &[])?;
+            let extra = checkpoint_every.map(|n| format!("output.checkpoint_every={n}")).into_iter().collect();
+            run_case(&case, value, out, quiet, extra)
         }
         Command::Resume { dir, quiet } => {
-            let mut log = log_to(None);
-            let mut file_log = {
-                let path = dir.join("log.txt");
-                let mut f = std::fs::OpenOptions::new().append(true).create(true).open(&path).ok();
-                move |msg: &str| {
-                    log(msg);
-                    if let Some(f) = f.as_mut() {
-                        use std::io::Write;
-                        let _ = writeln!(f, "{msg}");
-                    }
-                }
-            };
-            sinterdem::coupled::resume(&dir, !quiet, &mut file_log)?;
+            let params = sinterdem::run::RunParams { progress: !quiet, echo_log: true, ..Default::default() };
+            sinterdem::run::resume(&dir, &params)?;
             Ok(())
         }
         Command::Check { case } => {
-            let value = sinterdem::config::load_case(&case.case, &case.set)?;
-            match case_kind(&value).as_str() {
-                "heat" => {
-                    let prep = sinterdem::heat::run::prepare(value, &base_dir(&case.case))?;
-                    println!(
-                        "{}: ok (heat case, {} particles, {} contacts)",
-                        case.case.display(),
-                        prep.scene.particles.len(),
-                        prep.pipes.pairs.len()
-                    );
-                }
-                "compact" => {
-                    let sim = sinterdem::coupled::prepare(value, &base_dir(&case.case), &mut |_| {})?;
-                    println!("{}: ok (compact case, {} particles, {} contacts)", case.case.display(), sim.prep.scene.particles.len(), sim.contacts.len());
-                }
-                "generate" => {
-                    sinterdem::packing::check_generate_case(&value)?;
-                    println!("{}: ok (packing generation case)", case.case.display());
-                }
-                "pair" => {
-                    sinterdem::models::diffusion7::pair::check_pair_case(&value)?;
-                    println!("{}: ok (pair case)", case.case.display());
-                }
-                "explicit_sinter" => {
-                    sinterdem::explicit::protocol::check_explicit_case(&value)?;
-                    println!("{}: ok (explicit_sinter case)", case.case.display());
-                }
-                k => return Err(unknown_kind(k)),
-            }
+            let value = sinterdem::config::load_case(&case.case, &[])?;
+            let what = sinterdem::run::check(&value, &case.set, &base_dir(&case.case))?;
+            println!("{}: ok ({what})", case.case.display());
             Ok(())
         }
         Command::Titanium { out, full, diameter } => {

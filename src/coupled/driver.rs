@@ -206,7 +206,9 @@ pub fn run_from(mut sim: Simulation, out: &Path, progress: bool, log: &mut dyn F
     summary["layer_contact_shrinkage"] = json!(prof.iter().map(|l| l.1).collect::<Vec<_>>());
     summary["layer_neck_ratio"] = json!(prof.iter().map(|l| l.2).collect::<Vec<_>>());
     io::write_json(&out.join("summary.json"), &summary)?;
-    if let Err(e) = write_plots(out, &sim) {
+    if !sim.settings.plots {
+        log("plots skipped (turned off by the caller)");
+    } else if let Err(e) = write_plots(out, &sim) {
         log(&format!("warning: plots not written: {e}"));
     }
     log(&format!(

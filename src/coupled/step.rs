@@ -56,6 +56,8 @@ pub struct Settings {
     pub conductivity_at: Vec<f64>,
     /// Times of the y4/y7 correction histograms [s] (eq. 44).
     pub histogram_at: Vec<f64>,
+    /// Write the PNG plots at the end (the run API turns them off in studies).
+    pub plots: bool,
 }
 
 impl Settings {
@@ -114,6 +116,7 @@ impl Settings {
             checkpoint_every: ck as u64,
             conductivity_at: case.output.conductivity_at.clone(),
             histogram_at: case.output.correction_histogram_at.clone(),
+            plots: true,
         })
     }
 }
