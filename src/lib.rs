@@ -32,6 +32,7 @@ pub mod profile;
 pub mod run;
 pub mod coupled;
 pub mod scene;
+pub mod study;
 pub mod units;
 
 pub use error::{ConfigError, Error, ModelError, Result, SolveError};

@@ -93,7 +93,8 @@ enum Command {
         #[command(flatten)]
         case: CaseArgs,
     },
-    /// Run the 28 titanium heating schedules (cases/titanium) as pairs; writes titanium.csv.
+    /// The 28 titanium experiments as pair runs: an alias of
+    /// `sinterdem study cases/studies/titanium-28.toml` (run from the repository root).
     Titanium {
         /// Output directory.
         #[arg(long, default_value = "out/titanium")]
@@ -105,6 +106,61 @@ enum Command {
         #[arg(long)]
         diameter: Option<f64>,
     },
+    /// Run a study: many runs over a design of parameters, locally or on SLURM (docs/studies.md).
+    Study {
+        /// Study file (TOML).
+        study: PathBuf,
+        /// Where the runs execute.
+        #[arg(long, value_enum, default_value = "local")]
+        engine: EngineArg,
+        /// Local engine: runs at a time (default: cores / threads per run).
+        #[arg(long)]
+        jobs: Option<usize>,
+        /// Output directory (default: out/<study name>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// SLURM: wait for the job array, resubmit lost tasks, then gather study.csv.
+        #[arg(long)]
+        wait: bool,
+        /// Run again the runs that failed before.
+        #[arg(long)]
+        retry_failed: bool,
+        /// Override a key of every run (repeatable), after the study's own overrides.
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        /// No progress bar.
+        #[arg(long)]
+        quiet: bool,
+        /// SLURM partition (overrides slurm.partition).
+        #[arg(long)]
+        partition: Option<String>,
+        /// SLURM time limit per array task, e.g. 01:00:00 (overrides slurm.time).
+        #[arg(long)]
+        time: Option<String>,
+        /// SLURM account (overrides slurm.account).
+        #[arg(long)]
+        account: Option<String>,
+        /// SLURM cpus per array task (overrides slurm.cpus_per_task).
+        #[arg(long)]
+        cpus_per_task: Option<usize>,
+        /// SLURM: runs per array task (overrides slurm.chunk).
+        #[arg(long)]
+        chunk: Option<usize>,
+        /// Extra #SBATCH line (repeatable), e.g. --sbatch "--mem=4G".
+        #[arg(long = "sbatch", value_name = "OPTION", allow_hyphen_values = true)]
+        sbatch: Vec<String>,
+    },
+    /// Internal: one SLURM array task of a study (written into the job script).
+    #[command(hide = true)]
+    StudyTask {
+        dir: PathBuf,
+        #[arg(long)]
+        batch: usize,
+        #[arg(long)]
+        task: usize,
+        #[arg(long, default_value_t = 1)]
+        threads: usize,
+    },
     /// Print every numeric case-file key with its allowed range and unit (Markdown).
     Keys,
     /// Benchmarks (print figures; not tests).
@@ -114,8 +170,26 @@ enum Command {
     },
 }
 
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum EngineArg {
+    Local,
+    Slurm,
+}
+
 #[derive(Subcommand)]
 enum Bench {
+    /// The study engine: a pair study of --runs runs on the local engine (wall time, overhead per run).
+    Study {
+        /// Number of runs.
+        #[arg(long, default_value_t = 1000)]
+        runs: usize,
+        /// Runs at a time (default: cores).
+        #[arg(long)]
+        jobs: Option<usize>,
+        /// Output directory of the study.
+        #[arg(long, default_value = "out/bench-study")]
+        out: PathBuf,
+    },
     /// Assembly, factorisation and solve times of one implicit heat step on random packings.
     Heat {
         /// Particle counts (repeatable).
@@ -216,11 +290,37 @@ fn real_main(cli: Cli) -> Result<(), Error> {
             Ok(())
         }
         Command::Titanium { out, full, diameter } => {
-            use sinterdem::models::diffusion7::titanium;
-            sinterdem::io::ensure_dir(&out)?;
-            let start = if full { titanium::FULL_START } else { titanium::TRUNCATED_START };
-            let results = titanium::run_all_titanium(&out, start, diameter)?;
-            eprintln!("{} titanium cases written to {}", results.len(), out.join("titanium.csv").display());
+            let study = PathBuf::from("cases/studies/titanium-28.toml");
+            if !study.is_file() {
+                return Err(sinterdem::ConfigError::invalid(format!("{} not found: run `sinterdem titanium` from the repository root, or `sinterdem study PATH/titanium-28.toml`", study.display())).into());
+            }
+            let mut set = vec![];
+            if full {
+                set.push("temperature.start_temperature=313".to_string());
+            }
+            if let Some(d) = diameter {
+                set.push(format!("pair.radius={:e}", d / 2.0));
+            }
+            let opts = sinterdem::study::StudyOptions { out: Some(out), overrides: set, progress: true, ..Default::default() };
+            sinterdem::study::run_study(&study, &opts, &mut |m| eprintln!("{m}"))?;
+            Ok(())
+        }
+        Command::Study { study, engine, jobs, out, wait, retry_failed, set, quiet, partition, time, account, cpus_per_task, chunk, sbatch } => {
+            let engine = match engine {
+                EngineArg::Local => sinterdem::study::Engine::Local,
+                EngineArg::Slurm => sinterdem::study::Engine::Slurm,
+            };
+            let slurm = sinterdem::study::slurm::SlurmOverrides { partition, time, account, cpus_per_task, chunk, extra: sbatch };
+            let opts = sinterdem::study::StudyOptions { engine, jobs, out, wait, retry_failed, overrides: set, progress: !quiet, slurm };
+            let info = sinterdem::study::run_study(&study, &opts, &mut |m| eprintln!("{m}"))?;
+            if info.gathered && info.counts.failed > 0 {
+                eprintln!("{} of {} runs failed (see status and error in {})", info.counts.failed, info.counts.runs, info.dir.join("study.csv").display());
+            }
+            Ok(())
+        }
+        Command::StudyTask { dir, batch, task, threads } => {
+            let n = sinterdem::study::slurm::run_task(&dir, batch, task, threads)?;
+            eprintln!("study task {batch}/{task}: {n} runs executed");
             Ok(())
         }
         Command::Neck { r1, r2, overlap, kappa, kappa2, conductance, factor, contact_conductance } => {
@@ -257,6 +357,10 @@ fn real_main(cli: Cli) -> Result<(), Error> {
             Ok(())
         }
         Command::Bench { which } => match which {
+            Bench::Study { runs, jobs, out } => {
+                println!("{}", sinterdem::study::bench::bench_study(runs, jobs, &out)?);
+                Ok(())
+            }
             Bench::Heat { particles, repeat } => sinterdem::heat::bench::bench_heat(&particles, repeat.max(1)),
             Bench::Mechanics { particles, cholesky_max } => {
                 println!("{}", sinterdem::mechanics::bench::bench_mechanics_with(&particles, cholesky_max)?);
