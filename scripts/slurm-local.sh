@@ -6,7 +6,8 @@
 #   bash scripts/slurm-local.sh status DIR   # sinfo + squeue
 #
 # After `start`, `source DIR/env.sh` sets SLURM_CONF so that sbatch/squeue/scancel/sinfo talk
-# to this cluster. Everything (config, state, spool, pid and log files) lives under DIR;
+# to this cluster. Everything (config, state, spool, pid and log files) lives under DIR
+# (except the spool directory when DIR is too long for its Unix sockets, see spool_dir);
 # the only files outside it are Debian's packages, the munge key /etc/munge/munge.key and
 # munged's usual socket/pid/log files (/run/munge, /var/log/munge).
 #
@@ -223,7 +224,7 @@ AuthType=auth/munge
 CredType=cred/munge
 MpiDefault=none
 StateSaveLocation=$dir/state
-SlurmdSpoolDir=$dir/spool
+SlurmdSpoolDir=$spool
 SlurmctldPidFile=$dir/slurmctld.pid
 SlurmdPidFile=$dir/slurmd.pid
 SlurmctldLogFile=$dir/slurmctld.log
@@ -237,6 +238,8 @@ JobAcctGatherType=jobacct_gather/none
 SelectType=select/cons_tres
 SelectTypeParameters=CR_Core
 SchedulerType=sched/backfill
+# Start the next array tasks as soon as CPUs free up (defaults delay batch jobs by up to 3 s).
+SchedulerParameters=batch_sched_delay=0,sched_min_interval=0
 # No accounting daemon; finished jobs are appended to a text file (one line per job, with
 # JobState=COMPLETED/FAILED/CANCELLED/TIMEOUT/NODE_FAIL).
 AccountingStorageType=accounting_storage/none
@@ -259,6 +262,20 @@ PartitionName=debug Nodes=ALL Default=YES MaxTime=INFINITE State=UP
 EOF
     mv "$conf.tmp" "$conf"
     node=$host
+}
+
+# Sets $spool. slurmstepd listens on a Unix socket SPOOL/<node>_<jobid>.<stepid>, and a socket
+# path longer than 107 bytes makes every job fail to launch ("launch failed requeued held").
+# For a long DIR the spool directory is therefore /tmp/slurm-local-<checksum of DIR>, with a
+# symlink DIR/spool pointing to it.
+spool_dir() {
+    spool=$dir/spool
+    if [ $((${#spool} + ${#node} + 23)) -gt 107 ]; then
+        spool=/tmp/slurm-local-$(printf '%s' "$dir" | cksum | cut -d' ' -f1)
+        rm -rf "$dir/spool"
+        ln -sfn "$spool" "$dir/spool"
+        say "DIR is too long for slurmstepd's sockets; spool directory is $spool"
+    fi
 }
 
 write_env() {
@@ -299,10 +316,18 @@ cmd_start() {
         cmd_stop quiet || true
     fi
     mkdir -p "$dir"
+    # Another cluster (another DIR) on the same ports would answer our sinfo and look like us.
+    local port
+    for port in "$ctld_port" "$slurmd_port"; do
+        if (exec 3<>"/dev/tcp/127.0.0.1/$port") 2>/dev/null; then
+            die "port $port is in use (another slurmctld/slurmd? stop it, or set SLURM_LOCAL_CTLD_PORT/SLURM_LOCAL_SLURMD_PORT)"
+        fi
+    done
     start_munge
     # Fresh state each start: no jobs are recovered from a previous run.
-    rm -rf "$dir/state" "$dir/spool"
-    mkdir -p "$dir/state" "$dir/spool"
+    spool_dir
+    rm -rf "$dir/state" "$spool"
+    mkdir -p "$dir/state" "$spool"
     rm -f "$dir/slurmctld.pid" "$dir/slurmd.pid"
     write_conf
     write_env
@@ -316,7 +341,7 @@ cmd_start() {
         case $state in
             idle*) break ;;
             down* | drain*)
-                # ReturnToService=2 should make a registered node usable; nudge it once.
+                # ReturnToService=2 should make a registered node usable; nudge it.
                 scontrol update NodeName="$node" State=RESUME >/dev/null 2>&1 || true ;;
         esac
         if [ "$i" -gt 10 ]; then
@@ -325,7 +350,8 @@ cmd_start() {
         fi
         sleep 0.5
     done
-    if [ "${state:-}" != idle ]; then
+    if [ "${state:-}" != idle ] || ! pid_alive "$dir/slurmctld.pid" slurmctld >/dev/null ||
+        ! pid_alive "$dir/slurmd.pid" slurmd >/dev/null; then
         show_logs
         sinfo -R >&2 2>/dev/null || true
         cmd_stop quiet || true
