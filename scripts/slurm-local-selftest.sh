@@ -6,11 +6,12 @@
 # options, 5. stop leaves no daemons, 6. start/stop idempotence and recovery from killed
 # daemons. Prints "N passed, M failed" and exits 1 if anything failed. When SLURM cannot be
 # run here (not root, or missing and no apt-get) it prints the reason and exits 0.
-# DIR (default: a new directory under /tmp) is removed at the end when everything passed.
+# DIR defaults to a new directory under /tmp, which is removed at the end when everything passed.
 set -uo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 sl=$here/slurm-local.sh
-dir=${1:-$(mktemp -d /tmp/slurm-selftest.XXXXXX)}
+made_dir=0
+if [ $# -ge 1 ]; then dir=$1; else dir=$(mktemp -d /tmp/slurm-selftest.XXXXXX) && made_dir=1; fi
 mkdir -p "$dir"
 dir=$(cd "$dir" && pwd)
 passed=0
@@ -66,6 +67,7 @@ rc=$?
 if [ "$rc" = 77 ]; then
     echo "slurm-local-selftest: skipped (see the SKIP line above)"
     trap - EXIT
+    [ "$made_dir" = 1 ] && rm -rf "$dir"
     exit 0
 fi
 t_start=$(since "$t0")
@@ -162,7 +164,7 @@ check "no daemons left after the second cycle" no_daemons
 
 echo "times: start ${t_start} s (restart ${t_restart} s), 8-task array ${t_array} s, stop ${t_stop} s"
 if [ "$failed" = 0 ]; then
-    rm -rf "$dir"
+    [ "$made_dir" = 1 ] && rm -rf "$dir"
 else
     echo "kept $dir for inspection"
 fi
