@@ -81,14 +81,15 @@ pub fn interpolate(rows: &[Vec<f64>], col: usize, t: f64) -> Option<f64> {
 
 /// The output columns of the study and each row's cells.
 pub fn gather(study: &Study, dir: &Path, plan: &[PlannedRun]) -> Vec<Row> {
-    let records: Vec<Option<RunRecord>> = plan.iter().map(|r| store::read_record(dir, r)).collect();
+    use rayon::prelude::*;
+    let records: Vec<Option<RunRecord>> = plan.par_iter().map(|r| store::read_record(dir, r)).collect();
     // an array-valued summary key expands to KEY.0, KEY.1, … up to the longest array
     let widths: Vec<Option<usize>> = study
         .collect_summary
         .iter()
         .map(|k| records.iter().flatten().filter_map(|r| crate::run::lookup(&r.summary, k)).filter_map(|v| v.as_array().map(Vec::len)).max())
         .collect();
-    plan.iter()
+    plan.par_iter()
         .zip(records)
         .map(|(run, record)| {
             let mut outputs = Vec::new();
