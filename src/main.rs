@@ -162,7 +162,11 @@ enum Command {
         threads: usize,
     },
     /// Print every numeric case-file key with its allowed range and unit (Markdown).
-    Keys,
+    Keys {
+        /// The keys of a study file instead (docs/studies.md).
+        #[arg(long)]
+        study: bool,
+    },
     /// Benchmarks (print figures; not tests).
     Bench {
         #[command(subcommand)]
@@ -352,8 +356,8 @@ fn real_main(cli: Cli) -> Result<(), Error> {
             println!("{}", serde_json::to_string_pretty(&v).unwrap());
             Ok(())
         }
-        Command::Keys => {
-            print!("{}", sinterdem::config::ranges::markdown());
+        Command::Keys { study } => {
+            print!("{}", if study { sinterdem::study::spec::markdown() } else { sinterdem::config::ranges::markdown() });
             Ok(())
         }
         Command::Bench { which } => match which {

@@ -327,6 +327,15 @@ pub fn load(path: &Path) -> Result<Study, Error> {
         };
         parameters.push(Parameter { key: pf.key.clone(), name: pf.name.clone().unwrap_or_else(|| pf.key.clone()), values });
     }
+    if let DesignKind::Sobol { samples, .. } = design {
+        // sobol_burley's sequence: at most 2^16 points in at most 256 dimensions
+        if samples > 65536 {
+            return Err(ConfigError::OutOfRange { key: "design.samples".into(), value: samples as f64, range: "[1, 65536] for kind = \"sobol\"".into(), unit: "1".into() }.into());
+        }
+        if parameters.len() > sobol_burley::NUM_DIMENSIONS as usize {
+            return Err(ConfigError::invalid(format!("design.kind = \"sobol\": at most {} parameters, got {}", sobol_burley::NUM_DIMENSIONS, parameters.len())).into());
+        }
+    }
     if sampled && parameters.is_empty() {
         return Err(ConfigError::invalid(format!("design.kind = \"{kind}\" needs at least one [[parameters]] with min and max")).into());
     }
