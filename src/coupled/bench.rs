@@ -12,11 +12,12 @@ pub fn bench_coupled(copper_case: Option<&Path>, sizes: &[usize], steps: u64) ->
     let mut out = String::new();
     let _ = writeln!(out, "# sinterdem bench coupled ({} rayon threads)", rayon::current_num_threads());
     if let Some(case) = copper_case {
-        let value = crate::config::load_case(case, &["output.snapshots=0".into(), "output.vtu=false".into(), "output.hdf5=false".into(), "output.checkpoint_every=0".into(), "output.conductivity_at=[]".into()])?;
-        let base = case.parent().unwrap_or(Path::new("."));
+        let value = crate::config::load_case(case, &[])?;
+        let sets: Vec<String> = ["output.snapshots=0", "output.vtu=false", "output.hdf5=false", "output.checkpoint_every=0", "output.conductivity_at=[]"].map(String::from).to_vec();
+        let base = case.parent().unwrap_or(Path::new(".")).to_path_buf();
         let dir = std::env::temp_dir().join(format!("sinterdem-bench-{}", std::process::id()));
-        let sim = prepare(value, base, &mut |_| {})?;
-        let s = run(sim, &dir, false, &mut |_| {})?;
+        let params = crate::run::RunParams { base_dir: base, plots: false, ..Default::default() };
+        let s = crate::run::run(&value, &sets, &dir, &params)?.summary;
         let _ = std::fs::remove_dir_all(&dir);
         let tm: Timing = serde_json::from_value(s["timing_seconds"].clone()).unwrap_or_default();
         let total = s["wall_seconds"].as_f64().unwrap_or(0.0);
