@@ -142,7 +142,9 @@ impl RunLog {
 /// created; `log.txt` in it receives the run's log.
 pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunParams) -> Result<RunSummary, Error> {
     let wall = Instant::now();
-    let value = resolve(case, overrides)?;
+    let mut case = case.clone();
+    config::expand_includes(&mut case, &params.base_dir)?;
+    let value = resolve(&case, overrides)?;
     let kind = Kind::of(&value)?;
     crate::io::ensure_dir(out)?;
     let mut log = RunLog::open(out, false, params.echo_log);
@@ -202,7 +204,9 @@ pub fn resume(dir: &Path, params: &RunParams) -> Result<RunSummary, Error> {
 
 /// Validates a case without running it; returns a one-line description.
 pub fn check(case: &toml::Value, overrides: &[String], base: &Path) -> Result<String, Error> {
-    let value = resolve(case, overrides)?;
+    let mut case = case.clone();
+    config::expand_includes(&mut case, base)?;
+    let value = resolve(&case, overrides)?;
     Ok(match Kind::of(&value)? {
         Kind::Heat => {
             let prep = crate::heat::run::prepare(value, base)?;

@@ -186,15 +186,15 @@ impl MechanicsStage {
     }
 
     /// Solves the step: displacement increments per particle and the axial approach ξ per contact.
-    #[allow(clippy::too_many_arguments)]
-    fn solve(&mut self, p: &crate::particles::Particles, contacts: &Contacts, approach: &[f64], young: f64) -> Result<(Vec<Vector3<f64>>, Vec<f64>), Error> {
+    fn solve(&mut self, p: &crate::particles::Particles, contacts: &Contacts, approach: &[f64]) -> Result<(Vec<Vector3<f64>>, Vec<f64>), Error> {
         let sys = self.sys.as_mut().ok_or_else(|| ModelError::new("mechanics: the bonded system was not built"))?;
         if self.bonds != contacts.len() {
             sys.set_topology(&contacts.pairs)?;
             self.bonds = contacts.len();
         }
         let y4_y7: Vec<[f64; 2]> = contacts.state.iter().map(|c| [c.y_prev[3], c.y_prev[6]]).collect();
-        let load: Vec<f64> = contacts.state.iter().zip(approach).map(|(c, &a)| d7::load_increment(a, 0.0, c.r_mean(), young)).collect();
+        // the load (F5) with the link's own E, so that E cancels from the approach per bond
+        let load: Vec<f64> = contacts.state.iter().zip(approach).zip(&contacts.pairs).map(|((c, &a), &[i, j])| d7::load_increment(a, 0.0, c.r_mean(), sys.link_elastic(i, j)[0])).collect();
         let out = sys.step(&StepInput { positions: &p.position, radii: &p.radius, y4_y7: &y4_y7, load: &load, external: None })?;
         for (r, d) in self.rotation.iter_mut().zip(&out.dtheta) {
             *r += d;
@@ -287,8 +287,13 @@ impl Simulation {
         let settings = Settings::from_case(&prep.case)?;
         let mut d7m = Vec::new();
         for m in &prep.scene.materials {
-            let name = m.diffusion.as_deref().ok_or_else(|| ConfigError::invalid(format!("materials.{}.diffusion: a compact run needs 7-DOF diffusion data (\"copper\" or \"titanium\")", m.name)))?;
-            let mut dm = d7::Material::builtin(name)?;
+            let mut dm = match &m.diffusion_data {
+                Some(d) => d.clone(),
+                None => {
+                    let name = m.diffusion.as_deref().ok_or_else(|| ConfigError::invalid(format!("materials.{}: a compact run needs 7-DOF diffusion data: diffusion = \"copper\" or \"titanium\", or [[materials.phases]] (docs/case-file.md)", m.name)))?;
+                    d7::Material::builtin(name)?
+                }
+            };
             dm.young_modulus = m.young_modulus;
             dm.poisson_ratio = m.poisson_ratio;
             d7m.push(dm);
@@ -348,6 +353,15 @@ impl Simulation {
         } else {
             let (young, poisson) = (sim.d7_materials[0].young_modulus, sim.d7_materials[0].poisson_ratio);
             sim.mechanics.build(&sim.prep.scene.particles, young, poisson)?;
+            // each bond takes the elastic constants of its own particles' materials
+            let el: Vec<[f64; 2]> = sim.d7_materials.iter().map(|m| [m.young_modulus, m.poisson_ratio]).collect();
+            if el.iter().any(|m| *m != el[0]) {
+                let per: Vec<[f64; 2]> = sim.prep.scene.particles.material.iter().map(|&k| el[k as usize]).collect();
+                if let Some(sys) = sim.mechanics.sys.as_mut() {
+                    sys.set_particle_elastic(Some(per))?;
+                }
+                log("materials differ in E or ν: each bond takes its own particles' constants (two half-links in series)");
+            }
         }
         if !sim.settings.detect_new {
             log("contacts.detect_new = false: the neighbour search runs once, at the start");
@@ -534,9 +548,7 @@ impl Simulation {
             let xi: Vec<f64> = if n_particles == 2 {
                 approach.clone()
             } else {
-                // one E and ν for the bonded system: those of the first material (docs/decisions.md)
-                let young = self.d7_materials[0].young_modulus;
-                let (du, xi) = self.mechanics.solve(&self.prep.scene.particles, &self.contacts, &approach, young)?;
+                let (du, xi) = self.mechanics.solve(&self.prep.scene.particles, &self.contacts, &approach)?;
                 for (x, d) in self.prep.scene.particles.position.iter_mut().zip(&du) {
                     *x += d;
                 }
