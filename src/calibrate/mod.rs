@@ -233,7 +233,7 @@ pub fn run(setup: Setup, out: &Path, log: &mut dyn FnMut(&str)) -> Result<report
     let n = fwd.params.len();
     let dof = nvals as i64 - n as i64;
     let reduced = if dof > 0 { chi2 / dof as f64 } else { f64::NAN };
-    let ju = optimise::jacobian(&fwd, &opt.u, settings.fd_step);
+    let ju = optimise::jacobian(&fwd, &opt.u, settings.fd_step, None);
     let spans: Vec<f64> = fwd.params.iter().map(|p| {
         let (a, b) = p.theta_bounds();
         b - a
@@ -272,6 +272,7 @@ pub fn run(setup: Setup, out: &Path, log: &mut dyn FnMut(&str)) -> Result<report
         swarm_iterations: opt.swarm_iterations,
         local_iterations: opt.local_iterations,
         local_stop: opt.local_stop.clone(),
+        local_chi2_history: opt.local_history.clone(),
         evaluations,
         pair_runs: evaluations * fwd.experiments.len() as u64,
         failed_runs: fwd.failures(),

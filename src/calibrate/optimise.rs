@@ -46,7 +46,7 @@ pub struct Settings {
 
 impl Default for Settings {
     fn default() -> Self {
-        Settings { swarm_size: 16, swarm_iterations: 25, local_iterations: 50, tolerance: 1e-10, stall: 4, fd_step: 1e-4, seed: 1 }
+        Settings { swarm_size: 16, swarm_iterations: 25, local_iterations: 50, tolerance: 1e-8, stall: 4, fd_step: 1e-4, seed: 1 }
     }
 }
 
@@ -57,27 +57,33 @@ pub fn residuals_at(fwd: &Forward, u: &[f64]) -> Vec<f64> {
     residual_vector(&fwd.experiments, &fwd.predict(&values))
 }
 
-/// Central finite-difference Jacobian ∂r/∂u (m × n, row-major rows of r) at `u` ∈ [0,1]ⁿ; one-sided
-/// at a bound. The 2n evaluations run in parallel, collected in order.
-pub fn jacobian(fwd: &Forward, u: &[f64], h: f64) -> Vec<Vec<f64>> {
+/// Finite-difference Jacobian ∂r/∂u (m rows of n) at `u` ∈ [0,1]ⁿ with step `h`: central
+/// `(r(u + h eᵢ) − r(u − h eᵢ))/2h` (2n evaluations, one-sided at a bound) when `r0` is None, else
+/// forward `(r(u ± h eᵢ) − r0)/±h` from the known `r0 = r(u)` (n evaluations, backward at the upper
+/// bound). The evaluations run in parallel and are collected in order.
+pub fn jacobian(fwd: &Forward, u: &[f64], h: f64, r0: Option<&[f64]>) -> Vec<Vec<f64>> {
     let n = u.len();
     let uc: Vec<f64> = u.iter().map(|x| x.clamp(0.0, 1.0)).collect();
-    let pts: Vec<(usize, f64, f64)> = (0..n)
+    let cols: Vec<Vec<f64>> = (0..n)
+        .into_par_iter()
         .map(|i| {
-            let hi = (uc[i] + h).min(1.0);
-            let lo = (uc[i] - h).max(0.0);
-            (i, lo, hi)
-        })
-        .collect();
-    let cols: Vec<Vec<f64>> = pts
-        .par_iter()
-        .map(|&(i, lo, hi)| {
-            let mut a = uc.clone();
-            let mut b = uc.clone();
-            a[i] = lo;
-            b[i] = hi;
-            let (ra, rb) = rayon::join(|| residuals_at(fwd, &a), || residuals_at(fwd, &b));
-            ra.iter().zip(&rb).map(|(x, y)| (y - x) / (hi - lo)).collect()
+            let at = |x: f64| {
+                let mut a = uc.clone();
+                a[i] = x;
+                residuals_at(fwd, &a)
+            };
+            match r0 {
+                Some(r0) => {
+                    let step = if uc[i] + h <= 1.0 { h } else { -h };
+                    let r = at(uc[i] + step);
+                    r.iter().zip(r0).map(|(y, x)| (y - x) / step).collect()
+                }
+                None => {
+                    let (hi, lo) = ((uc[i] + h).min(1.0), (uc[i] - h).max(0.0));
+                    let (ra, rb) = rayon::join(|| at(lo), || at(hi));
+                    ra.iter().zip(&rb).map(|(x, y)| (y - x) / (hi - lo)).collect()
+                }
+            }
         })
         .collect();
     let m = cols.first().map(|c| c.len()).unwrap_or(0);
@@ -112,7 +118,7 @@ impl Calib<'_> {
         if let Some((_, _, Some(j))) = c.as_ref() {
             return (r, j.clone());
         }
-        let j = jacobian(self.fwd, u, self.fd_step);
+        let j = jacobian(self.fwd, u, self.fd_step, Some(&r));
         // out-of-box components do not move r
         let j: Vec<Vec<f64>> = j.into_iter().map(|row| row.iter().zip(u).map(|(x, ui)| if (0.0..=1.0).contains(ui) { *x } else { 0.0 }).collect()).collect();
         *c = Some((u.to_vec(), r.clone(), Some(j.clone())));
@@ -189,6 +195,8 @@ struct Stall<S> {
     stall: u64,
     last: f64,
     count: u64,
+    /// Cost after every iteration.
+    history: Vec<f64>,
 }
 
 impl<O, S, P, G, H> Solver<O, IterState<P, G, (), H, (), f64>> for Stall<S>
@@ -209,6 +217,7 @@ where
     }
     fn terminate(&mut self, state: &IterState<P, G, (), H, (), f64>) -> TerminationStatus {
         let c = state.get_cost();
+        self.history.push(c);
         if c == 0.0 {
             return TerminationStatus::Terminated(TerminationReason::TargetCostReached);
         }
@@ -239,6 +248,8 @@ pub struct Optimum {
     pub local_iterations: u64,
     /// Why the local phase stopped.
     pub local_stop: String,
+    /// χ² at the start of the local phase and after each of its iterations.
+    pub local_history: Vec<f64>,
 }
 
 fn argmin_err(e: ArgminError) -> crate::error::SolveError {
@@ -264,11 +275,13 @@ pub fn optimise(fwd: &Forward, u0: &[f64], s: &Settings, log: &mut dyn FnMut(&st
     let mut chi2_final = chi2_global;
     let mut local_iters = 0;
     let mut local_stop = "not run".to_string();
+    let mut local_history = Vec::new();
     if s.local_iterations > 0 {
         let problem = Calib { fwd, fd_step: s.fd_step, cache: Mutex::new(None) };
         let tr = TrustRegion::new(Steihaug::new().with_max_iters(10 * n as u64 + 10)).with_radius(0.05).and_then(|t| t.with_max_radius(1.0)).map_err(argmin_err)?;
-        let solver = Stall { inner: tr, tol: s.tolerance, stall: s.stall, last: f64::INFINITY, count: 0 };
+        let solver = Stall { inner: tr, tol: s.tolerance, stall: s.stall, last: f64::INFINITY, count: 0, history: Vec::new() };
         let res = Executor::new(problem, solver).configure(|st| st.param(u.clone()).max_iters(s.local_iterations)).run().map_err(argmin_err)?;
+        local_history = res.solver.history.iter().map(|c| 2.0 * c).collect();
         let st = res.state();
         local_iters = st.get_iter();
         local_stop = st.get_termination_reason().map(|r| r.text().to_string()).unwrap_or_else(|| "unknown".into());
@@ -282,5 +295,5 @@ pub fn optimise(fwd: &Forward, u0: &[f64], s: &Settings, log: &mut dyn FnMut(&st
         }
         log(&format!("local phase (trust region, Gauss-Newton Hessian, {local_iters} iterations, {local_stop}): chi2 = {chi2_final:.6e}"));
     }
-    Ok(Optimum { u, chi2_global, chi2: chi2_final, swarm_iterations: swarm_iters, local_iterations: local_iters, local_stop })
+    Ok(Optimum { u, chi2_global, chi2: chi2_final, swarm_iterations: swarm_iters, local_iterations: local_iters, local_stop, local_history })
 }

@@ -95,6 +95,18 @@ fn model_field_mut(f: &mut PathFactors, field: usize) -> &mut f64 {
     }
 }
 
+/// Value of field `PHASE_FIELDS[field]` of a phase.
+pub fn phase_field(p: &Phase, field: usize) -> f64 {
+    let mut q = p.clone();
+    *phase_field_mut(&mut q, field)
+}
+
+/// Value of field `MODEL_FIELDS[field]` of the path factors.
+pub fn model_field(f: &PathFactors, field: usize) -> f64 {
+    let mut g = *f;
+    *model_field_mut(&mut g, field)
+}
+
 /// Every valid key for `material`, in a fixed order.
 pub fn valid_keys(material: &Material) -> Vec<String> {
     let mut v: Vec<String> = material.phases.iter().flat_map(|p| PHASE_FIELDS.iter().map(move |f| format!("{}.{f}", p.name))).collect();

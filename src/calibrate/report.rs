@@ -145,6 +145,9 @@ pub struct CalibrationReport {
     pub swarm_iterations: u64,
     pub local_iterations: u64,
     pub local_stop: String,
+    /// χ² at the start of the local phase and after each of its iterations (a rejected trust-region
+    /// step repeats the value).
+    pub local_chi2_history: Vec<f64>,
     /// Forward-model evaluations (each runs every experiment once) and pair runs.
     pub evaluations: u64,
     pub pair_runs: u64,
@@ -213,7 +216,7 @@ pub fn experiment_reports(experiments: &[Experiment], preds: &[Result<Prediction
                 schedule: e.schedule.clone(),
                 neck_ratio: pick(Quantity::NeckRatio),
                 shrinkage: pick(Quantity::Shrinkage),
-                series_chi2: mine.iter().filter(|r| !r.end).map(|r| r.residual * r.residual).sum(),
+                series_chi2: mine.iter().filter(|r| !r.end).fold(0.0, |a, r| a + r.residual * r.residual),
                 series_points: e.series.len(),
                 error: preds[i].as_ref().err().map(|e| e.to_string()),
             }
@@ -221,21 +224,49 @@ pub fn experiment_reports(experiments: &[Experiment], preds: &[Result<Prediction
         .collect()
 }
 
-/// Writes `material.toml`.
-pub fn write_material(path: &Path, m: &Material, factors: Option<&PathFactors>, header: &str) -> Result<(), Error> {
-    #[derive(Serialize)]
-    struct W<'a> {
-        #[serde(skip_serializing_if = "Option::is_none")]
-        model: Option<&'a PathFactors>,
-        materials: Vec<&'a Material>,
+/// A float as TOML: plain between 1e-3 and 1e6, else in exponent form (`1.81e-29`).
+fn toml_float(x: f64) -> String {
+    if x == 0.0 || (1e-3..1e6).contains(&x.abs()) { format!("{x:?}") } else { format!("{x:e}") }
+}
+
+/// The `[[materials]]` (and optional `[model]`) text of a material, fields in schema order.
+pub fn material_toml(m: &Material, factors: Option<&PathFactors>) -> String {
+    use super::params::{model_field, phase_field, MODEL_FIELDS, PHASE_FIELDS};
+    let q = |s: &str| toml::Value::String(s.to_string()).to_string();
+    let mut t = String::new();
+    if let Some(f) = factors {
+        t.push_str("[model]\n");
+        for (i, k) in MODEL_FIELDS.iter().enumerate() {
+            t.push_str(&format!("{k} = {}\n", toml_float(model_field(f, i))));
+        }
+        t.push('\n');
     }
-    let body = toml::to_string(&W { model: factors, materials: vec![m] }).map_err(|e| IoError::new(path, e))?;
+    t.push_str(&format!("[[materials]]\nname = {}\nsource = {}\n", q(&m.name), q(&m.source)));
+    for (k, v) in [
+        ("young_modulus", m.young_modulus),
+        ("poisson_ratio", m.poisson_ratio),
+        ("calibrated_min_temperature", m.calibrated_min_temperature),
+        ("calibrated_max_temperature", m.calibrated_max_temperature),
+    ] {
+        t.push_str(&format!("{k} = {}\n", toml_float(v)));
+    }
+    for p in &m.phases {
+        t.push_str(&format!("\n[[materials.phases]]\nname = {}\nfrom_temperature = {}\n", q(&p.name), toml_float(p.from_temperature)));
+        for (i, k) in PHASE_FIELDS.iter().enumerate() {
+            t.push_str(&format!("{k} = {}\n", toml_float(phase_field(p, i))));
+        }
+    }
+    t
+}
+
+/// Writes `material.toml` (`header` as comment lines).
+pub fn write_material(path: &Path, m: &Material, factors: Option<&PathFactors>, header: &str) -> Result<(), Error> {
     let mut text = String::new();
     for l in header.lines() {
         text.push_str(&format!("# {l}\n"));
     }
     text.push('\n');
-    text.push_str(&body);
+    text.push_str(&material_toml(m, factors));
     std::fs::write(path, text).map_err(|e| IoError::new(path, e))?;
     Ok(())
 }
@@ -321,5 +352,18 @@ mod tests {
         assert!(!u.singular);
         let s = uncertainty(&[vec![1.0, 1.0], vec![2.0, 2.0]], 2, 1.0);
         assert!(s.singular && s.sigma_theta[0].is_nan());
+    }
+
+    #[test]
+    fn material_toml_round_trips() {
+        let ti = Material::titanium();
+        let f = PathFactors { path_factor_gb: 0.3, ..PathFactors::default() };
+        let text = material_toml(&ti, Some(&f));
+        assert!(text.contains("atomic_volume = 1.76e-29") && text.contains("[model]\npath_factor_gb = 0.3"), "{text}");
+        let t: toml::Table = text.parse().unwrap();
+        let m = Material::from_value(t["materials"].as_array().unwrap()[0].clone()).unwrap();
+        assert_eq!(m, ti);
+        let g: PathFactors = t["model"].clone().try_into().unwrap();
+        assert_eq!(g, f);
     }
 }
