@@ -133,3 +133,23 @@ impl Forward {
         self.failures.load(Ordering::Relaxed)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::calibrate::synthetic::titanium_experiments;
+    use crate::models::diffusion7::pair::run_pair;
+    use crate::models::diffusion7::titanium::{Experiment as Table3, TRUNCATED_START};
+
+    /// The calibration's pair run of E14B (schedule string) is the bundled `kind = "pair"` case's run.
+    #[test]
+    fn experiment_run_matches_the_pair_case() {
+        let e = &titanium_experiments(Some(&["E14B"]))[0];
+        let spec = Table3::by_id("E14B").unwrap().spec(TRUNCATED_START).unwrap();
+        let run = run_pair(&spec, false, false).unwrap();
+        let p = run_experiment(e, &spec.material_a, spec.factors, &spec.solver, &PairGeometry::default()).unwrap();
+        assert!((p.end.neck_ratio - run.contact.neck_ratio()).abs() < 1e-12, "{} vs {}", p.end.neck_ratio, run.contact.neck_ratio());
+        assert!((p.end.shrinkage - run.contact.shrinkage()).abs() < 1e-12);
+        assert_eq!(p.steps, run.stats.steps);
+    }
+}
