@@ -172,3 +172,53 @@ fn bundled_synthetic_data_match_the_generator() {
     }
     assert_eq!(std::fs::read_to_string(path).unwrap(), text, "{path} differs from the generator");
 }
+
+/// A time-series file (exact model values at three times of two experiments, no end values): the
+/// local phase alone recovers D0_gb and Q_gb, the series appear in residuals.csv and series_<id>.png.
+#[test]
+fn time_series_points_are_fitted() {
+    use sinterdem::calibrate::data::{Observation, SeriesPoint};
+    use sinterdem::calibrate::forward::{run_experiment, PairGeometry};
+    use sinterdem::models::diffusion7::SolverOptions;
+    let dir = tmp("series");
+    let mut ex = titanium_experiments(Some(&["E14B", "E23B"]));
+    let solver = SolverOptions { rtol: 1e-9, ..SolverOptions::default() };
+    // the truth's grain-boundary data, bundled surface data (those are not fitted here)
+    let mut truth = truth_material();
+    let bundled = sinterdem::models::diffusion7::Material::titanium();
+    truth.phases[1].d0_surface = bundled.phases[1].d0_surface;
+    truth.phases[1].q_surface = bundled.phases[1].q_surface;
+    let head = "id,diameter_m,schedule,neck_ratio,neck_ratio_sigma,shrinkage,shrinkage_sigma\n";
+    let mut data = head.to_string();
+    let mut series = "id,time_s,neck_ratio,neck_ratio_sigma,shrinkage,shrinkage_sigma\n".to_string();
+    for e in ex.iter_mut() {
+        let d = e.profile.duration();
+        e.series = [0.3, 0.6, 0.9].iter().map(|f| SeriesPoint { time: (f * d).round(), observation: Observation::default() }).collect();
+        let p = run_experiment(e, &truth, PathFactors::default(), &solver, &PairGeometry::default()).unwrap();
+        data.push_str(&format!("{},{:e},\"{}\",,,,\n", e.id, e.diameter, e.schedule));
+        for (s, q) in e.series.iter().zip(&p.series) {
+            series.push_str(&format!("{},{},{:e},0.01,{:e},0.001\n", e.id, s.time, q.neck_ratio, q.shrinkage));
+        }
+    }
+    std::fs::write(dir.join("data.csv"), data).unwrap();
+    std::fs::write(dir.join("series.csv"), series).unwrap();
+    let calib = dir.join("calib.toml");
+    std::fs::write(
+        &calib,
+        "data = \"data.csv\"\nseries = \"series.csv\"\nmaterial = \"titanium\"\n[optimiser]\nswarm_iterations = 0\ntolerance = 1e-12\n[solver]\nrtol = 1e-9\n\
+         [[parameters]]\nkey = \"beta.d0_gb\"\nmin = 1.0\nmax = 1.0e4\n[[parameters]]\nkey = \"beta.q_gb\"\nmin = 190.0e3\nmax = 260.0e3\n",
+    )
+    .unwrap();
+    let rep = calibrate(&calib, &[], &dir.join("out"));
+    assert_eq!(rep.values, 12);
+    for (k, t) in &TRUTH[..2] {
+        let v = param(&rep, k, "value");
+        eprintln!("{k}: fitted {v:e}, truth {t:e}");
+        assert!((v - t).abs() <= 1e-6 * t, "{k}: fitted {v:e}, truth {t:e}");
+    }
+    assert!(rep.experiments.iter().all(|e| e.series_points == 3 && e.neck_ratio.is_none()));
+    let csv = std::fs::read_to_string(dir.join("out/residuals.csv")).unwrap();
+    assert_eq!(csv.lines().filter(|l| l.contains(",0,")).count(), 12, "{csv}");
+    assert!(dir.join("out/series_E14B.png").exists());
+    std::fs::remove_dir_all(&dir).ok();
+}
