@@ -222,3 +222,17 @@ fn time_series_points_are_fitted() {
     assert!(dir.join("out/series_E14B.png").exists());
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Runs that fail (here: too few substeps allowed) are a penalty, not a crash: the fit finishes,
+/// counts them and says so.
+#[test]
+fn failed_runs_are_a_penalty_not_a_crash() {
+    let dir = tmp("failed");
+    let calib = setup(&dir, &["E1B"], None, "[optimiser]\nswarm_size = 2\nswarm_iterations = 1\nlocal_iterations = 1\n[solver]\nmax_substeps = 5\n");
+    let rep = calibrate(&calib, &[], &dir.join("out"));
+    assert!(rep.failed_runs >= rep.evaluations, "{} failed runs in {} evaluations", rep.failed_runs, rep.evaluations);
+    assert_eq!(rep.chi2, 2.0e6);
+    assert!(rep.experiments[0].error.as_deref().unwrap_or("").contains("E1B"), "{:?}", rep.experiments[0].error);
+    assert!(rep.warnings.iter().any(|w| w.contains("fail at the optimum")), "{:?}", rep.warnings);
+    std::fs::remove_dir_all(&dir).ok();
+}
