@@ -24,12 +24,27 @@ pub struct Series {
     pub markers: bool,
     /// Connect the points with a line.
     pub line: bool,
+    /// Symmetric y error bars (one standard deviation, same unit as y) per point; empty: none.
+    pub y_errors: Vec<f64>,
 }
 
 impl Series {
     /// A line without markers.
     pub fn new(name: impl Into<String>, points: Vec<(f64, f64)>) -> Series {
-        Series { name: name.into(), points, markers: false, line: true }
+        Series { name: name.into(), points, markers: false, line: true, y_errors: Vec::new() }
+    }
+
+    /// Markers only, no connecting line.
+    pub fn markers_only(mut self) -> Series {
+        self.markers = true;
+        self.line = false;
+        self
+    }
+
+    /// Draw error bars y ± e (one per point).
+    pub fn with_y_errors(mut self, e: Vec<f64>) -> Series {
+        self.y_errors = e;
+        self
     }
 
     /// Also draw markers.
@@ -290,12 +305,19 @@ impl Plot {
         let okx = |v: f64| v.is_finite() && (!self.log_x || v > 0.0);
         let oky = |v: f64| v.is_finite() && (!self.log_y || v > 0.0);
         for s in &self.series {
-            for &(x, y) in &s.points {
+            for (k, &(x, y)) in s.points.iter().enumerate() {
                 if okx(x) && oky(y) {
                     xlo = xlo.min(x);
                     xhi = xhi.max(x);
                     ylo = ylo.min(y);
                     yhi = yhi.max(y);
+                    let e = s.y_errors.get(k).copied().unwrap_or(0.0);
+                    if e > 0.0 && e.is_finite() {
+                        if oky(y - e) {
+                            ylo = ylo.min(y - e);
+                        }
+                        yhi = yhi.max(y + e);
+                    }
                 }
             }
         }
@@ -332,7 +354,15 @@ impl Plot {
         for (k, s) in self.series.iter().enumerate() {
             let col = PALETTE[k % PALETTE.len()];
             let mut last: Option<(f64, f64)> = None;
-            for &(x, y) in &s.points {
+            for (i, &(x, y)) in s.points.iter().enumerate() {
+                let e = s.y_errors.get(i).copied().unwrap_or(0.0);
+                if e > 0.0 && e.is_finite() && ax.ok(x) && ay.ok(y) {
+                    let lo = if ay.ok(y - e) { py(y - e) } else { bottom as f64 };
+                    let (xx, hi) = (px(x), py(y + e).max(top as f64));
+                    cv.line(xx, lo, xx, hi, 1.5, col);
+                    cv.line(xx - 5.0, lo, xx + 5.0, lo, 1.5, col);
+                    cv.line(xx - 5.0, hi, xx + 5.0, hi, 1.5, col);
+                }
                 if !(ax.ok(x) && ay.ok(y)) {
                     last = None;
                     continue;
