@@ -84,14 +84,16 @@ fn an_isolated_particle_is_named_and_left_out_of_the_temperatures() {
     let case = toml::Value::Table(text.parse::<toml::Table>().unwrap());
     let s = run::run(&case, &[], &dir.join("out"), &params(&dir)).unwrap();
     let n = s.summary["particles"].as_u64().unwrap();
-    assert_eq!(s.summary["isolated_particles"], 1);
-    assert_eq!(s.summary["isolated_particle_ids"][0].as_u64().unwrap(), n - 1, "the added particle is the last one");
+    // the added particle (the last one) and any rattler of the corner that touches nothing
+    let ids: Vec<u64> = serde_json::from_value(s.summary["isolated_particle_ids"].clone()).unwrap();
+    assert_eq!(s.summary["isolated_particles"].as_u64().unwrap(), ids.len() as u64);
+    assert!(ids.contains(&(n - 1)) && ids.len() < 5, "{ids:?}");
     assert_eq!(s.summary["temperatures_exclude_isolated"], true);
     // the isolated particle keeps 1200 K; the connected body warms towards the plate's 1293 K
     let lo = s.f64("min_temperature_K").unwrap();
     assert!(lo > 1200.0 + 1e-6, "min temperature {lo} must not be the isolated particle's 1200 K");
     let log = std::fs::read_to_string(dir.join("out/log.txt")).unwrap();
-    assert!(log.contains("1 particle without a conductive path") && log.contains(&format!("{}", n - 1)), "{log}");
+    assert!(log.contains(&format!("{} particle", ids.len())) && log.contains("without a conductive path") && log.contains(&format!("{}", n - 1)), "{log}");
 }
 
 #[test]
