@@ -250,6 +250,9 @@ pub fn material_toml(m: &Material, factors: Option<&PathFactors>) -> String {
     ] {
         t.push_str(&format!("{k} = {}\n", toml_float(v)));
     }
+    if let Some(tm) = m.melting_temperature {
+        t.push_str(&format!("melting_temperature = {}\n", toml_float(tm)));
+    }
     for p in &m.phases {
         t.push_str(&format!("\n[[materials.phases]]\nname = {}\nfrom_temperature = {}\n", q(&p.name), toml_float(p.from_temperature)));
         for (i, k) in PHASE_FIELDS.iter().enumerate() {
