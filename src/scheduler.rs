@@ -1110,15 +1110,19 @@ fn write_snapshot(sim: &Simulation, snaps: &mut SnapshotWriter) -> Result<(), Io
     let p = &sim.prep.scene.particles;
     let neck: Vec<f64> = sim.contacts.state.iter().map(|c| c.y[0]).collect();
     let shrink: Vec<f64> = sim.contacts.state.iter().map(|c| c.shrinkage()).collect();
-    let disp: Vec<f64> = p.position.iter().zip(&sim.x0).map(|(x, x0)| (x - x0).norm()).collect();
+    let disp: Vec<nalgebra::Vector3<f64>> = p.position.iter().zip(&sim.x0).map(|(x, x0)| x - x0).collect();
+    let materials_json = serde_json::to_string_pretty(&sim.d7_materials).unwrap_or_default();
     snaps.write(&Snapshot {
         time: sim.t,
+        step: sim.step,
         position: &p.position,
         radius: &p.radius,
         temperature: &p.temperature,
         contacts: &sim.contacts.pairs,
-        contact_data: vec![("neck_radius_y1_m", &neck), ("contact_shrinkage", &shrink), ("dl_bar_m", &sim.contacts.dl_bar)],
-        particle_data: vec![("displacement_m", &disp)],
+        contact_data: vec![("neck_radius_m", &neck), ("contact_shrinkage", &shrink), ("dl_bar_m", &sim.contacts.dl_bar)],
+        particle_data: vec![],
+        particle_vectors: vec![("displacement_m", &disp)],
+        parameters: Some(io::Parameters { case_toml: sim.source.0.clone(), materials_json }),
     })
 }
 
@@ -1141,7 +1145,7 @@ pub fn write_correction_histogram(out: &Path, sim: &Simulation, tag: &str) -> Re
     use crate::plot::{Plot, Series as Line};
     let dl: Vec<f64> = sim.contacts.dl_bar.iter().zip(&sim.contacts.state).map(|(d, c)| d / c.l0).collect();
     let csv_path = out.join(format!("dl_bar_{tag}.csv"));
-    let mut text = format!("# y4/y7 corrections of the step ending at t = {} s (eq. 44)\nparticle_a,particle_b,l0_m,dl_bar_m,dl_bar_rel\n", sim.t);
+    let mut text = String::from("particle_a,particle_b,l0_m,dl_bar_m,dl_bar_rel\n");
     for (k, (&[a, b], c)) in sim.contacts.pairs.iter().zip(&sim.contacts.state).enumerate() {
         text.push_str(&format!("{a},{b},{:e},{:e},{:e}\n", c.l0, sim.contacts.dl_bar[k], dl[k]));
     }
@@ -1177,6 +1181,8 @@ pub fn write_correction_histogram(out: &Path, sim: &Simulation, tag: &str) -> Re
 /// Fig. 20) and the layer profile along z.
 pub fn write_plots(out: &Path, sim: &Simulation) -> Result<(), IoError> {
     use crate::plot::{Plot, Series as Line};
+    // the series and summary also go into the HDF5 file (docs/outputs.md)
+    let h5 = if sim.prep.case.output.hdf5 { io::hdf5::finish(out) } else { Ok(()) };
     let path = out.join("series.csv");
     let text = std::fs::read_to_string(&path).map_err(|e| IoError::new(&path, e))?;
     let mut lines = text.lines();
@@ -1210,7 +1216,7 @@ pub fn write_plots(out: &Path, sim: &Simulation) -> Result<(), IoError> {
     let mut p = Plot::new("densification through the height").labels("height z [m]", "mean contact shrinkage dL/L0 [1]");
     p.add(Line::new("contacts by layer", prof.iter().map(|l| (l.0, l.1)).collect()).with_markers());
     p.save_png(&out.join("layer_profile.png"))?;
-    Ok(())
+    h5
 }
 
 /// `sinterdem bench coupled`: the bundled copper compact run whole (wall time and the share of
