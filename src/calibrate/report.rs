@@ -307,15 +307,15 @@ pub fn write_plots(dir: &Path, experiments: &[Experiment], res: &[Residual]) -> 
         }
         let x = |r: &Residual| (r.experiment + 1) as f64;
         let mut p = Plot::new(format!("{}: measured (+- sigma) and fitted, end of schedule", q.name())).labels("experiment (row of the data file)", label);
-        p.add(Series::new("measured", ends.iter().map(|r| (x(r), r.measured.value)).collect()).markers_only().with_y_errors(ends.iter().map(|r| r.measured.sigma).collect()));
-        p.add(Series::new("fitted", ends.iter().map(|r| (x(r), r.fitted)).collect()).markers_only());
+        p.add(Series::new("measured", ends.iter().map(|r| (x(r), r.measured.value)).collect()).points_only().with_error_bars(ends.iter().map(|r| r.measured.sigma).collect()));
+        p.add(Series::new("fitted", ends.iter().map(|r| (x(r), r.fitted)).collect()).points_only());
         p.save_png(&dir.join(file))?;
     }
     let mut p = Plot::new("normalised residuals (fitted - measured)/sigma").labels("experiment (row of the data file)", "residual [1]");
     for q in [Quantity::NeckRatio, Quantity::Shrinkage] {
         let pts: Vec<(f64, f64)> = res.iter().filter(|r| r.quantity == q).map(|r| ((r.experiment + 1) as f64, r.residual)).collect();
         if !pts.is_empty() {
-            p.add(Series::new(q.name(), pts).markers_only());
+            p.add(Series::new(q.name(), pts).points_only());
         }
     }
     let n = experiments.len() as f64 + 1.0;
@@ -331,7 +331,7 @@ pub fn write_plots(dir: &Path, experiments: &[Experiment], res: &[Residual]) -> 
             if mine.is_empty() {
                 continue;
             }
-            p.add(Series::new(format!("{} measured", q.name()), mine.iter().map(|r| (r.time, r.measured.value)).collect()).markers_only().with_y_errors(mine.iter().map(|r| r.measured.sigma).collect()));
+            p.add(Series::new(format!("{} measured", q.name()), mine.iter().map(|r| (r.time, r.measured.value)).collect()).points_only().with_error_bars(mine.iter().map(|r| r.measured.sigma).collect()));
             p.add(Series::new(format!("{} fitted", q.name()), mine.iter().map(|r| (r.time, r.fitted)).collect()).with_markers());
         }
         let safe: String = e.id.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '_' }).collect();

@@ -220,6 +220,12 @@ pub fn run_from(mut sim: Simulation, out: &Path, progress: bool, log: &mut dyn F
     summary["layer_contact_shrinkage"] = json!(prof.iter().map(|l| l.1).collect::<Vec<_>>());
     summary["layer_neck_ratio"] = json!(prof.iter().map(|l| l.2).collect::<Vec<_>>());
     io::write_json(&out.join("summary.json"), &summary)?;
+    // the series and summary also go into the HDF5 file (docs/outputs.md)
+    if sim.prep.case.output.hdf5
+        && let Err(e) = io::hdf5::finish(out)
+    {
+        log(&format!("warning: series and summary not copied into sinterdem.h5: {e}"));
+    }
     if !sim.settings.plots {
         log("plots skipped (turned off by the caller)");
     } else if let Err(e) = write_plots(out, &sim) {
