@@ -174,6 +174,10 @@ enum Command {
         /// Rewrite the file's data CSV with the bundled synthetic titanium data instead of fitting.
         #[arg(long, hide = true)]
         generate_synthetic: bool,
+        /// After the fit, run the experiments of [compact] on its packing with the fitted material
+        /// and write compact_validation.csv (docs/calibration.md).
+        #[arg(long)]
+        validate_compact: bool,
     },
     /// Print every numeric case-file key with its allowed range and unit (Markdown).
     Keys {
@@ -370,7 +374,7 @@ fn real_main(cli: Cli) -> Result<(), Error> {
             println!("{}", serde_json::to_string_pretty(&v).unwrap());
             Ok(())
         }
-        Command::Calibrate { case, out, quiet, generate_synthetic } => sinterdem::calibrate::run_file(&case.case, &case.set, &out, quiet, generate_synthetic),
+        Command::Calibrate { case, out, quiet, generate_synthetic, validate_compact } => sinterdem::calibrate::run_file(&case.case, &case.set, &out, quiet, generate_synthetic, validate_compact),
         Command::Keys { study } => {
             print!("{}", if study { sinterdem::study::spec::markdown() } else { sinterdem::config::ranges::markdown() });
             Ok(())

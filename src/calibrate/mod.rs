@@ -12,6 +12,7 @@
 //!
 //! Only `model = "pair"` is implemented; `"compact"` (each experiment on a packing) is refused.
 
+pub mod compact;
 pub mod data;
 pub mod forward;
 pub mod loss;
@@ -103,6 +104,9 @@ struct CalibFile {
     path_factors: PathFactors,
     #[serde(default)]
     pair: PairSection,
+    /// The packing for `--validate-compact`.
+    #[serde(default)]
+    compact: compact::CompactSection,
 }
 
 /// A validated calibration.
@@ -118,6 +122,12 @@ pub struct Setup {
     pub settings: optimise::Settings,
     pub solver: SolverOptions,
     pub geometry: PairGeometry,
+    /// `[compact]`: the packing of `--validate-compact`.
+    pub compact: compact::CompactSection,
+    /// The calibration file's folder (relative paths).
+    pub base: PathBuf,
+    /// Run the chosen experiments on the compact with the fitted material after the fit.
+    pub validate_compact: bool,
 }
 
 fn materials_of(list: Vec<toml::Value>, at: &str) -> Result<Vec<Material>, ConfigError> {
@@ -212,6 +222,9 @@ pub fn parse(value: &toml::Value, base: &Path) -> Result<Setup, Error> {
         settings,
         solver: f.solver,
         geometry,
+        compact: f.compact,
+        base: base.to_path_buf(),
+        validate_compact: false,
     })
 }
 
@@ -219,7 +232,7 @@ pub fn parse(value: &toml::Value, base: &Path) -> Result<Setup, Error> {
 pub fn run(setup: Setup, out: &Path, log: &mut dyn FnMut(&str)) -> Result<report::CalibrationReport, Error> {
     let start = std::time::Instant::now();
     std::fs::create_dir_all(out).map_err(|e| IoError::new(out, e))?;
-    let Setup { title, data_path, series_path, experiments, material, factors, params, settings, solver, geometry } = setup;
+    let Setup { title, data_path, series_path, experiments, material, factors, params, settings, solver, geometry, compact, base, validate_compact } = setup;
     let nvals: usize = experiments.iter().map(|e| e.count()).sum();
     log(&format!("calibrating {} parameters against {nvals} values of {} experiments ({} rayon threads)", params.len(), experiments.len(), rayon::current_num_threads()));
     let fwd = Forward::new(experiments, material, factors, params, solver, geometry);
@@ -305,13 +318,17 @@ pub fn run(setup: Setup, out: &Path, log: &mut dyn FnMut(&str)) -> Result<report
     for w in &rep.warnings {
         log(&format!("warning: {w}"));
     }
+    if validate_compact {
+        let path = compact::validate(&compact, &base, &m_out, &fwd.experiments, &preds, out, log)?;
+        log(&format!("compact validation: {}", path.display()));
+    }
     Ok(rep)
 }
 
 /// `sinterdem calibrate CALIB.toml --out DIR [--set k=v]`: parse, fit, write. With `generate_synthetic`
 /// it instead (re)writes the calibration's data file with the bundled synthetic titanium data
 /// ([`synthetic::write_titanium_synthetic`]).
-pub fn run_file(path: &Path, overrides: &[String], out: &Path, quiet: bool, generate_synthetic: bool) -> Result<(), Error> {
+pub fn run_file(path: &Path, overrides: &[String], out: &Path, quiet: bool, generate_synthetic: bool, validate_compact: bool) -> Result<(), Error> {
     let value = crate::config::load_case(path, overrides)?;
     let base = path.parent().map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from("."));
     if generate_synthetic {
@@ -321,7 +338,8 @@ pub fn run_file(path: &Path, overrides: &[String], out: &Path, quiet: bool, gene
         eprintln!("synthetic titanium data written to {}", target.display());
         return Ok(());
     }
-    let setup = parse(&value, &base)?;
+    let mut setup = parse(&value, &base)?;
+    setup.validate_compact = validate_compact;
     let mut log = |m: &str| {
         if !quiet {
             eprintln!("{m}");
