@@ -7,15 +7,16 @@
 //!   whose error names key, value, allowed range and unit.
 
 pub mod case;
+pub mod plausible;
 pub mod ranges;
 
-use crate::error::{ConfigError, IoError, Error};
+use crate::error::{ConfigError, Error};
 use serde::de::DeserializeOwned;
 use std::path::Path;
 
 /// Reads a TOML case file and applies the command-line overrides (`key.path=value`).
 pub fn load_case(path: &Path, overrides: &[String]) -> Result<toml::Value, Error> {
-    let text = std::fs::read_to_string(path).map_err(|e| IoError::new(path, e))?;
+    let text = crate::io::read_input(path)?;
     let mut value: toml::Value = text
         .parse::<toml::Table>()
         .map(toml::Value::Table)
