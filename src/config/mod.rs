@@ -7,6 +7,7 @@
 //!   whose error names key, value, allowed range and unit.
 
 pub mod case;
+pub mod check;
 pub mod plausible;
 pub mod ranges;
 
