@@ -18,14 +18,17 @@ use std::path::Path;
 /// Reads a TOML case file and applies the command-line overrides (`key.path=value`).
 pub fn load_case(path: &Path, overrides: &[String]) -> Result<toml::Value, Error> {
     let text = crate::io::read_input(path)?;
-    let mut value: toml::Value = text
-        .parse::<toml::Table>()
-        .map(toml::Value::Table)
-        .map_err(|e| ConfigError::invalid(format!("{}: {}", path.display(), e.message())))?;
+    let mut value = parse_case_str(&text, &path.display().to_string())?;
     for o in overrides {
         apply_override(&mut value, o)?;
     }
     Ok(value)
+}
+
+/// Parses case text (`name` appears in the error).
+pub fn parse_case_str(text: &str, name: &str) -> Result<toml::Value, ConfigError> {
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    text.parse::<toml::Table>().map(toml::Value::Table).map_err(|e| ConfigError::invalid(format!("{name}: {}", e.message())))
 }
 
 /// Applies one `key.path=value` override. The value is parsed as TOML (number, bool, string,
