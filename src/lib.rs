@@ -17,6 +17,7 @@
 pub mod config;
 pub mod contacts;
 pub mod error;
+pub mod finite;
 pub mod explicit;
 pub mod heat;
 pub mod io;

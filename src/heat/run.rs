@@ -277,6 +277,7 @@ pub fn run(mut prep: Prepared, out: &Path, progress: bool, log: &mut dyn FnMut(&
             p.temperature.iter_mut().for_each(|v| *v = tt);
         } else {
             let info = net.step(t, dt, &mut p.temperature, &prep.pipes.conductance)?;
+            crate::finite::ensure_finite("heat", steps as u64 + 1, t + dt, "particle", "temperature", p.temperature.iter().copied())?;
             heat_in += info.heat_in;
             stored += info.stored_change;
             stored_plain += info.stored_change_plain;

@@ -117,15 +117,6 @@ impl SizeDistribution {
         Ok(())
     }
 
-    /// The distribution's nominal diameter [m]: the mean of uniform and normal, the smallest
-    /// tabulated diameter.
-    pub fn nominal_diameter(&self) -> f64 {
-        match self {
-            SizeDistribution::Uniform { mean, .. } | SizeDistribution::Normal { mean, .. } => *mean,
-            SizeDistribution::Tabulated { diameters, .. } => diameters[0],
-        }
-    }
-
     /// Cumulative number fraction F(d) of the requested distribution.
     pub fn cdf(&self, d: f64) -> f64 {
         match self {

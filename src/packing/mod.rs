@@ -253,7 +253,7 @@ pub fn parse_generate_case(case: &toml::Value) -> Result<GenerateCase, Error> {
     if let Some(w) = lamina_width {
         // eq. 48's laminae are cut at width w along each edge: a width far below a radius asks
         // for an absurd number of laminae (1e-12 m: 1e8 per axis) and says nothing more
-        let r = 0.5 * size.nominal_diameter();
+        let r = 0.5 * requested_mean_diameter(&size);
         if w < 0.01 * r {
             return Err(ConfigError::inconsistent(
                 "packing.lamina_width",
@@ -838,6 +838,14 @@ pub fn write_outputs(case: &GenerateCase, packing: &Packing, summary: &GenerateS
 pub fn generate_case(case: &toml::Value, out_dir: &Path, progress: bool) -> Result<GenerateSummary, Error> {
     let c = parse_generate_case(case)?;
     let (packing, summary) = generate(&c, progress)?;
+    // a non-finite figure is a model error, not a summary with null in it
+    let s = &summary;
+    let figures = [("solid_fraction", s.solid_fraction), ("coordination_mean", s.coordination_mean), ("max_overlap_rel", s.max_overlap_rel), ("kinetic_energy_rel", s.kinetic_energy_rel), ("mean_radius", s.mean_radius), ("size_ks_distance", s.size_ks_distance)];
+    let more = s.box_size.iter().chain(&s.laminae_max_deviation).chain(&s.laminae_mean).map(|&v| ("box_size/laminae", v));
+    if let Some((k, v)) = figures.into_iter().chain(more).find(|(_, v)| !v.is_finite()) {
+        return Err(crate::error::ModelError::new(format!("packing generation produced a non-finite {k} ({v})")).with_context(format!("{} particles, {} steps", s.particles, s.steps)).into());
+    }
+    crate::finite::ensure_finite_groups("packing generation", summary.steps, 0.0, "particle", "position", packing.positions.iter().map(|x| x.as_ref()))?;
     write_outputs(&c, &packing, &summary, out_dir)?;
     if !summary.thresholds_met {
         return Err(SolveError::new(
