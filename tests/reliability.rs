@@ -346,3 +346,61 @@ fn item16_non_regular_input_files_are_refused_at_once() {
     let e = check_err(&d, &[]);
     assert!(e.contains("directory"), "{e}");
 }
+
+/// Runs `cmd` with a time limit; Some(output) if it ended, None if it had to be killed.
+fn run_with_limit(mut cmd: Command, secs: u64) -> Option<std::process::Output> {
+    let mut child = cmd.stdout(std::process::Stdio::piped()).stderr(std::process::Stdio::piped()).spawn().unwrap();
+    let t0 = std::time::Instant::now();
+    loop {
+        if child.try_wait().unwrap().is_some() {
+            return Some(child.wait_with_output().unwrap());
+        }
+        if t0.elapsed().as_secs() >= secs {
+            let _ = child.kill();
+            let _ = child.wait();
+            return None;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+}
+
+#[test]
+fn item03_corrupted_checkpoints_are_refused_before_resuming() {
+    let d = tmp("i03");
+    let c = compact_with(&d, GOOD_CSV.as_bytes());
+    let run = d.join("run");
+    let o = bin().arg("run").arg(&c).arg("--out").arg(&run).arg("--quiet").args(["--set", "time.end=10", "--set", "output.checkpoint_every=3"]).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let good: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(run.join("checkpoint.json")).unwrap()).unwrap();
+    assert_eq!(good["pairs"].as_array().unwrap().len(), 1);
+    let edits: Vec<(&str, serde_json::Value, &str)> = vec![
+        ("pairs", serde_json::json!([[0, 99999]]), "checkpoint.pairs"),
+        ("pairs", serde_json::json!([[1, 1]]), "checkpoint.pairs"),
+        ("t", serde_json::json!(-1.0), "checkpoint.t"),
+        ("t", serde_json::json!(1e9), "checkpoint.t"),
+        ("dt", serde_json::json!(1e308), "checkpoint.dt"),
+        ("dt", serde_json::json!(0.0), "checkpoint.dt"),
+        ("dt", serde_json::json!(-1.0), "checkpoint.dt"),
+        ("step", serde_json::json!(9223372036854775808u64), "checkpoint.step"),
+        ("temperature", serde_json::json!([293.15, -5.0]), "checkpoint.temperature"),
+        ("position", serde_json::json!([[0.0, 0.0, 0.0], [0.0, 1e300, 0.0]]), "checkpoint.position"),
+        ("rotation", serde_json::json!([[0.0, 0.0, 0.0]]), "checkpoint.rotation"),
+        ("dl_bar", serde_json::json!([]), "checkpoint.dl_bar"),
+    ];
+    for (k, v, needle) in edits {
+        let dir = d.join(format!("edit-{k}-{}", v.to_string().replace(['[', ']', ',', ' '], "_")));
+        std::fs::create_dir_all(&dir).unwrap();
+        for f in ["series.csv", "log.txt"] {
+            std::fs::copy(run.join(f), dir.join(f)).unwrap();
+        }
+        let mut ck = good.clone();
+        ck[k] = v.clone();
+        std::fs::write(dir.join("checkpoint.json"), ck.to_string()).unwrap();
+        let mut cmd = bin();
+        cmd.arg("resume").arg(&dir).arg("--quiet");
+        let o = run_with_limit(cmd, 60).unwrap_or_else(|| panic!("resume with {k} = {v} did not finish within 60 s"));
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "resume with {k} = {v}: exit {:?}\n{err}", o.status.code());
+        assert!(err.contains(needle), "resume with {k} = {v}: \"{err}\" does not name {needle}");
+    }
+}
