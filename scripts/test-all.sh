@@ -10,6 +10,23 @@ start=$(date +%s)
 echo "== cargo build --release $features"
 # shellcheck disable=SC2086
 cargo build --release --quiet $features
+echo "== SLURM: a single-node cluster on localhost for the SLURM engine tests (scripts/slurm-local.sh)"
+slurm_dir=$(mktemp -d /tmp/sinterdem-slurm-XXXXXX)
+set +e
+bash scripts/slurm-local.sh start "$slurm_dir" 2>&1 | tail -n 5 | tee /tmp/sinterdem-slurm-start.log
+slurm_status=${PIPESTATUS[0]}
+set -e
+if [ "$slurm_status" = "0" ]; then
+    export SINTERDEM_SLURM_DIR="$slurm_dir"
+    trap 'bash scripts/slurm-local.sh stop "$slurm_dir" >/dev/null 2>&1 || true' EXIT
+elif [ "$slurm_status" = "77" ]; then
+    reason=$(grep -o "SKIP: .*" /tmp/sinterdem-slurm-start.log | head -n 1)
+    export SINTERDEM_SLURM_SKIP="${reason#SKIP: }"
+    echo "SLURM engine tests SKIPPED: $SINTERDEM_SLURM_SKIP"
+else
+    # root with apt-get but the cluster did not come up: the SLURM test tries again and fails loudly
+    echo "SLURM: scripts/slurm-local.sh start failed (exit $slurm_status); the SLURM engine test will report it"
+fi
 echo "== cargo test --release $features"
 set +e
 # shellcheck disable=SC2086

@@ -30,8 +30,10 @@ pub mod packing;
 pub mod particles;
 pub mod plot;
 pub mod profile;
-pub mod scheduler;
+pub mod run;
+pub mod coupled;
 pub mod scene;
+pub mod study;
 pub mod units;
 
 pub use error::{ConfigError, Error, ModelError, Result, SolveError};

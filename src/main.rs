@@ -93,7 +93,8 @@ enum Command {
         #[command(flatten)]
         case: CaseArgs,
     },
-    /// Run the 28 titanium heating schedules (cases/titanium) as pairs; writes titanium.csv.
+    /// The 28 titanium experiments as pair runs: an alias of
+    /// `sinterdem study cases/studies/titanium-28.toml` (run from the repository root).
     Titanium {
         /// Output directory.
         #[arg(long, default_value = "out/titanium")]
@@ -105,8 +106,67 @@ enum Command {
         #[arg(long, allow_hyphen_values = true)]
         diameter: Option<f64>,
     },
+    /// Run a study: many runs over a design of parameters, locally or on SLURM (docs/studies.md).
+    Study {
+        /// Study file (TOML).
+        study: PathBuf,
+        /// Where the runs execute.
+        #[arg(long, value_enum, default_value = "local")]
+        engine: EngineArg,
+        /// Local engine: runs at a time (default: cores / threads per run).
+        #[arg(long)]
+        jobs: Option<usize>,
+        /// Output directory (default: out/<study name>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// SLURM: wait for the job array, resubmit lost tasks, then gather study.csv.
+        #[arg(long)]
+        wait: bool,
+        /// Run again the runs that failed before.
+        #[arg(long)]
+        retry_failed: bool,
+        /// Override a key of every run (repeatable), after the study's own overrides.
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        /// No progress bar.
+        #[arg(long)]
+        quiet: bool,
+        /// SLURM partition (overrides slurm.partition).
+        #[arg(long)]
+        partition: Option<String>,
+        /// SLURM time limit per array task, e.g. 01:00:00 (overrides slurm.time).
+        #[arg(long)]
+        time: Option<String>,
+        /// SLURM account (overrides slurm.account).
+        #[arg(long)]
+        account: Option<String>,
+        /// SLURM cpus per array task (overrides slurm.cpus_per_task).
+        #[arg(long)]
+        cpus_per_task: Option<usize>,
+        /// SLURM: runs per array task (overrides slurm.chunk).
+        #[arg(long)]
+        chunk: Option<usize>,
+        /// Extra #SBATCH line (repeatable), e.g. --sbatch "--mem=4G".
+        #[arg(long = "sbatch", value_name = "OPTION", allow_hyphen_values = true)]
+        sbatch: Vec<String>,
+    },
+    /// Internal: one SLURM array task of a study (written into the job script).
+    #[command(hide = true)]
+    StudyTask {
+        dir: PathBuf,
+        #[arg(long)]
+        batch: usize,
+        #[arg(long)]
+        task: usize,
+        #[arg(long, default_value_t = 1)]
+        threads: usize,
+    },
     /// Print every numeric case-file key with its allowed range and unit (Markdown).
-    Keys,
+    Keys {
+        /// The keys of a study file instead (docs/studies.md).
+        #[arg(long)]
+        study: bool,
+    },
     /// Benchmarks (print figures; not tests).
     Bench {
         #[command(subcommand)]
@@ -114,8 +174,26 @@ enum Command {
     },
 }
 
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum EngineArg {
+    Local,
+    Slurm,
+}
+
 #[derive(Subcommand)]
 enum Bench {
+    /// The study engine: a pair study of --runs runs on the local engine (wall time, overhead per run).
+    Study {
+        /// Number of runs.
+        #[arg(long, default_value_t = 1000)]
+        runs: usize,
+        /// Runs at a time (default: cores).
+        #[arg(long)]
+        jobs: Option<usize>,
+        /// Output directory of the study.
+        #[arg(long, default_value = "out/bench-study")]
+        out: PathBuf,
+    },
     /// Assembly, factorisation and solve times of one implicit heat step on random packings.
     Heat {
         /// Particle counts (repeatable).
@@ -164,27 +242,19 @@ enum Bench {
     },
 }
 
-fn log_to(path: Option<&Path>) -> impl FnMut(&str) + use<> {
-    let mut file = path.and_then(|p| std::fs::File::create(p).ok());
-    move |msg: &str| {
-        eprintln!("{msg}");
-        if let Some(f) = file.as_mut() {
-            use std::io::Write;
-            let _ = writeln!(f, "{msg}");
-        }
-    }
-}
-
-fn case_kind(v: &toml::Value) -> String {
-    v.get("kind").and_then(|k| k.as_str()).unwrap_or("heat").to_string()
-}
-
 fn base_dir(case: &Path) -> PathBuf {
     case.parent().map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from("."))
 }
 
-fn unknown_kind(kind: &str) -> Error {
-    sinterdem::ConfigError::invalid(format!("kind = \"{kind}\": expected heat, compact, pair, generate or explicit_sinter")).into()
+/// `run` and `generate`: the run API with the case's folder as base and log lines on stderr.
+fn run_case(case: &CaseArgs, value: toml::Value, out: Option<PathBuf>, quiet: bool, extra: Vec<String>) -> Result<(), Error> {
+    let stem = case.case.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| "case".into());
+    let out = out.unwrap_or_else(|| PathBuf::from("out").join(stem));
+    let mut sets = case.set.clone();
+    sets.extend(extra);
+    let params = sinterdem::run::RunParams { base_dir: base_dir(&case.case), progress: !quiet, echo_log: true, plots: true };
+    sinterdem::run::run(&value, &sets, &out, &params)?;
+    Ok(())
 }
 
 fn main() -> ExitCode {
@@ -201,107 +271,60 @@ fn main() -> ExitCode {
 fn real_main(cli: Cli) -> Result<(), Error> {
     match cli.command {
         Command::Generate { case, out, quiet } => {
-            let value = sinterdem::config::load_case(&case.case, &case.set)?;
-            if case_kind(&value) != "generate" {
+            let value = sinterdem::config::load_case(&case.case, &[])?;
+            if sinterdem::run::Kind::of(&value)? != sinterdem::run::Kind::Generate {
                 return Err(sinterdem::ConfigError::invalid(format!("{}: kind must be \"generate\"", case.case.display())).into());
             }
-            let stem = case.case.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| "case".into());
-            let out = out.unwrap_or_else(|| PathBuf::from("out").join(stem));
-            sinterdem::io::ensure_dir(&out)?;
-            let s = sinterdem::packing::generate_case(&value, &out, !quiet)?;
-            eprintln!("{s:?}");
-            Ok(())
+            run_case(&case, value, out, quiet, vec![])
         }
         Command::Run { case, out, quiet, checkpoint_every } => {
-            let mut sets = case.set.clone();
-            if let Some(n) = checkpoint_every {
-                sets.push(format!("output.checkpoint_every={n}"));
-            }
-            let value = sinterdem::config::load_case(&case.case, &sets)?;
-            let stem = case.case.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| "case".into());
-            let out = out.unwrap_or_else(|| PathBuf::from("out").join(stem));
-            sinterdem::io::ensure_dir(&out)?;
-            let mut log = log_to(Some(&out.join("log.txt")));
-            log(&format!("sinterdem {}: {} → {}", env!("CARGO_PKG_VERSION"), case.case.display(), out.display()));
-            match case_kind(&value).as_str() {
-                "heat" => {
-                    let prep = sinterdem::heat::run::prepare(value, &base_dir(&case.case))?;
-                    sinterdem::heat::run::run(prep, &out, !quiet, &mut log)?;
-                }
-                "generate" => {
-                    let s = sinterdem::packing::generate_case(&value, &out, !quiet)?;
-                    log(&format!("done: {s:?}"));
-                }
-                "compact" => {
-                    let sim = sinterdem::scheduler::prepare(value, &base_dir(&case.case), &mut log)?;
-                    sinterdem::scheduler::run(sim, &out, !quiet, &mut log)?;
-                }
-                "pair" => {
-                    let s = sinterdem::models::diffusion7::pair::run_pair_case(&value, &out, !quiet)?;
-                    log(&format!("done: {s:?}"));
-                }
-                "explicit_sinter" => {
-                    let s = sinterdem::explicit::protocol::run_explicit_case(&value, &out, !quiet)?;
-                    log(&format!("done: {s}"));
-                }
-                k => return Err(unknown_kind(k)),
-            }
-            Ok(())
+            let value = sinterdem::config::load_case(&case.case, &[])?;
+            let extra = checkpoint_every.map(|n| format!("output.checkpoint_every={n}")).into_iter().collect();
+            run_case(&case, value, out, quiet, extra)
         }
         Command::Resume { dir, quiet } => {
-            let mut log = log_to(None);
-            let mut file_log = {
-                let path = dir.join("log.txt");
-                let mut f = std::fs::OpenOptions::new().append(true).create(true).open(&path).ok();
-                move |msg: &str| {
-                    log(msg);
-                    if let Some(f) = f.as_mut() {
-                        use std::io::Write;
-                        let _ = writeln!(f, "{msg}");
-                    }
-                }
-            };
-            sinterdem::scheduler::resume(&dir, !quiet, &mut file_log)?;
+            let params = sinterdem::run::RunParams { progress: !quiet, echo_log: true, ..Default::default() };
+            sinterdem::run::resume(&dir, &params)?;
             Ok(())
         }
         Command::Check { case } => {
-            let value = sinterdem::config::load_case(&case.case, &case.set)?;
-            match case_kind(&value).as_str() {
-                "heat" => {
-                    let prep = sinterdem::heat::run::prepare(value, &base_dir(&case.case))?;
-                    println!(
-                        "{}: ok (heat case, {} particles, {} contacts)",
-                        case.case.display(),
-                        prep.scene.particles.len(),
-                        prep.pipes.pairs.len()
-                    );
-                }
-                "compact" => {
-                    let sim = sinterdem::scheduler::prepare(value, &base_dir(&case.case), &mut |_| {})?;
-                    println!("{}: ok (compact case, {} particles, {} contacts)", case.case.display(), sim.prep.scene.particles.len(), sim.contacts.len());
-                }
-                "generate" => {
-                    sinterdem::packing::check_generate_case(&value)?;
-                    println!("{}: ok (packing generation case)", case.case.display());
-                }
-                "pair" => {
-                    sinterdem::models::diffusion7::pair::check_pair_case(&value)?;
-                    println!("{}: ok (pair case)", case.case.display());
-                }
-                "explicit_sinter" => {
-                    sinterdem::explicit::protocol::check_explicit_case(&value)?;
-                    println!("{}: ok (explicit_sinter case)", case.case.display());
-                }
-                k => return Err(unknown_kind(k)),
-            }
+            let value = sinterdem::config::load_case(&case.case, &[])?;
+            let what = sinterdem::run::check(&value, &case.set, &base_dir(&case.case))?;
+            println!("{}: ok ({what})", case.case.display());
             Ok(())
         }
         Command::Titanium { out, full, diameter } => {
-            use sinterdem::models::diffusion7::titanium;
-            sinterdem::io::ensure_dir(&out)?;
-            let start = if full { titanium::FULL_START } else { titanium::TRUNCATED_START };
-            let results = titanium::run_all_titanium(&out, start, diameter)?;
-            eprintln!("{} titanium cases written to {}", results.len(), out.join("titanium.csv").display());
+            let study = PathBuf::from("cases/studies/titanium-28.toml");
+            if !study.is_file() {
+                return Err(sinterdem::ConfigError::invalid(format!("{} not found: run `sinterdem titanium` from the repository root, or `sinterdem study PATH/titanium-28.toml`", study.display())).into());
+            }
+            let mut set = vec![];
+            if full {
+                set.push("temperature.start_temperature=313".to_string());
+            }
+            if let Some(d) = diameter {
+                set.push(format!("pair.radius={:e}", d / 2.0));
+            }
+            let opts = sinterdem::study::StudyOptions { out: Some(out), overrides: set, progress: true, ..Default::default() };
+            sinterdem::study::run_study(&study, &opts, &mut |m| eprintln!("{m}"))?;
+            Ok(())
+        }
+        Command::Study { study, engine, jobs, out, wait, retry_failed, set, quiet, partition, time, account, cpus_per_task, chunk, sbatch } => {
+            let engine = match engine {
+                EngineArg::Local => sinterdem::study::Engine::Local,
+                EngineArg::Slurm => sinterdem::study::Engine::Slurm,
+            };
+            let slurm = sinterdem::study::slurm::SlurmOverrides { partition, time, account, cpus_per_task, chunk, extra: sbatch };
+            let opts = sinterdem::study::StudyOptions { engine, jobs, out, wait, retry_failed, overrides: set, progress: !quiet, slurm };
+            let info = sinterdem::study::run_study(&study, &opts, &mut |m| eprintln!("{m}"))?;
+            if info.gathered && info.counts.failed > 0 {
+                eprintln!("{} of {} runs failed (see status and error in {})", info.counts.failed, info.counts.runs, info.dir.join("study.csv").display());
+            }
+            Ok(())
+        }
+        Command::StudyTask { dir, batch, task, threads } => {
+            let n = sinterdem::study::slurm::run_task(&dir, batch, task, threads)?;
+            eprintln!("study task {batch}/{task}: {n} runs executed");
             Ok(())
         }
         Command::Neck { r1, r2, overlap, kappa, kappa2, conductance, factor, contact_conductance } => {
@@ -334,11 +357,15 @@ fn real_main(cli: Cli) -> Result<(), Error> {
             println!("{}", serde_json::to_string_pretty(&v).unwrap());
             Ok(())
         }
-        Command::Keys => {
-            print!("{}", sinterdem::config::ranges::markdown());
+        Command::Keys { study } => {
+            print!("{}", if study { sinterdem::study::spec::markdown() } else { sinterdem::config::ranges::markdown() });
             Ok(())
         }
         Command::Bench { which } => match which {
+            Bench::Study { runs, jobs, out } => {
+                println!("{}", sinterdem::study::bench::bench_study(runs, jobs, &out)?);
+                Ok(())
+            }
             Bench::Heat { particles, repeat } => sinterdem::heat::bench::bench_heat(&particles, repeat.max(1)),
             Bench::Mechanics { particles, cholesky_max } => {
                 println!("{}", sinterdem::mechanics::bench::bench_mechanics_with(&particles, cholesky_max)?);
@@ -346,7 +373,7 @@ fn real_main(cli: Cli) -> Result<(), Error> {
             }
             Bench::Coupled { case, particles, steps } => {
                 let c = (case != "none").then(|| PathBuf::from(&case));
-                println!("{}", sinterdem::scheduler::bench_coupled(c.as_deref(), &particles, steps)?);
+                println!("{}", sinterdem::coupled::bench_coupled(c.as_deref(), &particles, steps)?);
                 Ok(())
             }
             Bench::Generate { particles, out } => {

@@ -3,7 +3,7 @@
 //! for bit; strategies 1 and 2 agree; heat energy balance in a coupled run with a hot plate.
 
 use sinterdem::config::apply_override;
-use sinterdem::scheduler::{self, Simulation};
+use sinterdem::coupled::{self, Simulation};
 use std::path::{Path, PathBuf};
 
 fn tmp(name: &str) -> PathBuf {
@@ -69,8 +69,8 @@ furnace = {{ profile = {{ constant = 1293.0 }} }}
 }
 
 fn run_case(v: toml::Value, out: &Path) -> (serde_json::Value, Vec<f64>) {
-    let sim = scheduler::prepare(v, Path::new("."), &mut |_| {}).unwrap();
-    let s = scheduler::run(sim, out, false, &mut |_| {}).unwrap();
+    let sim = coupled::prepare(v, Path::new("."), &mut |_| {}).unwrap();
+    let s = coupled::run(sim, out, false, &mut |_| {}).unwrap();
     let series = std::fs::read_to_string(out.join("series.csv")).unwrap();
     let last: Vec<f64> = series.lines().last().unwrap().split(',').map(|x| x.parse().unwrap()).collect();
     (s, last)
@@ -83,10 +83,10 @@ fn pair_through_the_scheduler_equals_the_free_pair() {
     std::fs::write(&csv, "x,y,z,r\n0,0,0,25e-6\n50e-6,0,0,25e-6\n").unwrap();
     let v = compact_case(&csv, &["time.end=1000.0", "solver.rtol=1e-8"]);
     let mut log = Vec::new();
-    let sim = scheduler::prepare(v, Path::new("."), &mut |m| log.push(m.to_string())).unwrap();
+    let sim = coupled::prepare(v, Path::new("."), &mut |m| log.push(m.to_string())).unwrap();
     assert_eq!(sim.contacts.len(), 1);
     let out = dir.join("out");
-    let s = scheduler::run(sim, &out, false, &mut |m| log.push(m.to_string())).unwrap();
+    let s = coupled::run(sim, &out, false, &mut |m| log.push(m.to_string())).unwrap();
     assert!(log.iter().any(|l| l.contains("mechanics is skipped")), "{log:?}");
     // the free pair, one integration over [0, 1000 s]; reference (seven-dof-model.md §15) at 1000 s:
     // y1/R = 0.30939, ΔL/L0 = 1.571e-2
@@ -134,12 +134,12 @@ fn resumed_run_is_bit_identical() {
     let (s_full, _) = run_case(compact_case(&csv, &["time.end=200.0", "output.checkpoint_every=40"]), &full);
     // the same run, killed right after its checkpoint at step 80, then resumed
     let part = dir.join("part");
-    let sim = scheduler::prepare(compact_case(&csv, &["time.end=200.0", "output.checkpoint_every=40"]), Path::new("."), &mut |_| {}).unwrap();
-    let r = scheduler::run_from(sim, &part, false, &mut |_| {}, None, Some(80)).unwrap();
+    let sim = coupled::prepare(compact_case(&csv, &["time.end=200.0", "output.checkpoint_every=40"]), Path::new("."), &mut |_| {}).unwrap();
+    let r = coupled::run_from(sim, &part, false, &mut |_| {}, None, Some(80)).unwrap();
     assert!(r.is_null());
-    let ck = scheduler::read_checkpoint(&part).unwrap();
+    let ck = coupled::read_checkpoint(&part).unwrap();
     assert_eq!(ck.step, 80);
-    let s_res = scheduler::resume(&part, false, &mut |_| {}).unwrap();
+    let s_res = coupled::resume(&part, false, &mut |_| {}).unwrap();
     for key in ["final_time_s", "steps", "shrinkage_x", "shrinkage_y", "shrinkage_z", "relative_density", "neck_ratio", "contacts", "rhs_evaluations", "mechanics"] {
         assert_eq!(s_full[key], s_res[key], "{key}");
     }
@@ -151,7 +151,7 @@ fn resumed_run_is_bit_identical() {
     let b = std::fs::read_to_string(part.join("series.csv")).unwrap();
     assert_eq!(a, b, "series.csv of the resumed run differs");
     // the resumed run went on writing checkpoints; the last one restores the end state
-    let (sim_a, _) = Simulation::from_checkpoint(&scheduler::read_checkpoint(&part).unwrap(), &mut |_| {}).unwrap();
+    let (sim_a, _) = Simulation::from_checkpoint(&coupled::read_checkpoint(&part).unwrap(), &mut |_| {}).unwrap();
     assert!(sim_a.step > 80 && sim_a.step < s_full["steps"].as_u64().unwrap());
 }
 
@@ -230,7 +230,7 @@ fn fcc_compact_of_equal_spheres_shrinks_like_the_free_pair() {
     let dir = tmp("fcc");
     let text = "kind = \"compact\"\n[time]\nend = 1000.0\ndt = 1.0e-6\ndt_max = 10.0\n[output]\nsnapshots = 0\nvtu = false\nhdf5 = false\n[[materials]]\nname = \"copper\"\npreset = \"copper\"\n[particles]\nsource = \"lattice\"\nlattice = \"fcc\"\ncells = [2, 2, 2]\nradius = 25e-6\noverlap = 0.0\n[thermal]\nmode = \"isothermal\"\nfurnace = { profile = { constant = 1293.0 } }\n[contacts]\ndetect_new = false\n";
     let v = toml::Value::Table(text.parse::<toml::Table>().unwrap());
-    let mut sim = scheduler::prepare(v, Path::new("."), &mut |_| {}).unwrap();
+    let mut sim = coupled::prepare(v, Path::new("."), &mut |_| {}).unwrap();
     assert!(sim.contacts.len() > 50);
     let x0 = sim.x0.clone();
     while sim.t < sim.settings.end {
@@ -261,8 +261,8 @@ fn fcc_compact_of_equal_spheres_shrinks_like_the_free_pair() {
 fn bundled_hot_plate_scene_has_a_monotone_densification_gradient() {
     let dir = tmp("hotplate-case");
     let v = sinterdem::config::load_case(Path::new("cases/hot-plate-compact.toml"), &["output.snapshots=0".into(), "output.checkpoint_every=0".into()]).unwrap();
-    let sim = scheduler::prepare(v, Path::new("cases"), &mut |_| {}).unwrap();
-    let s = scheduler::run(sim, &dir, false, &mut |_| {}).unwrap();
+    let sim = coupled::prepare(v, Path::new("cases"), &mut |_| {}).unwrap();
+    let s = coupled::run(sim, &dir, false, &mut |_| {}).unwrap();
     // measured: shrinkage 5.04 % at the bottom, 4.60 % at the top; neck ratio 0.496 and 0.479
     for (key, ratio) in [("layer_contact_shrinkage", 1.05), ("layer_neck_ratio", 1.02)] {
         let l: Vec<f64> = s[key].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
@@ -281,9 +281,9 @@ fn model_error_stops_the_run_with_a_summary() {
     let csv = dir.join("pair.csv");
     std::fs::write(&csv, "x,y,z,r\n0,0,0,25e-6\n27.5e-6,0,0,2.5e-6\n").unwrap();
     let v = compact_case(&csv, &["time.end=5000.0"]);
-    let sim = scheduler::prepare(v, Path::new("."), &mut |_| {}).unwrap();
+    let sim = coupled::prepare(v, Path::new("."), &mut |_| {}).unwrap();
     let out = dir.join("out");
-    let e = scheduler::run(sim, &out, false, &mut |_| {}).unwrap_err();
+    let e = coupled::run(sim, &out, false, &mut |_| {}).unwrap_err();
     assert!(matches!(e, sinterdem::error::Error::Model(_)), "{e}");
     let s: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(s["completed"], serde_json::Value::Bool(false));
@@ -332,13 +332,13 @@ fn resume_with_hdf5_snapshots_and_a_damaged_file() {
     assert_eq!(count(&dir.join("full/sinterdem.h5")), 5);
     for damaged in [false, true] {
         let part = dir.join(format!("part-{damaged}"));
-        let sim = scheduler::prepare(compact_case(&csv, &sets), Path::new("."), &mut |_| {}).unwrap();
-        assert!(scheduler::run_from(sim, &part, false, &mut |_| {}, None, Some(80)).unwrap().is_null());
+        let sim = coupled::prepare(compact_case(&csv, &sets), Path::new("."), &mut |_| {}).unwrap();
+        assert!(coupled::run_from(sim, &part, false, &mut |_| {}, None, Some(80)).unwrap().is_null());
         if damaged {
             std::fs::write(part.join("sinterdem.h5"), [0u8; 96]).unwrap();
         }
         let mut log = Vec::new();
-        let s = scheduler::resume(&part, false, &mut |m| log.push(m.to_string())).unwrap();
+        let s = coupled::resume(&part, false, &mut |m| log.push(m.to_string())).unwrap();
         for key in ["steps", "shrinkage_x", "neck_ratio", "contacts"] {
             assert_eq!(s_full[key], s[key], "{key}");
         }

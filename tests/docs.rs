@@ -13,6 +13,15 @@ fn case_file_reference_lists_every_numeric_key() {
 }
 
 #[test]
+fn study_file_reference_lists_every_numeric_key() {
+    let doc = std::fs::read_to_string("docs/studies.md").unwrap();
+    let begin = doc.find("<!-- keys:begin").expect("marker");
+    let body_start = doc[begin..].find('\n').unwrap() + begin + 1;
+    let end = doc.find("<!-- keys:end -->").expect("marker");
+    assert_eq!(&doc[body_start..end], sinterdem::study::spec::markdown(), "docs/studies.md is out of date: regenerate with `sinterdem keys --study`");
+}
+
+#[test]
 fn toml_snippets_in_docs_parse() {
     let mut count = 0;
     for entry in std::fs::read_dir("docs").unwrap() {

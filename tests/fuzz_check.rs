@@ -16,7 +16,7 @@
 
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngAlgorithm, TestCaseError, TestRng, TestRunner};
-use sinterdem::config::{apply_override, check::check_case, parse_case_str, ranges};
+use sinterdem::config::{apply_override, parse_case_str, ranges};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
@@ -283,7 +283,7 @@ fn check_never_panics_on_mutated_cases() {
                 parse_case_str(&String::from_utf8_lossy(&text), "fuzz")
             };
             match value {
-                Ok(v) => check_case(v, &dir).is_ok(),
+                Ok(v) => sinterdem::run::check(&v, &[], &dir).is_ok(),
                 Err(_) => false,
             }
         });

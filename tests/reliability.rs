@@ -1,7 +1,6 @@
 //! Issue 16 reproducers (fuzzing as a hostile user): every item is a test here that failed before
 //! its fix. Items are numbered as in the issue.
 
-use sinterdem::config::check::check_file;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -18,10 +17,12 @@ fn write(dir: &Path, name: &str, text: &[u8]) -> PathBuf {
     p
 }
 
-/// `sinterdem check` through the library: Ok(description) or the error text.
+/// `sinterdem check` through the library (the calls of its `Check` arm): Ok(description) or the
+/// error text.
 fn check(path: &Path, sets: &[&str]) -> Result<String, String> {
     let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
-    check_file(path, &sets).map_err(|e| e.to_string())
+    let base = path.parent().map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from("."));
+    sinterdem::config::load_case(path, &[]).and_then(|v| sinterdem::run::check(&v, &sets, &base)).map_err(|e| e.to_string())
 }
 
 fn check_err(path: &Path, sets: &[&str]) -> String {

@@ -7,7 +7,6 @@
 //!   whose error names key, value, allowed range and unit.
 
 pub mod case;
-pub mod check;
 pub mod plausible;
 pub mod ranges;
 
@@ -19,6 +18,7 @@ use std::path::Path;
 pub fn load_case(path: &Path, overrides: &[String]) -> Result<toml::Value, Error> {
     let text = crate::io::read_input(path)?;
     let mut value = parse_case_str(&text, &path.display().to_string())?;
+    expand_includes(&mut value, path.parent().unwrap_or(Path::new(".")))?;
     for o in overrides {
         apply_override(&mut value, o)?;
     }
@@ -29,6 +29,47 @@ pub fn load_case(path: &Path, overrides: &[String]) -> Result<toml::Value, Error
 pub fn parse_case_str(text: &str, name: &str) -> Result<toml::Value, ConfigError> {
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     text.parse::<toml::Table>().map(toml::Value::Table).map_err(|e| ConfigError::invalid(format!("{name}: {}", e.message())))
+}
+
+/// Expands `include = "file.toml"` in `[[materials]]` entries (docs/case-file.md, "Materials from
+/// a file"): the entry starts from the material of the same name in the file's `[[materials]]`
+/// (or its only material), and the entry's own keys win. `base` is the folder relative paths
+/// start from (the case file's). Applies to every kind; a calibration's `material.toml` is such
+/// a file.
+pub fn expand_includes(root: &mut toml::Value, base: &Path) -> Result<(), ConfigError> {
+    let Some(list) = root.get_mut("materials").and_then(|m| m.as_array_mut()) else { return Ok(()) };
+    for (i, entry) in list.iter_mut().enumerate() {
+        let Some(table) = entry.as_table_mut() else { continue };
+        let Some(inc) = table.remove("include") else { continue };
+        let key = format!("materials.{i}.include");
+        let file = inc.as_str().ok_or_else(|| ConfigError::invalid(format!("{key} = {inc}: expected a file name (string)")))?;
+        let path = base.join(file);
+        let text = crate::io::read_input(&path).map_err(|e| ConfigError::invalid(format!("{key} = \"{file}\": cannot read {e}")))?;
+        let inc_root: toml::Table = text.parse().map_err(|e: toml::de::Error| ConfigError::invalid(format!("{key}: {}: {}", path.display(), e.message())))?;
+        let mats: Vec<toml::Table> = inc_root
+            .get("materials")
+            .and_then(|m| m.as_array())
+            .map(|a| a.iter().filter_map(|v| v.as_table().cloned()).collect())
+            .unwrap_or_default();
+        let name = table.get("name").and_then(|n| n.as_str()).map(String::from);
+        let found = match &name {
+            Some(n) => mats.iter().find(|m| m.get("name").and_then(|x| x.as_str()) == Some(n.as_str())).or(if mats.len() == 1 { mats.first() } else { None }),
+            None if mats.len() == 1 => mats.first(),
+            None => None,
+        };
+        let names: Vec<&str> = mats.iter().filter_map(|m| m.get("name").and_then(|x| x.as_str())).collect();
+        let mut merged = found
+            .cloned()
+            .ok_or_else(|| ConfigError::invalid(format!("{key} = \"{file}\": no material{} in {} (it has: {})", name.as_ref().map(|n| format!(" named \"{n}\"")).unwrap_or_default(), path.display(), names.join(", "))))?;
+        if merged.contains_key("include") {
+            return Err(ConfigError::invalid(format!("{key}: {} includes another file; one level of include only", path.display())));
+        }
+        for (k, v) in table.iter() {
+            merged.insert(k.clone(), v.clone());
+        }
+        *table = merged;
+    }
+    Ok(())
 }
 
 /// Applies one `key.path=value` override. The value is parsed as TOML (number, bool, string,

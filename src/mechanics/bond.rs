@@ -44,6 +44,19 @@ pub fn link_stiffness(young: f64, poisson: f64, r_m: f64) -> [f64; 6] {
     [g * a / lb, g * a / lb, young * a / lb, young * i / lb, young * i / lb, g * j / lb]
 }
 
+/// Elastic constants `(E, ν)` of a link between particles of two materials: the link is two
+/// half-links of length R_m in series, so E and G = E/(2(1+ν)) are the harmonic means of the two
+/// materials' (docs/mechanics.md, "Mixed-material links"); equal materials give their own (E, ν).
+pub fn series_elastic(a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
+    if a == b {
+        return a;
+    }
+    let g = |m: [f64; 2]| m[0] / (2.0 * (1.0 + m[1]));
+    let e = 2.0 * a[0] * b[0] / (a[0] + b[0]);
+    let gm = 2.0 * g(a) * g(b) / (g(a) + g(b));
+    [e, e / (2.0 * gm) - 1.0]
+}
+
 /// Local frame `R = [e1 e2 e3]ᵀ` (rows are the unit vectors): e3 given, e1 ⟂ e3 built from the
 /// global axis least aligned with e3, e2 = e3 × e1 (right-handed). The link is isotropic in the
 /// e1–e2 plane, so the choice of e1 does not change the element matrix.

@@ -103,6 +103,8 @@ pub struct BondedSystem {
     amg: Option<amg::Amg>,
     /// CG iterations of the first solve after the last AMG build (the stale-reuse yardstick).
     amg_fresh_iterations: usize,
+    /// Per-particle (E [Pa], ν [1]) when particles differ in material; None: `params` for all.
+    elastic: Option<Vec<[f64; 2]>>,
 }
 
 impl BondedSystem {
@@ -126,7 +128,33 @@ impl BondedSystem {
             chol: None,
             amg: None,
             amg_fresh_iterations: 0,
+            elastic: None,
         })
+    }
+
+    /// Gives each particle its own elastic constants `[E, ν]` ([Pa], [1]); a link takes
+    /// [`bond::series_elastic`] of its two particles'. `None` restores the common `params`.
+    pub fn set_particle_elastic(&mut self, elastic: Option<Vec<[f64; 2]>>) -> Result<(), Error> {
+        if let Some(el) = &elastic {
+            if el.len() != self.n {
+                return Err(ConfigError::invalid(format!("mechanics: elastic constants for {} particles, system has {}", el.len(), self.n)).into());
+            }
+            if let Some((i, m)) = el.iter().enumerate().find(|(_, m)| !(m[0].is_finite() && m[0] > 0.0 && m[1] > -1.0 && m[1] <= 0.5)) {
+                return Err(ConfigError::invalid(format!("mechanics: particle {i} has E = {} Pa, ν = {} (need E > 0, −1 < ν ≤ 0.5)", m[0], m[1])).into());
+            }
+        }
+        self.elastic = elastic;
+        self.chol = None;
+        self.amg = None;
+        Ok(())
+    }
+
+    /// Elastic constants `[E, ν]` of the link between particles `a` and `b`.
+    pub fn link_elastic(&self, a: u32, b: u32) -> [f64; 2] {
+        match &self.elastic {
+            Some(el) => bond::series_elastic(el[a as usize], el[b as usize]),
+            None => [self.params.young_modulus, self.params.poisson_ratio],
+        }
     }
 
     /// Number of particles.
@@ -298,8 +326,14 @@ impl BondedSystem {
             })
             .collect();
         let geom = geom?;
-        let k: Vec<[f64; 6]> =
-            self.pairs.iter().map(|&[a, b]| link_stiffness(e, nu, 0.5 * (inp.radii[a as usize] + inp.radii[b as usize]))).collect();
+        let k: Vec<[f64; 6]> = self
+            .pairs
+            .iter()
+            .map(|&[a, b]| {
+                let [e, nu] = if self.elastic.is_some() { self.link_elastic(a, b) } else { [e, nu] };
+                link_stiffness(e, nu, 0.5 * (inp.radii[a as usize] + inp.radii[b as usize]))
+            })
+            .collect();
         let blocks = BlockMatrix::assemble(n, &self.pairs, &self.inc, &geom, &k, r_scale);
         let mut rhs = vec![0.0; 6 * n];
         rhs.par_chunks_mut(6).enumerate().for_each(|(i, f)| {

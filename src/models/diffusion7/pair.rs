@@ -389,10 +389,16 @@ pub fn check_pair_case(case: &toml::Value) -> Result<(), Error> {
 /// Runs a pair case and writes `series.csv`, `summary.json` and `neck_shrinkage.png` into `out_dir`.
 pub fn run_pair_case(case: &toml::Value, out_dir: &Path, progress: bool) -> Result<PairSummary, Error> {
     let spec = parse_pair_case(case)?;
+    run_pair_spec(&spec, out_dir, progress, &mut |w| eprintln!("warning: {w}"))
+}
+
+/// Runs a parsed pair case and writes its outputs into `out_dir` (as [`run_pair_case`]); warnings
+/// go to `warn`.
+pub fn run_pair_spec(spec: &PairSpec, out_dir: &Path, progress: bool, warn: &mut dyn FnMut(&str)) -> Result<PairSummary, Error> {
     std::fs::create_dir_all(out_dir).map_err(|e| IoError::new(out_dir, e))?;
     let run = run_pair(&spec, true, progress)?;
     for w in &run.warnings {
-        eprintln!("warning: {w}");
+        warn(w);
     }
     write_series(&spec, &run, &out_dir.join("series.csv"))?;
     let summary = summarize(&spec, &run);

@@ -1,26 +1,19 @@
-//! The staggered loop of a compact run (`kind = "compact"`; architecture map "The loop"):
-//! 1. topology (new contacts by cell list), 2. heat (implicit network, conductances from the
-//! current necks), 3. diffusion (every contact's 7-DOF ODE over the step at its own temperature,
-//! rayon sweep), 4. mechanics (bonded quasi-static equilibrium under the load increments),
-//! 5. correction of y4, y7 (seven-dof-model.md §9), 6. step control (§10, strategies 1 and 2),
-//! 7. output. Stages a scene does not need are skipped and the log says so.
-//!
-//! Determinism: every contact writes only its own slot in the parallel sweep and all reductions
-//! run sequentially in contact order, so results are bit-identical for any thread count.
+//! The coupled step and its step control: settings, the per-contact stores, the mechanics stage
+//! and [`Simulation::advance_step`] (topology → heat → diffusion → mechanics → correction → step
+//! control; docs/coupled.md).
 
 use crate::config::{self, case::Case};
-use crate::error::{ConfigError, Error, IoError, ModelError};
+use crate::error::{ConfigError, Error, ModelError};
 use crate::heat::run::Prepared;
 use crate::heat::{Conductance, HeatNetwork};
-use crate::io::{self, Series, Snapshot, SnapshotWriter};
 use crate::mechanics::{BondedSystem, Constraints, LinearSolver, MechParams, StepInput};
 use crate::models::diffusion7::{self as d7, Contact7, PairMaterials, PathFactors, SolverOptions, TemperaturePath};
 use crate::models::ode::OdeStats;
 use nalgebra::Vector3;
 use rayon::prelude::*;
-use serde_json::json;
 use std::path::Path;
 use std::time::Instant;
+
 
 /// Which neck radius feeds the conductance (heat-network.md "Which neck radius ...").
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -63,6 +56,8 @@ pub struct Settings {
     pub conductivity_at: Vec<f64>,
     /// Times of the y4/y7 correction histograms [s] (eq. 44).
     pub histogram_at: Vec<f64>,
+    /// Write the PNG plots at the end (the run API turns them off in studies).
+    pub plots: bool,
 }
 
 impl Settings {
@@ -121,6 +116,7 @@ impl Settings {
             checkpoint_every: ck as u64,
             conductivity_at: case.output.conductivity_at.clone(),
             histogram_at: case.output.correction_histogram_at.clone(),
+            plots: true,
         })
     }
 }
@@ -190,15 +186,15 @@ impl MechanicsStage {
     }
 
     /// Solves the step: displacement increments per particle and the axial approach ξ per contact.
-    #[allow(clippy::too_many_arguments)]
-    fn solve(&mut self, p: &crate::particles::Particles, contacts: &Contacts, approach: &[f64], young: f64) -> Result<(Vec<Vector3<f64>>, Vec<f64>), Error> {
+    fn solve(&mut self, p: &crate::particles::Particles, contacts: &Contacts, approach: &[f64]) -> Result<(Vec<Vector3<f64>>, Vec<f64>), Error> {
         let sys = self.sys.as_mut().ok_or_else(|| ModelError::new("mechanics: the bonded system was not built"))?;
         if self.bonds != contacts.len() {
             sys.set_topology(&contacts.pairs)?;
             self.bonds = contacts.len();
         }
         let y4_y7: Vec<[f64; 2]> = contacts.state.iter().map(|c| [c.y_prev[3], c.y_prev[6]]).collect();
-        let load: Vec<f64> = contacts.state.iter().zip(approach).map(|(c, &a)| d7::load_increment(a, 0.0, c.r_mean(), young)).collect();
+        // the load (F5) with the link's own E, so that E cancels from the approach per bond
+        let load: Vec<f64> = contacts.state.iter().zip(approach).zip(&contacts.pairs).map(|((c, &a), &[i, j])| d7::load_increment(a, 0.0, c.r_mean(), sys.link_elastic(i, j)[0])).collect();
         let out = sys.step(&StepInput { positions: &p.position, radii: &p.radius, y4_y7: &y4_y7, load: &load, external: None })?;
         for (r, d) in self.rotation.iter_mut().zip(&out.dtheta) {
             *r += d;
@@ -291,8 +287,13 @@ impl Simulation {
         let settings = Settings::from_case(&prep.case)?;
         let mut d7m = Vec::new();
         for m in &prep.scene.materials {
-            let name = m.diffusion.as_deref().ok_or_else(|| ConfigError::invalid(format!("materials.{}.diffusion: a compact run needs 7-DOF diffusion data (\"copper\" or \"titanium\")", m.name)))?;
-            let mut dm = d7::Material::builtin(name)?;
+            let mut dm = match &m.diffusion_data {
+                Some(d) => d.clone(),
+                None => {
+                    let name = m.diffusion.as_deref().ok_or_else(|| ConfigError::invalid(format!("materials.{}: a compact run needs 7-DOF diffusion data: diffusion = \"copper\" or \"titanium\", or [[materials.phases]] (docs/case-file.md)", m.name)))?;
+                    d7::Material::builtin(name)?
+                }
+            };
             dm.young_modulus = m.young_modulus;
             dm.poisson_ratio = m.poisson_ratio;
             d7m.push(dm);
@@ -352,6 +353,15 @@ impl Simulation {
         } else {
             let (young, poisson) = (sim.d7_materials[0].young_modulus, sim.d7_materials[0].poisson_ratio);
             sim.mechanics.build(&sim.prep.scene.particles, young, poisson)?;
+            // each bond takes the elastic constants of its own particles' materials
+            let el: Vec<[f64; 2]> = sim.d7_materials.iter().map(|m| [m.young_modulus, m.poisson_ratio]).collect();
+            if el.iter().any(|m| *m != el[0]) {
+                let per: Vec<[f64; 2]> = sim.prep.scene.particles.material.iter().map(|&k| el[k as usize]).collect();
+                if let Some(sys) = sim.mechanics.sys.as_mut() {
+                    sys.set_particle_elastic(Some(per))?;
+                }
+                log("materials differ in E or ν: each bond takes its own particles' constants (two half-links in series)");
+            }
         }
         if !sim.settings.detect_new {
             log("contacts.detect_new = false: the neighbour search runs once, at the start");
@@ -399,7 +409,7 @@ impl Simulation {
     }
 
     /// Pipe conductances from the current necks [W/K].
-    fn conductances(&self) -> Result<Vec<f64>, ModelError> {
+    pub(crate) fn conductances(&self) -> Result<Vec<f64>, ModelError> {
         let p = &self.prep.scene.particles;
         let law: &Conductance = &self.prep.conductance;
         let mats = &self.prep.scene.materials;
@@ -538,9 +548,7 @@ impl Simulation {
             let xi: Vec<f64> = if n_particles == 2 {
                 approach.clone()
             } else {
-                // one E and ν for the bonded system: those of the first material (docs/decisions.md)
-                let young = self.d7_materials[0].young_modulus;
-                let (du, xi) = self.mechanics.solve(&self.prep.scene.particles, &self.contacts, &approach, young)?;
+                let (du, xi) = self.mechanics.solve(&self.prep.scene.particles, &self.contacts, &approach)?;
                 for (x, d) in self.prep.scene.particles.position.iter_mut().zip(&du) {
                     *x += d;
                 }
@@ -703,568 +711,4 @@ pub fn prepare(value: toml::Value, base: &Path, log: &mut dyn FnMut(&str)) -> Re
     let base = base.canonicalize().unwrap_or_else(|_| base.to_path_buf());
     sim.source = (text, base);
     Ok(sim)
-}
-
-/// Output bookkeeping that a checkpoint carries.
-#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
-pub struct OutputState {
-    pub next_snap: usize,
-    pub next_cond: usize,
-    pub cond_results: Vec<serde_json::Value>,
-    /// Next entry of `output.correction_histogram_at` to write [1].
-    #[serde(default)]
-    pub next_hist: usize,
-    /// The histograms written so far (time [s], mean and std of ΔL̄/L0 [1], files).
-    #[serde(default)]
-    pub hist_results: Vec<serde_json::Value>,
-    /// Lines of series.csv (header included) at the checkpoint.
-    pub series_lines: usize,
-    pub snapshots: usize,
-    pub vtu_entries: Vec<(f64, String, String)>,
-    /// Wall time spent before the checkpoint [s].
-    pub wall_before: f64,
-}
-
-/// Everything needed to continue a run bit for bit (`DIR/checkpoint.json`).
-#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
-pub struct Checkpoint {
-    pub format: String,
-    pub case_toml: String,
-    pub base_dir: std::path::PathBuf,
-    pub t: f64,
-    pub dt: f64,
-    pub step: u64,
-    pub rejected: u64,
-    pub ode: OdeStats,
-    pub timing: Timing,
-    pub heat_in: f64,
-    pub heat_stored: f64,
-    pub heat_scale: f64,
-    pub warnings: Vec<String>,
-    pub limited_corrections: u64,
-    pub position: Vec<[f64; 3]>,
-    pub temperature: Vec<f64>,
-    pub rotation: Vec<[f64; 3]>,
-    /// Mechanics counters: Newton iterations, numeric factorisations, largest final scaled residual.
-    #[serde(default)]
-    pub mechanics_counters: (u64, u64, f64),
-    pub pairs: Vec<[u32; 2]>,
-    pub contacts: Vec<Contact7>,
-    pub dl_bar: Vec<f64>,
-    pub substeps: Vec<u32>,
-    pub heat_history: Option<(Vec<f64>, f64)>,
-    pub output: OutputState,
-}
-
-const CHECKPOINT_FORMAT: &str = "sinterdem-checkpoint-1";
-
-impl Simulation {
-    fn checkpoint(&self, output: OutputState) -> Checkpoint {
-        let p = &self.prep.scene.particles;
-        Checkpoint {
-            format: CHECKPOINT_FORMAT.into(),
-            case_toml: self.source.0.clone(),
-            base_dir: self.source.1.clone(),
-            t: self.t,
-            dt: self.dt,
-            step: self.step,
-            rejected: self.rejected,
-            ode: self.ode,
-            timing: self.timing,
-            heat_in: self.heat_in,
-            heat_stored: self.heat_stored,
-            heat_scale: self.heat_scale,
-            warnings: self.warnings.clone(),
-            limited_corrections: self.limited_corrections,
-            position: p.position.iter().map(|x| [x.x, x.y, x.z]).collect(),
-            temperature: p.temperature.clone(),
-            rotation: self.mechanics.rotation.iter().map(|x| [x.x, x.y, x.z]).collect(),
-            mechanics_counters: (self.mechanics.newton_iterations, self.mechanics.factorizations, self.mechanics.max_residual),
-            pairs: self.contacts.pairs.clone(),
-            contacts: self.contacts.state.clone(),
-            dl_bar: self.contacts.dl_bar.clone(),
-            substeps: self.contacts.substeps.clone(),
-            heat_history: self.heat.as_ref().and_then(|h| h.history().cloned()),
-            output,
-        }
-    }
-
-    /// Rebuilds a simulation from a checkpoint: the case is prepared again from its text (so the
-    /// initial packing, planes and constraints are the same), then the state is restored.
-    pub fn from_checkpoint(ck: &Checkpoint, log: &mut dyn FnMut(&str)) -> Result<(Simulation, OutputState), Error> {
-        if ck.format != CHECKPOINT_FORMAT {
-            return Err(ConfigError::invalid(format!("checkpoint format \"{}\" is not {CHECKPOINT_FORMAT}", ck.format)).into());
-        }
-        let value: toml::Value = toml::Value::Table(ck.case_toml.parse::<toml::Table>().map_err(|e| ConfigError::invalid(format!("checkpoint case: {e}")))?);
-        let mut sim = prepare(value, &ck.base_dir, &mut |_| {})?;
-        let n = sim.prep.scene.particles.len();
-        if ck.position.len() != n || ck.temperature.len() != n || ck.pairs.len() != ck.contacts.len() {
-            return Err(ConfigError::invalid("checkpoint does not match its case (particle or contact counts differ)").into());
-        }
-        let p = &mut sim.prep.scene.particles;
-        p.position = ck.position.iter().map(|x| Vector3::new(x[0], x[1], x[2])).collect();
-        p.temperature = ck.temperature.clone();
-        sim.mechanics.rotation = ck.rotation.iter().map(|x| Vector3::new(x[0], x[1], x[2])).collect();
-        (sim.mechanics.newton_iterations, sim.mechanics.factorizations, sim.mechanics.max_residual) = ck.mechanics_counters;
-        sim.contacts = Contacts { pairs: ck.pairs.clone(), state: ck.contacts.clone(), dl_bar: ck.dl_bar.clone(), substeps: ck.substeps.clone() };
-        if let Some(h) = sim.heat.as_mut() {
-            h.set_history(ck.heat_history.clone());
-        }
-        sim.t = ck.t;
-        sim.dt = ck.dt;
-        sim.step = ck.step;
-        sim.rejected = ck.rejected;
-        sim.ode = ck.ode;
-        sim.timing = ck.timing;
-        sim.heat_in = ck.heat_in;
-        sim.heat_stored = ck.heat_stored;
-        sim.heat_scale = ck.heat_scale;
-        sim.warnings = ck.warnings.clone();
-        sim.limited_corrections = ck.limited_corrections;
-        log(&format!("resumed from the checkpoint at t = {} s (step {}, {} contacts)", sim.t, sim.step, sim.contacts.len()));
-        Ok((sim, ck.output.clone()))
-    }
-}
-
-/// Writes `dir/checkpoint.json` atomically (temporary file, then rename).
-fn write_checkpoint(dir: &Path, ck: &Checkpoint) -> Result<(), IoError> {
-    let path = dir.join("checkpoint.json");
-    let tmp = dir.join("checkpoint.json.tmp");
-    let text = serde_json::to_string(ck).map_err(|e| IoError::new(&path, e))?;
-    std::fs::write(&tmp, text).map_err(|e| IoError::new(&tmp, e))?;
-    std::fs::rename(&tmp, &path).map_err(|e| IoError::new(&path, e))
-}
-
-/// Reads `dir/checkpoint.json`.
-pub fn read_checkpoint(dir: &Path) -> Result<Checkpoint, Error> {
-    let path = dir.join("checkpoint.json");
-    let text = std::fs::read_to_string(&path).map_err(|e| IoError::new(&path, e))?;
-    Ok(serde_json::from_str(&text).map_err(|e| IoError::new(&path, e))?)
-}
-
-/// `sinterdem resume DIR`: continues the run whose checkpoint is in `dir`.
-pub fn resume(dir: &Path, progress: bool, log: &mut dyn FnMut(&str)) -> Result<serde_json::Value, Error> {
-    let ck = read_checkpoint(dir)?;
-    let (sim, out_state) = Simulation::from_checkpoint(&ck, log)?;
-    run_from(sim, dir, progress, log, Some(out_state), None)
-}
-
-const SERIES_HEADER: &[&str] = &[
-    "time_s", "dt_s", "shrinkage_x", "shrinkage_y", "shrinkage_z", "relative_density", "coordination_mean", "neck_ratio_mean",
-    "contacts", "mean_temperature_K", "min_temperature_K", "max_temperature_K", "subdivided_fraction", "rhs_evaluations",
-];
-
-/// Runs a compact simulation to its end time, writing series, snapshots, checkpoints and the summary.
-pub fn run(sim: Simulation, out: &Path, progress: bool, log: &mut dyn FnMut(&str)) -> Result<serde_json::Value, Error> {
-    run_from(sim, out, progress, log, None, None)
-}
-
-/// Runs from a fresh start (`state = None`) or a checkpoint's output state; `stop_after_step`
-/// ends the run early after that step (as if killed right after its checkpoint, for tests), with
-/// `Ok(Value::Null)`.
-pub fn run_from(mut sim: Simulation, out: &Path, progress: bool, log: &mut dyn FnMut(&str), state: Option<OutputState>, stop_after_step: Option<u64>) -> Result<serde_json::Value, Error> {
-    let wall = Instant::now();
-    io::ensure_dir(out)?;
-    let n = sim.prep.scene.particles.len();
-    let resumed = state.is_some();
-    let st = state.unwrap_or_default();
-    log(&format!(
-        "compact run: {n} particles, {} initial contacts, strategy {}, Δt0 = {:e} s, Δt_max = {} s, end = {} s",
-        sim.contacts.len(),
-        sim.settings.strategy,
-        sim.dt,
-        sim.settings.dt_max,
-        sim.settings.end
-    ));
-    let (vtu_on, h5_on) = (sim.prep.case.output.vtu, sim.prep.case.output.hdf5);
-    let (mut series, mut snaps, mut series_lines) = if resumed {
-        (
-            Series::resume(&out.join("series.csv"), st.series_lines, SERIES_HEADER.len())?,
-            SnapshotWriter::resume(out, vtu_on, h5_on, st.snapshots, st.vtu_entries.clone(), log)?,
-            st.series_lines,
-        )
-    } else {
-        (Series::create(&out.join("series.csv"), SERIES_HEADER)?, SnapshotWriter::new(out, vtu_on, h5_on, log)?, 1)
-    };
-    let end = sim.settings.end;
-    let snap_times: Vec<f64> = match sim.settings.snapshots {
-        0 => vec![],
-        1 => vec![end],
-        k => (0..k).map(|i| end * i as f64 / (k - 1) as f64).collect(),
-    };
-    let mut due = Due {
-        snap_times,
-        next_snap: st.next_snap,
-        next_cond: st.next_cond,
-        cond_results: st.cond_results.clone(),
-        next_hist: st.next_hist,
-        hist_results: st.hist_results.clone(),
-    };
-    let bar = io::progress::Progress::new(end, progress);
-    let mut stop_reason: Option<String> = None;
-    let mut failure: Option<Error> = None;
-    let write_row = |sim: &Simulation, series: &mut Series, dt: f64| -> Result<(), IoError> {
-        let sh = sim.shrinkage();
-        let t = &sim.prep.scene.particles.temperature;
-        let mean = t.iter().sum::<f64>() / t.len() as f64;
-        let frac = sim.contacts.substeps.iter().filter(|&&s| s > 1).count() as f64 / sim.contacts.len().max(1) as f64;
-        series.row(&[
-            sim.t,
-            dt,
-            sh.x,
-            sh.y,
-            sh.z,
-            sim.relative_density(),
-            2.0 * sim.contacts.len() as f64 / n as f64,
-            sim.mean_neck_ratio(),
-            sim.contacts.len() as f64,
-            mean,
-            t.iter().copied().fold(f64::INFINITY, f64::min),
-            t.iter().copied().fold(f64::NEG_INFINITY, f64::max),
-            frac,
-            sim.ode.rhs as f64,
-        ])
-    };
-    if !resumed {
-        write_row(&sim, &mut series, 0.0)?;
-        series_lines += 1;
-    }
-    loop {
-        let tic = Instant::now();
-        due.write(&sim, out, &mut snaps, log)?;
-        sim.timing.output += tic.elapsed().as_secs_f64();
-        if sim.t >= end {
-            break;
-        }
-        let dt_used = sim.dt.min(end - sim.t);
-        if let Err(e) = sim.advance_step(log) {
-            match e {
-                // the model's validity ends (a contact's geometry or integrator breaks down): the
-                // run stops with the last completed step summarised, then reports the error
-                Error::Model(ref m) => {
-                    log(&format!("stopped at t = {} s (step {}): {m}", sim.t, sim.step));
-                    stop_reason = Some(format!("model error after t = {} s: {m}", sim.t));
-                    failure = Some(e);
-                    break;
-                }
-                _ => return Err(e),
-            }
-        }
-        let tic = Instant::now();
-        let rho_stop = sim.settings.stop_relative_density.filter(|&r| sim.relative_density() >= r);
-        if let Some(r) = rho_stop {
-            log(&format!("t = {} s: relative density {:.4} reached time.stop_relative_density = {r}: the run ends here", sim.t, sim.relative_density()));
-            stop_reason = Some(format!("relative density {r} reached"));
-        }
-        if sim.step.is_multiple_of(sim.settings.series_every) || sim.t >= end || rho_stop.is_some() {
-            write_row(&sim, &mut series, dt_used)?;
-            series_lines += 1;
-        }
-        if sim.settings.checkpoint_every > 0 && sim.step.is_multiple_of(sim.settings.checkpoint_every) && sim.t < end {
-            // snapshots and analyses due at this time are written before the checkpoint
-            due.write(&sim, out, &mut snaps, log)?;
-            sim.mechanics.drop_factor()?;
-            let os = OutputState {
-                next_snap: due.next_snap,
-                next_cond: due.next_cond,
-                cond_results: due.cond_results.clone(),
-                next_hist: due.next_hist,
-                hist_results: due.hist_results.clone(),
-                series_lines,
-                snapshots: snaps.count(),
-                vtu_entries: snaps.vtu_entries(),
-                wall_before: st.wall_before + wall.elapsed().as_secs_f64(),
-            };
-            write_checkpoint(out, &sim.checkpoint(os))?;
-            if stop_after_step.is_some_and(|s| sim.step >= s) {
-                bar.finish();
-                return Ok(serde_json::Value::Null);
-            }
-        }
-        sim.timing.output += tic.elapsed().as_secs_f64();
-        if rho_stop.is_some() {
-            break;
-        }
-        bar.set(sim.t, &format!("step {}, Δt = {:.3e} s, contacts {}", sim.step, sim.dt, sim.contacts.len()));
-    }
-    bar.finish();
-    if stop_reason.is_some() && sim.settings.snapshots > 0 {
-        // a run that ends before its end time keeps its last state as a snapshot
-        write_snapshot(&sim, &mut snaps)?;
-    }
-    let sh = sim.shrinkage();
-    let balance = if sim.heat.is_some() { (sim.heat_stored - sim.heat_in).abs() / sim.heat_scale.max(sim.heat_stored.abs()).max(1e-300) } else { 0.0 };
-    let t = &sim.prep.scene.particles.temperature;
-    let dl: Vec<f64> = sim.contacts.dl_bar.clone();
-    let dl_mean = dl.iter().sum::<f64>() / dl.len().max(1) as f64;
-    let dl_std = (dl.iter().map(|v| (v - dl_mean) * (v - dl_mean)).sum::<f64>() / dl.len().max(1) as f64).sqrt();
-    let v_particles: f64 = sim.prep.scene.particles.radius.iter().map(|&r| crate::units::sphere_volume(r)).sum();
-    let rho0 = v_particles / (sim.extent0.x * sim.extent0.y * sim.extent0.z);
-    let summary = json!({
-        "kind": "compact",
-        "final_time_s": sim.t,
-        "steps": sim.step,
-        "rejected_steps": sim.rejected,
-        "wall_seconds": st.wall_before + wall.elapsed().as_secs_f64(),
-        "particles": n,
-        "contacts": sim.contacts.len(),
-        "shrinkage_x": sh.x,
-        "shrinkage_y": sh.y,
-        "shrinkage_z": sh.z,
-        "relative_density": sim.relative_density(),
-        "relative_density_initial": rho0,
-        "coordination_mean": 2.0 * sim.contacts.len() as f64 / n as f64,
-        "neck_ratio": sim.mean_neck_ratio(),
-        "mean_temperature_K": t.iter().sum::<f64>() / t.len() as f64,
-        "min_temperature_K": t.iter().copied().fold(f64::INFINITY, f64::min),
-        "max_temperature_K": t.iter().copied().fold(f64::NEG_INFINITY, f64::max),
-        "energy_balance_rel": balance,
-        "rhs_evaluations": sim.ode.rhs,
-        "limited_corrections": sim.limited_corrections,
-        "ode_steps": sim.ode.steps,
-        "ode_rejected": sim.ode.rejected,
-        "timing_seconds": sim.timing,
-        "dl_bar_mean_m": dl_mean,
-        "dl_bar_std_m": dl_std,
-        "conductivity": due.cond_results,
-        "correction_histograms": due.hist_results,
-        "mechanics": {
-            "newton_iterations": sim.mechanics.newton_iterations,
-            "factorizations": sim.mechanics.factorizations,
-            "max_final_residual": sim.mechanics.max_residual,
-            "rtol": MechParams::default().rtol,
-        },
-        "skipped": sim.skipped,
-        "warnings": sim.warnings,
-        "threads": rayon::current_num_threads(),
-        "completed": stop_reason.is_none(),
-        "stop_reason": stop_reason,
-    });
-    let mut summary = summary;
-    let prof = sim.layer_profile(5);
-    summary["layer_z_m"] = json!(prof.iter().map(|l| l.0).collect::<Vec<_>>());
-    summary["layer_contact_shrinkage"] = json!(prof.iter().map(|l| l.1).collect::<Vec<_>>());
-    summary["layer_neck_ratio"] = json!(prof.iter().map(|l| l.2).collect::<Vec<_>>());
-    io::write_json(&out.join("summary.json"), &summary)?;
-    if let Err(e) = write_plots(out, &sim) {
-        log(&format!("warning: plots not written: {e}"));
-    }
-    log(&format!(
-        "done: {} steps to t = {} s in {:.3} s; shrinkage x/y/z = {:.4e}/{:.4e}/{:.4e}; relative density {:.4}; mean neck ratio {:.4}",
-        sim.step,
-        sim.t,
-        wall.elapsed().as_secs_f64(),
-        sh.x,
-        sh.y,
-        sh.z,
-        sim.relative_density(),
-        sim.mean_neck_ratio()
-    ));
-    match failure {
-        Some(e) => Err(e),
-        None => Ok(summary),
-    }
-}
-
-/// Output analyses due at given times, and where each list stands (a checkpoint carries it).
-struct Due {
-    snap_times: Vec<f64>,
-    next_snap: usize,
-    next_cond: usize,
-    cond_results: Vec<serde_json::Value>,
-    next_hist: usize,
-    hist_results: Vec<serde_json::Value>,
-}
-
-impl Due {
-    /// Writes the snapshots, conductivity analyses and correction histograms due at the current time.
-    fn write(&mut self, sim: &Simulation, out: &Path, snaps: &mut SnapshotWriter, log: &mut dyn FnMut(&str)) -> Result<(), Error> {
-        let now = sim.t * (1.0 + 1e-12);
-        while self.next_snap < self.snap_times.len() && self.snap_times[self.next_snap] <= now + 1e-300 {
-            write_snapshot(sim, snaps)?;
-            self.next_snap += 1;
-        }
-        let at = &sim.settings.conductivity_at;
-        while self.next_cond < at.len() && at[self.next_cond] <= now {
-            let k = compact_conductivity(sim)?;
-            log(&format!("t = {:.6e} s: effective conductivity diag = [{:.4e}, {:.4e}, {:.4e}] W/(m K)", sim.t, k[0], k[1], k[2]));
-            self.cond_results.push(json!({"time_s": sim.t, "kappa_eff_W_per_mK": k}));
-            self.next_cond += 1;
-        }
-        let at = &sim.settings.histogram_at;
-        while self.next_hist < at.len() && at[self.next_hist] <= now {
-            // the corrections of the step that ended at (or first after) the asked time
-            if sim.step > 0 {
-                let tag = format!("t{:.0}s", at[self.next_hist]);
-                let h = write_correction_histogram(out, sim, &tag)?;
-                log(&format!("t = {:.6e} s: correction histogram {tag}: mean ΔL̄/L0 = {:.3e}, std {:.3e} ({} contacts)", sim.t, h.0, h.1, sim.contacts.len()));
-                self.hist_results.push(json!({"asked_time_s": at[self.next_hist], "time_s": sim.t, "dl_bar_rel_mean": h.0, "dl_bar_rel_std": h.1, "files": [format!("dl_bar_{tag}.csv"), format!("dl_bar_histogram_{tag}.png")]}));
-            }
-            self.next_hist += 1;
-        }
-        Ok(())
-    }
-}
-
-fn write_snapshot(sim: &Simulation, snaps: &mut SnapshotWriter) -> Result<(), IoError> {
-    let p = &sim.prep.scene.particles;
-    let neck: Vec<f64> = sim.contacts.state.iter().map(|c| c.y[0]).collect();
-    let shrink: Vec<f64> = sim.contacts.state.iter().map(|c| c.shrinkage()).collect();
-    let disp: Vec<f64> = p.position.iter().zip(&sim.x0).map(|(x, x0)| (x - x0).norm()).collect();
-    snaps.write(&Snapshot {
-        time: sim.t,
-        position: &p.position,
-        radius: &p.radius,
-        temperature: &p.temperature,
-        contacts: &sim.contacts.pairs,
-        contact_data: vec![("neck_radius_y1_m", &neck), ("contact_shrinkage", &shrink), ("dl_bar_m", &sim.contacts.dl_bar)],
-        particle_data: vec![("displacement_m", &disp)],
-    })
-}
-
-/// Effective conductivity (faces method, diagonal) of the compact in its current state [W/(m·K)].
-pub fn compact_conductivity(sim: &Simulation) -> Result<[f64; 3], Error> {
-    let p = &sim.prep.scene.particles;
-    let k = sim.conductances()?;
-    let pipes = crate::scene::Pipes { pairs: sim.contacts.pairs.clone(), conductance: k, ..Default::default() };
-    let mut out = [0.0; 3];
-    for (a, o) in out.iter_mut().enumerate() {
-        *o = crate::heat::conductivity::faces(p, &pipes, a, 0.5 * p.mean_radius(), 1.0)?.kappa;
-    }
-    Ok(out)
-}
-
-/// The y4/y7 corrections of the last step, ΔL̄/L0 per contact (Ivannikov et al. 2022 eq. 44,
-/// Fig. 20): `dl_bar_TAG.csv` (pair, L0, ΔL̄, ΔL̄/L0) and `dl_bar_histogram_TAG.png` (30 bins);
-/// returns the mean and standard deviation of ΔL̄/L0.
-pub fn write_correction_histogram(out: &Path, sim: &Simulation, tag: &str) -> Result<(f64, f64), IoError> {
-    use crate::plot::{Plot, Series as Line};
-    let dl: Vec<f64> = sim.contacts.dl_bar.iter().zip(&sim.contacts.state).map(|(d, c)| d / c.l0).collect();
-    let csv_path = out.join(format!("dl_bar_{tag}.csv"));
-    let mut text = format!("# y4/y7 corrections of the step ending at t = {} s (eq. 44)\nparticle_a,particle_b,l0_m,dl_bar_m,dl_bar_rel\n", sim.t);
-    for (k, (&[a, b], c)) in sim.contacts.pairs.iter().zip(&sim.contacts.state).enumerate() {
-        text.push_str(&format!("{a},{b},{:e},{:e},{:e}\n", c.l0, sim.contacts.dl_bar[k], dl[k]));
-    }
-    std::fs::write(&csv_path, text).map_err(|e| IoError::new(&csv_path, e))?;
-    let n = dl.len().max(1) as f64;
-    let mean = dl.iter().sum::<f64>() / n;
-    let std = (dl.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n).sqrt();
-    if !dl.is_empty() {
-        let (lo, hi) = dl.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
-        let bins = 30usize;
-        let w = ((hi - lo) / bins as f64).max(f64::MIN_POSITIVE);
-        let mut count = vec![0usize; bins];
-        for v in &dl {
-            count[(((v - lo) / w) as usize).min(bins - 1)] += 1;
-        }
-        let mut pts = Vec::new();
-        for (k, &c) in count.iter().enumerate() {
-            let (a, b) = (lo + k as f64 * w, lo + (k + 1) as f64 * w);
-            pts.push((a, 0.0));
-            pts.push((a, c as f64));
-            pts.push((b, c as f64));
-            pts.push((b, 0.0));
-        }
-        let mut p = Plot::new(format!("y4/y7 corrections at t = {:.0} s (paper Fig. 20)", sim.t)).labels("dL_bar / L0 [1]", "contacts");
-        p.add(Line::new("histogram", pts));
-        let name = if tag == "end" { "dl_bar_histogram.png".to_string() } else { format!("dl_bar_histogram_{tag}.png") };
-        p.save_png(&out.join(name))?;
-    }
-    Ok((mean, std))
-}
-
-/// PNG plots of a compact run from its series.csv, the ΔL̄ histogram (Ivannikov et al. 2022
-/// Fig. 20) and the layer profile along z.
-pub fn write_plots(out: &Path, sim: &Simulation) -> Result<(), IoError> {
-    use crate::plot::{Plot, Series as Line};
-    let path = out.join("series.csv");
-    let text = std::fs::read_to_string(&path).map_err(|e| IoError::new(&path, e))?;
-    let mut lines = text.lines();
-    let header: Vec<&str> = lines.next().unwrap_or("").split(',').collect();
-    let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|v| v.parse().unwrap_or(f64::NAN)).collect()).collect();
-    let col = |name: &str| -> Vec<(f64, f64)> {
-        let k = header.iter().position(|h| *h == name).unwrap_or(0);
-        rows.iter().filter(|r| r[0] > 0.0).map(|r| (r[0], r[k])).collect()
-    };
-    let mut p = Plot::new("shrinkage along each axis").labels("time t [s]", "shrinkage 1 - L/L0 [1]");
-    for (name, key) in [("x", "shrinkage_x"), ("y", "shrinkage_y"), ("z", "shrinkage_z")] {
-        p.add(Line::new(name, col(key)));
-    }
-    p.save_png(&out.join("shrinkage.png"))?;
-    let mut p = Plot::new("relative density (eq. 49)").labels("time t [s]", "relative density [1]");
-    p.add(Line::new("relative density", col("relative_density")));
-    p.save_png(&out.join("relative_density.png"))?;
-    let mut p = Plot::new("mean coordination number").labels("time t [s]", "coordination [1]");
-    p.add(Line::new("2 contacts / particles", col("coordination_mean")));
-    p.save_png(&out.join("coordination.png"))?;
-    let mut p = Plot::new("mean neck ratio").labels("time t [s]", "y1/R_min [1]").log_x(true);
-    p.add(Line::new("neck ratio", col("neck_ratio_mean")));
-    p.save_png(&out.join("neck_ratio.png"))?;
-    let mut p = Plot::new("particle temperatures").labels("time t [s]", "T [K]");
-    for (name, key) in [("mean", "mean_temperature_K"), ("min", "min_temperature_K"), ("max", "max_temperature_K")] {
-        p.add(Line::new(name, col(key)));
-    }
-    p.save_png(&out.join("temperature.png"))?;
-    write_correction_histogram(out, sim, "end")?;
-    let prof = sim.layer_profile(5);
-    let mut p = Plot::new("densification through the height").labels("height z [m]", "mean contact shrinkage dL/L0 [1]");
-    p.add(Line::new("contacts by layer", prof.iter().map(|l| (l.0, l.1)).collect()).with_markers());
-    p.save_png(&out.join("layer_profile.png"))?;
-    Ok(())
-}
-
-/// `sinterdem bench coupled`: the bundled copper compact run whole (wall time and the share of
-/// each stage), then the cost per step of isothermal FCC compacts of about `sizes` particles.
-pub fn bench_coupled(copper_case: Option<&Path>, sizes: &[usize], steps: u64) -> Result<String, Error> {
-    use std::fmt::Write as _;
-    let mut out = String::new();
-    let _ = writeln!(out, "# sinterdem bench coupled ({} rayon threads)", rayon::current_num_threads());
-    if let Some(case) = copper_case {
-        let value = crate::config::load_case(case, &["output.snapshots=0".into(), "output.vtu=false".into(), "output.hdf5=false".into(), "output.checkpoint_every=0".into(), "output.conductivity_at=[]".into()])?;
-        let base = case.parent().unwrap_or(Path::new("."));
-        let dir = std::env::temp_dir().join(format!("sinterdem-bench-{}", std::process::id()));
-        let sim = prepare(value, base, &mut |_| {})?;
-        let s = run(sim, &dir, false, &mut |_| {})?;
-        let _ = std::fs::remove_dir_all(&dir);
-        let tm: Timing = serde_json::from_value(s["timing_seconds"].clone()).unwrap_or_default();
-        let total = s["wall_seconds"].as_f64().unwrap_or(0.0);
-        let _ = writeln!(out, "{}: {} steps, {} contacts at the end, wall {:.2} s", case.display(), s["steps"], s["contacts"], total);
-        for (name, v) in [("detection", tm.detection), ("heat", tm.heat), ("diffusion", tm.diffusion), ("mechanics", tm.mechanics), ("correction", tm.correction), ("output", tm.output)] {
-            let _ = writeln!(out, "  {name:<11} {v:>9.3} s  {:>5.1} %", 100.0 * v / total.max(1e-300));
-        }
-    }
-    let _ = writeln!(out, "{:>9} {:>9} {:>12} {:>12} {:>12} {:>12} {:>12}", "particles", "contacts", "s/step", "detection", "diffusion", "mechanics", "correction");
-    for &n in sizes {
-        let cells = ((n as f64 / 4.0).cbrt().round() as u32).max(2);
-        let text = format!(
-            "kind = \"compact\"\n[time]\nend = {end}\ndt = 1.0\ndt_max = 1.0\n[output]\nsnapshots = 0\nvtu = false\nhdf5 = false\n[[materials]]\nname = \"copper\"\npreset = \"copper\"\n[particles]\nsource = \"lattice\"\nlattice = \"fcc\"\ncells = [{cells}, {cells}, {cells}]\nradius = 25e-6\noverlap = 0.0\n[thermal]\nmode = \"isothermal\"\nfurnace = {{ profile = {{ constant = 1293.0 }} }}\n[contacts]\ndetect_new = true\n",
-            end = steps as f64
-        );
-        let value = toml::Value::Table(text.parse::<toml::Table>().map_err(|e| ConfigError::invalid(e.to_string()))?);
-        let mut sim = prepare(value, Path::new("."), &mut |_| {})?;
-        // the first step of a new contact is the stiff start; time the later steps
-        sim.advance_step(&mut |_| {})?;
-        let t0 = sim.timing;
-        let w = Instant::now();
-        let mut k = 0;
-        while sim.t < sim.settings.end && k < steps {
-            sim.advance_step(&mut |_| {})?;
-            k += 1;
-        }
-        let per = w.elapsed().as_secs_f64() / k.max(1) as f64;
-        let tm = sim.timing;
-        let d = |a: f64, b: f64| (a - b) / k.max(1) as f64;
-        let _ = writeln!(
-            out,
-            "{:>9} {:>9} {:>12.4} {:>12.4} {:>12.4} {:>12.4} {:>12.4}",
-            sim.prep.scene.particles.len(),
-            sim.contacts.len(),
-            per,
-            d(tm.detection, t0.detection),
-            d(tm.diffusion, t0.diffusion),
-            d(tm.mechanics, t0.mechanics),
-            d(tm.correction, t0.correction)
-        );
-    }
-    Ok(out)
 }

@@ -1,0 +1,153 @@
+//! Checkpoints of a compact run: what `DIR/checkpoint.json` holds, writing it atomically,
+//! reading and validating it, and rebuilding a [`Simulation`] from it bit for bit.
+
+use crate::error::{ConfigError, Error, IoError};
+use crate::models::diffusion7::Contact7;
+use crate::models::ode::OdeStats;
+use nalgebra::Vector3;
+use std::path::Path;
+use super::*;
+
+/// Output bookkeeping that a checkpoint carries.
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
+pub struct OutputState {
+    pub next_snap: usize,
+    pub next_cond: usize,
+    pub cond_results: Vec<serde_json::Value>,
+    /// Next entry of `output.correction_histogram_at` to write [1].
+    #[serde(default)]
+    pub next_hist: usize,
+    /// The histograms written so far (time [s], mean and std of ΔL̄/L0 [1], files).
+    #[serde(default)]
+    pub hist_results: Vec<serde_json::Value>,
+    /// Lines of series.csv (header included) at the checkpoint.
+    pub series_lines: usize,
+    pub snapshots: usize,
+    pub vtu_entries: Vec<(f64, String, String)>,
+    /// Wall time spent before the checkpoint [s].
+    pub wall_before: f64,
+}
+
+/// Everything needed to continue a run bit for bit (`DIR/checkpoint.json`).
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub struct Checkpoint {
+    pub format: String,
+    pub case_toml: String,
+    pub base_dir: std::path::PathBuf,
+    pub t: f64,
+    pub dt: f64,
+    pub step: u64,
+    pub rejected: u64,
+    pub ode: OdeStats,
+    pub timing: Timing,
+    pub heat_in: f64,
+    pub heat_stored: f64,
+    pub heat_scale: f64,
+    pub warnings: Vec<String>,
+    pub limited_corrections: u64,
+    pub position: Vec<[f64; 3]>,
+    pub temperature: Vec<f64>,
+    pub rotation: Vec<[f64; 3]>,
+    /// Mechanics counters: Newton iterations, numeric factorisations, largest final scaled residual.
+    #[serde(default)]
+    pub mechanics_counters: (u64, u64, f64),
+    pub pairs: Vec<[u32; 2]>,
+    pub contacts: Vec<Contact7>,
+    pub dl_bar: Vec<f64>,
+    pub substeps: Vec<u32>,
+    pub heat_history: Option<(Vec<f64>, f64)>,
+    pub output: OutputState,
+}
+
+const CHECKPOINT_FORMAT: &str = "sinterdem-checkpoint-1";
+
+impl Simulation {
+    pub(crate) fn checkpoint(&self, output: OutputState) -> Checkpoint {
+        let p = &self.prep.scene.particles;
+        Checkpoint {
+            format: CHECKPOINT_FORMAT.into(),
+            case_toml: self.source.0.clone(),
+            base_dir: self.source.1.clone(),
+            t: self.t,
+            dt: self.dt,
+            step: self.step,
+            rejected: self.rejected,
+            ode: self.ode,
+            timing: self.timing,
+            heat_in: self.heat_in,
+            heat_stored: self.heat_stored,
+            heat_scale: self.heat_scale,
+            warnings: self.warnings.clone(),
+            limited_corrections: self.limited_corrections,
+            position: p.position.iter().map(|x| [x.x, x.y, x.z]).collect(),
+            temperature: p.temperature.clone(),
+            rotation: self.mechanics.rotation.iter().map(|x| [x.x, x.y, x.z]).collect(),
+            mechanics_counters: (self.mechanics.newton_iterations, self.mechanics.factorizations, self.mechanics.max_residual),
+            pairs: self.contacts.pairs.clone(),
+            contacts: self.contacts.state.clone(),
+            dl_bar: self.contacts.dl_bar.clone(),
+            substeps: self.contacts.substeps.clone(),
+            heat_history: self.heat.as_ref().and_then(|h| h.history().cloned()),
+            output,
+        }
+    }
+
+    /// Rebuilds a simulation from a checkpoint: the case is prepared again from its text (so the
+    /// initial packing, planes and constraints are the same), then the state is restored.
+    pub fn from_checkpoint(ck: &Checkpoint, log: &mut dyn FnMut(&str)) -> Result<(Simulation, OutputState), Error> {
+        if ck.format != CHECKPOINT_FORMAT {
+            return Err(ConfigError::invalid(format!("checkpoint format \"{}\" is not {CHECKPOINT_FORMAT}", ck.format)).into());
+        }
+        let value: toml::Value = toml::Value::Table(ck.case_toml.parse::<toml::Table>().map_err(|e| ConfigError::invalid(format!("checkpoint case: {e}")))?);
+        let mut sim = prepare(value, &ck.base_dir, &mut |_| {})?;
+        let n = sim.prep.scene.particles.len();
+        if ck.position.len() != n || ck.temperature.len() != n || ck.pairs.len() != ck.contacts.len() {
+            return Err(ConfigError::invalid("checkpoint does not match its case (particle or contact counts differ)").into());
+        }
+        let p = &mut sim.prep.scene.particles;
+        p.position = ck.position.iter().map(|x| Vector3::new(x[0], x[1], x[2])).collect();
+        p.temperature = ck.temperature.clone();
+        sim.mechanics.rotation = ck.rotation.iter().map(|x| Vector3::new(x[0], x[1], x[2])).collect();
+        (sim.mechanics.newton_iterations, sim.mechanics.factorizations, sim.mechanics.max_residual) = ck.mechanics_counters;
+        sim.contacts = Contacts { pairs: ck.pairs.clone(), state: ck.contacts.clone(), dl_bar: ck.dl_bar.clone(), substeps: ck.substeps.clone() };
+        if let Some(h) = sim.heat.as_mut() {
+            h.set_history(ck.heat_history.clone());
+        }
+        sim.t = ck.t;
+        sim.dt = ck.dt;
+        sim.step = ck.step;
+        sim.rejected = ck.rejected;
+        sim.ode = ck.ode;
+        sim.timing = ck.timing;
+        sim.heat_in = ck.heat_in;
+        sim.heat_stored = ck.heat_stored;
+        sim.heat_scale = ck.heat_scale;
+        sim.warnings = ck.warnings.clone();
+        sim.limited_corrections = ck.limited_corrections;
+        log(&format!("resumed from the checkpoint at t = {} s (step {}, {} contacts)", sim.t, sim.step, sim.contacts.len()));
+        Ok((sim, ck.output.clone()))
+    }
+}
+
+/// Writes `dir/checkpoint.json` atomically (temporary file, then rename).
+pub(crate) fn write_checkpoint(dir: &Path, ck: &Checkpoint) -> Result<(), IoError> {
+    let path = dir.join("checkpoint.json");
+    let tmp = dir.join("checkpoint.json.tmp");
+    let text = serde_json::to_string(ck).map_err(|e| IoError::new(&path, e))?;
+    std::fs::write(&tmp, text).map_err(|e| IoError::new(&tmp, e))?;
+    std::fs::rename(&tmp, &path).map_err(|e| IoError::new(&path, e))
+}
+
+/// Reads `dir/checkpoint.json`.
+pub fn read_checkpoint(dir: &Path) -> Result<Checkpoint, Error> {
+    let path = dir.join("checkpoint.json");
+    let text = std::fs::read_to_string(&path).map_err(|e| IoError::new(&path, e))?;
+    Ok(serde_json::from_str(&text).map_err(|e| IoError::new(&path, e))?)
+}
+
+/// `sinterdem resume DIR`: continues the run whose checkpoint is in `dir`.
+pub fn resume(dir: &Path, progress: bool, log: &mut dyn FnMut(&str)) -> Result<serde_json::Value, Error> {
+    let ck = read_checkpoint(dir)?;
+    let (sim, out_state) = Simulation::from_checkpoint(&ck, log)?;
+    run_from(sim, dir, progress, log, Some(out_state), None)
+}

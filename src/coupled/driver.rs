@@ -1,0 +1,230 @@
+//! The driver loop of a compact run: steps to the end time (or a stop criterion), writes the series,
+//! the due outputs and the checkpoints, then the summary.
+
+use crate::error::{Error, IoError};
+use crate::io::{self, Series, SnapshotWriter};
+use crate::mechanics::MechParams;
+use serde_json::json;
+use std::path::Path;
+use std::time::Instant;
+use super::*;
+
+const SERIES_HEADER: &[&str] = &[
+    "time_s", "dt_s", "shrinkage_x", "shrinkage_y", "shrinkage_z", "relative_density", "coordination_mean", "neck_ratio_mean",
+    "contacts", "mean_temperature_K", "min_temperature_K", "max_temperature_K", "subdivided_fraction", "rhs_evaluations",
+];
+
+/// Runs a compact simulation to its end time, writing series, snapshots, checkpoints and the summary.
+pub fn run(sim: Simulation, out: &Path, progress: bool, log: &mut dyn FnMut(&str)) -> Result<serde_json::Value, Error> {
+    run_from(sim, out, progress, log, None, None)
+}
+
+/// Runs from a fresh start (`state = None`) or a checkpoint's output state; `stop_after_step`
+/// ends the run early after that step (as if killed right after its checkpoint, for tests), with
+/// `Ok(Value::Null)`.
+pub fn run_from(mut sim: Simulation, out: &Path, progress: bool, log: &mut dyn FnMut(&str), state: Option<OutputState>, stop_after_step: Option<u64>) -> Result<serde_json::Value, Error> {
+    let wall = Instant::now();
+    io::ensure_dir(out)?;
+    let n = sim.prep.scene.particles.len();
+    let resumed = state.is_some();
+    let st = state.unwrap_or_default();
+    log(&format!(
+        "compact run: {n} particles, {} initial contacts, strategy {}, Δt0 = {:e} s, Δt_max = {} s, end = {} s",
+        sim.contacts.len(),
+        sim.settings.strategy,
+        sim.dt,
+        sim.settings.dt_max,
+        sim.settings.end
+    ));
+    let (vtu_on, h5_on) = (sim.prep.case.output.vtu, sim.prep.case.output.hdf5);
+    let (mut series, mut snaps, mut series_lines) = if resumed {
+        (
+            Series::resume(&out.join("series.csv"), st.series_lines, SERIES_HEADER.len())?,
+            SnapshotWriter::resume(out, vtu_on, h5_on, st.snapshots, st.vtu_entries.clone(), log)?,
+            st.series_lines,
+        )
+    } else {
+        (Series::create(&out.join("series.csv"), SERIES_HEADER)?, SnapshotWriter::new(out, vtu_on, h5_on, log)?, 1)
+    };
+    let end = sim.settings.end;
+    let snap_times: Vec<f64> = match sim.settings.snapshots {
+        0 => vec![],
+        1 => vec![end],
+        k => (0..k).map(|i| end * i as f64 / (k - 1) as f64).collect(),
+    };
+    let mut due = Due {
+        snap_times,
+        next_snap: st.next_snap,
+        next_cond: st.next_cond,
+        cond_results: st.cond_results.clone(),
+        next_hist: st.next_hist,
+        hist_results: st.hist_results.clone(),
+    };
+    let bar = io::progress::Progress::new(end, progress);
+    let mut stop_reason: Option<String> = None;
+    let mut failure: Option<Error> = None;
+    let write_row = |sim: &Simulation, series: &mut Series, dt: f64| -> Result<(), IoError> {
+        let sh = sim.shrinkage();
+        let t = &sim.prep.scene.particles.temperature;
+        let mean = t.iter().sum::<f64>() / t.len() as f64;
+        let frac = sim.contacts.substeps.iter().filter(|&&s| s > 1).count() as f64 / sim.contacts.len().max(1) as f64;
+        series.row(&[
+            sim.t,
+            dt,
+            sh.x,
+            sh.y,
+            sh.z,
+            sim.relative_density(),
+            2.0 * sim.contacts.len() as f64 / n as f64,
+            sim.mean_neck_ratio(),
+            sim.contacts.len() as f64,
+            mean,
+            t.iter().copied().fold(f64::INFINITY, f64::min),
+            t.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+            frac,
+            sim.ode.rhs as f64,
+        ])
+    };
+    if !resumed {
+        write_row(&sim, &mut series, 0.0)?;
+        series_lines += 1;
+    }
+    loop {
+        let tic = Instant::now();
+        due.write(&sim, out, &mut snaps, log)?;
+        sim.timing.output += tic.elapsed().as_secs_f64();
+        if sim.t >= end {
+            break;
+        }
+        let dt_used = sim.dt.min(end - sim.t);
+        if let Err(e) = sim.advance_step(log) {
+            match e {
+                // the model's validity ends (a contact's geometry or integrator breaks down): the
+                // run stops with the last completed step summarised, then reports the error
+                Error::Model(ref m) => {
+                    log(&format!("stopped at t = {} s (step {}): {m}", sim.t, sim.step));
+                    stop_reason = Some(format!("model error after t = {} s: {m}", sim.t));
+                    failure = Some(e);
+                    break;
+                }
+                _ => return Err(e),
+            }
+        }
+        let tic = Instant::now();
+        let rho_stop = sim.settings.stop_relative_density.filter(|&r| sim.relative_density() >= r);
+        if let Some(r) = rho_stop {
+            log(&format!("t = {} s: relative density {:.4} reached time.stop_relative_density = {r}: the run ends here", sim.t, sim.relative_density()));
+            stop_reason = Some(format!("relative density {r} reached"));
+        }
+        if sim.step.is_multiple_of(sim.settings.series_every) || sim.t >= end || rho_stop.is_some() {
+            write_row(&sim, &mut series, dt_used)?;
+            series_lines += 1;
+        }
+        if sim.settings.checkpoint_every > 0 && sim.step.is_multiple_of(sim.settings.checkpoint_every) && sim.t < end {
+            // snapshots and analyses due at this time are written before the checkpoint
+            due.write(&sim, out, &mut snaps, log)?;
+            sim.mechanics.drop_factor()?;
+            let os = OutputState {
+                next_snap: due.next_snap,
+                next_cond: due.next_cond,
+                cond_results: due.cond_results.clone(),
+                next_hist: due.next_hist,
+                hist_results: due.hist_results.clone(),
+                series_lines,
+                snapshots: snaps.count(),
+                vtu_entries: snaps.vtu_entries(),
+                wall_before: st.wall_before + wall.elapsed().as_secs_f64(),
+            };
+            write_checkpoint(out, &sim.checkpoint(os))?;
+            if stop_after_step.is_some_and(|s| sim.step >= s) {
+                bar.finish();
+                return Ok(serde_json::Value::Null);
+            }
+        }
+        sim.timing.output += tic.elapsed().as_secs_f64();
+        if rho_stop.is_some() {
+            break;
+        }
+        bar.set(sim.t, &format!("step {}, Δt = {:.3e} s, contacts {}", sim.step, sim.dt, sim.contacts.len()));
+    }
+    bar.finish();
+    if stop_reason.is_some() && sim.settings.snapshots > 0 {
+        // a run that ends before its end time keeps its last state as a snapshot
+        write_snapshot(&sim, &mut snaps)?;
+    }
+    let sh = sim.shrinkage();
+    let balance = if sim.heat.is_some() { (sim.heat_stored - sim.heat_in).abs() / sim.heat_scale.max(sim.heat_stored.abs()).max(1e-300) } else { 0.0 };
+    let t = &sim.prep.scene.particles.temperature;
+    let dl: Vec<f64> = sim.contacts.dl_bar.clone();
+    let dl_mean = dl.iter().sum::<f64>() / dl.len().max(1) as f64;
+    let dl_std = (dl.iter().map(|v| (v - dl_mean) * (v - dl_mean)).sum::<f64>() / dl.len().max(1) as f64).sqrt();
+    let v_particles: f64 = sim.prep.scene.particles.radius.iter().map(|&r| crate::units::sphere_volume(r)).sum();
+    let rho0 = v_particles / (sim.extent0.x * sim.extent0.y * sim.extent0.z);
+    let summary = json!({
+        "kind": "compact",
+        "final_time_s": sim.t,
+        "steps": sim.step,
+        "rejected_steps": sim.rejected,
+        "wall_seconds": st.wall_before + wall.elapsed().as_secs_f64(),
+        "particles": n,
+        "contacts": sim.contacts.len(),
+        "shrinkage_x": sh.x,
+        "shrinkage_y": sh.y,
+        "shrinkage_z": sh.z,
+        "relative_density": sim.relative_density(),
+        "relative_density_initial": rho0,
+        "coordination_mean": 2.0 * sim.contacts.len() as f64 / n as f64,
+        "neck_ratio": sim.mean_neck_ratio(),
+        "mean_temperature_K": t.iter().sum::<f64>() / t.len() as f64,
+        "min_temperature_K": t.iter().copied().fold(f64::INFINITY, f64::min),
+        "max_temperature_K": t.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        "energy_balance_rel": balance,
+        "rhs_evaluations": sim.ode.rhs,
+        "limited_corrections": sim.limited_corrections,
+        "ode_steps": sim.ode.steps,
+        "ode_rejected": sim.ode.rejected,
+        "timing_seconds": sim.timing,
+        "dl_bar_mean_m": dl_mean,
+        "dl_bar_std_m": dl_std,
+        "conductivity": due.cond_results,
+        "correction_histograms": due.hist_results,
+        "mechanics": {
+            "newton_iterations": sim.mechanics.newton_iterations,
+            "factorizations": sim.mechanics.factorizations,
+            "max_final_residual": sim.mechanics.max_residual,
+            "rtol": MechParams::default().rtol,
+        },
+        "skipped": sim.skipped,
+        "warnings": sim.warnings,
+        "threads": rayon::current_num_threads(),
+        "completed": stop_reason.is_none(),
+        "stop_reason": stop_reason,
+    });
+    let mut summary = summary;
+    let prof = sim.layer_profile(5);
+    summary["layer_z_m"] = json!(prof.iter().map(|l| l.0).collect::<Vec<_>>());
+    summary["layer_contact_shrinkage"] = json!(prof.iter().map(|l| l.1).collect::<Vec<_>>());
+    summary["layer_neck_ratio"] = json!(prof.iter().map(|l| l.2).collect::<Vec<_>>());
+    io::write_json(&out.join("summary.json"), &summary)?;
+    if !sim.settings.plots {
+        log("plots skipped (turned off by the caller)");
+    } else if let Err(e) = write_plots(out, &sim) {
+        log(&format!("warning: plots not written: {e}"));
+    }
+    log(&format!(
+        "done: {} steps to t = {} s in {:.3} s; shrinkage x/y/z = {:.4e}/{:.4e}/{:.4e}; relative density {:.4}; mean neck ratio {:.4}",
+        sim.step,
+        sim.t,
+        wall.elapsed().as_secs_f64(),
+        sh.x,
+        sh.y,
+        sh.z,
+        sim.relative_density(),
+        sim.mean_neck_ratio()
+    ));
+    match failure {
+        Some(e) => Err(e),
+        None => Ok(summary),
+    }
+}
+

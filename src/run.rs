@@ -1,0 +1,255 @@
+//! One run API for every kind of case (docs/studies.md "The run API").
+//!
+//! [`run`] takes a parsed case, the `key.path=value` overrides of `--set` and an output directory,
+//! runs the case whatever its `kind` (`heat`, `pair`, `compact`, `explicit_sinter`, `generate`) and
+//! returns a [`RunSummary`]: the fields that `DIR/summary.json` gets, with the kind and wall time.
+//! `sinterdem run`, `resume`, `check`, `study`, the benches and `calibrate` all go through here,
+//! so a run inside a study is exactly the run a user starts alone.
+
+use crate::config;
+use crate::error::{ConfigError, Error, IoError};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// The kind of a case (`kind = "…"`, default `heat`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Kind {
+    Heat,
+    Pair,
+    Compact,
+    ExplicitSinter,
+    Generate,
+}
+
+impl Kind {
+    /// The kind named by a case's `kind` key.
+    pub fn of(case: &toml::Value) -> Result<Kind, ConfigError> {
+        let name = match case.get("kind") {
+            None => "heat",
+            Some(toml::Value::String(s)) => s.as_str(),
+            Some(v) => return Err(ConfigError::invalid(format!("kind = {v}: expected a string (heat, compact, pair, generate or explicit_sinter)"))),
+        };
+        Ok(match name {
+            "heat" => Kind::Heat,
+            "pair" => Kind::Pair,
+            "compact" => Kind::Compact,
+            "explicit_sinter" => Kind::ExplicitSinter,
+            "generate" => Kind::Generate,
+            k => return Err(ConfigError::invalid(format!("kind = \"{k}\": expected heat, compact, pair, generate or explicit_sinter"))),
+        })
+    }
+
+    /// The name as written in a case file.
+    pub fn name(self) -> &'static str {
+        match self {
+            Kind::Heat => "heat",
+            Kind::Pair => "pair",
+            Kind::Compact => "compact",
+            Kind::ExplicitSinter => "explicit_sinter",
+            Kind::Generate => "generate",
+        }
+    }
+}
+
+/// How a run is carried out (not what is simulated: that is the case).
+#[derive(Debug, Clone)]
+pub struct RunParams {
+    /// Directory that relative paths in the case (packing files, includes) resolve against:
+    /// the case file's folder.
+    pub base_dir: PathBuf,
+    /// Show a progress bar (on a terminal only).
+    pub progress: bool,
+    /// Copy log lines to stderr as well as to `DIR/log.txt`.
+    pub echo_log: bool,
+    /// Write PNG plots. Studies turn them off: a plot costs more than a pair run.
+    pub plots: bool,
+}
+
+impl Default for RunParams {
+    fn default() -> Self {
+        RunParams { base_dir: PathBuf::from("."), progress: false, echo_log: false, plots: true }
+    }
+}
+
+/// What a run returns: the fields of its `summary.json`, its kind and its wall time.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct RunSummary {
+    pub kind: Kind,
+    /// Wall time of the whole run, outputs included [s].
+    pub wall_seconds: f64,
+    /// The summary (as written to `DIR/summary.json`).
+    pub summary: serde_json::Value,
+}
+
+impl RunSummary {
+    /// A summary value by dotted path (`mechanics.factorizations`, `layer_neck_ratio.2`).
+    pub fn get(&self, path: &str) -> Option<&serde_json::Value> {
+        lookup(&self.summary, path)
+    }
+
+    /// A numeric summary value by dotted path.
+    pub fn f64(&self, path: &str) -> Option<f64> {
+        self.get(path).and_then(|v| v.as_f64())
+    }
+}
+
+/// A value of a JSON tree by dotted path; array elements by index.
+pub fn lookup<'a>(v: &'a serde_json::Value, path: &str) -> Option<&'a serde_json::Value> {
+    path.split('.').try_fold(v, |cur, k| match cur {
+        serde_json::Value::Object(m) => m.get(k),
+        serde_json::Value::Array(a) => k.parse::<usize>().ok().and_then(|i| a.get(i)),
+        _ => None,
+    })
+}
+
+/// The case with the overrides applied (what a run actually runs).
+pub fn resolve(case: &toml::Value, overrides: &[String]) -> Result<toml::Value, ConfigError> {
+    let mut v = case.clone();
+    for o in overrides {
+        config::apply_override(&mut v, o)?;
+    }
+    Ok(v)
+}
+
+/// A log sink writing to `DIR/log.txt` (appending) and optionally to stderr.
+pub struct RunLog {
+    file: Option<std::fs::File>,
+    echo: bool,
+}
+
+impl RunLog {
+    /// Opens `dir/log.txt`; `append` keeps earlier lines (resume).
+    pub fn open(dir: &Path, append: bool, echo: bool) -> RunLog {
+        let path = dir.join("log.txt");
+        let file = std::fs::OpenOptions::new().create(true).write(true).append(append).truncate(!append).open(path).ok();
+        RunLog { file, echo }
+    }
+
+    /// Writes one line.
+    pub fn line(&mut self, msg: &str) {
+        if self.echo {
+            eprintln!("{msg}");
+        }
+        if let Some(f) = self.file.as_mut() {
+            let _ = writeln!(f, "{msg}");
+        }
+    }
+}
+
+/// Runs `case` with `overrides` into `out` and returns its summary. The output directory is
+/// created; `log.txt` in it receives the run's log.
+pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunParams) -> Result<RunSummary, Error> {
+    let wall = Instant::now();
+    let mut case = case.clone();
+    config::expand_includes(&mut case, &params.base_dir)?;
+    let value = resolve(&case, overrides)?;
+    let kind = Kind::of(&value)?;
+    crate::io::ensure_dir(out)?;
+    let mut log = RunLog::open(out, false, params.echo_log);
+    log.line(&format!("sinterdem {}: {} case → {}", env!("CARGO_PKG_VERSION"), kind.name(), out.display()));
+    if !overrides.is_empty() {
+        log.line(&format!("overrides: {}", overrides.join(" ")));
+    }
+    let mut logf = |m: &str| log.line(m);
+    let base = &params.base_dir;
+    let summary = match kind {
+        Kind::Heat => {
+            let prep = crate::heat::run::prepare(value, base)?;
+            crate::heat::run::run(prep, out, params.progress, &mut logf)?
+        }
+        Kind::Compact => {
+            let mut sim = crate::coupled::prepare(value, base, &mut logf)?;
+            sim.settings.plots = params.plots;
+            crate::coupled::run(sim, out, params.progress, &mut logf)?
+        }
+        Kind::Pair => {
+            let mut spec = crate::models::diffusion7::pair::parse_pair_case(&value)?;
+            if !params.plots && spec.plot {
+                spec.plot = false;
+                logf("plot skipped (turned off by the caller)");
+            }
+            let s = crate::models::diffusion7::pair::run_pair_spec(&spec, out, params.progress, &mut |w| logf(&format!("warning: {w}")))?;
+            logf(&format!(
+                "done: {} to t = {} s in {} steps ({} rejected): neck ratio y1/R = {:.6}, shrinkage ΔL/L0 = {:.6e}",
+                s.title, s.final_time_s, s.steps, s.rejected_steps, s.neck_ratio, s.shrinkage
+            ));
+            serde_json::to_value(&s).map_err(|e| IoError::new(out.join("summary.json"), e))?
+        }
+        Kind::ExplicitSinter => {
+            let s = crate::explicit::protocol::run_explicit_case(&value, out, params.progress)?;
+            logf("done: explicit sintering protocol finished (summary.json)");
+            s
+        }
+        Kind::Generate => {
+            let s = crate::packing::generate_case(&value, out, params.progress)?;
+            logf(&format!(
+                "done: {} particles, solid fraction {:.4}, coordination {:.3}",
+                s.particles, s.solid_fraction, s.coordination_mean
+            ));
+            serde_json::to_value(&s).map_err(|e| IoError::new(out.join("summary.json"), e))?
+        }
+    };
+    Ok(RunSummary { kind, wall_seconds: wall.elapsed().as_secs_f64(), summary })
+}
+
+/// Continues the interrupted run in `dir` from its checkpoint (compact runs).
+pub fn resume(dir: &Path, params: &RunParams) -> Result<RunSummary, Error> {
+    let wall = Instant::now();
+    let mut log = RunLog::open(dir, true, params.echo_log);
+    let summary = crate::coupled::resume(dir, params.progress, &mut |m: &str| log.line(m))?;
+    Ok(RunSummary { kind: Kind::Compact, wall_seconds: wall.elapsed().as_secs_f64(), summary })
+}
+
+/// Validates a case without running it; returns a one-line description.
+pub fn check(case: &toml::Value, overrides: &[String], base: &Path) -> Result<String, Error> {
+    let mut case = case.clone();
+    config::expand_includes(&mut case, base)?;
+    let value = resolve(&case, overrides)?;
+    Ok(match Kind::of(&value)? {
+        Kind::Heat => {
+            let prep = crate::heat::run::prepare(value, base)?;
+            format!("heat case, {} particles, {} contacts", prep.scene.particles.len(), prep.pipes.pairs.len())
+        }
+        Kind::Compact => {
+            let sim = crate::coupled::prepare(value, base, &mut |_| {})?;
+            format!("compact case, {} particles, {} contacts", sim.prep.scene.particles.len(), sim.contacts.len())
+        }
+        Kind::Generate => {
+            crate::packing::check_generate_case(&value)?;
+            "packing generation case".into()
+        }
+        Kind::Pair => {
+            crate::models::diffusion7::pair::check_pair_case(&value)?;
+            "pair case".into()
+        }
+        Kind::ExplicitSinter => {
+            crate::explicit::protocol::check_explicit_case(&value)?;
+            "explicit_sinter case".into()
+        }
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lookup_follows_objects_and_arrays() {
+        let v = serde_json::json!({"a": {"b": [1.5, 2.5]}, "c": 3});
+        assert_eq!(lookup(&v, "a.b.1").and_then(|x| x.as_f64()), Some(2.5));
+        assert_eq!(lookup(&v, "c").and_then(|x| x.as_f64()), Some(3.0));
+        assert!(lookup(&v, "a.x").is_none());
+        assert!(lookup(&v, "a.b.7").is_none());
+    }
+
+    #[test]
+    fn kind_defaults_to_heat_and_rejects_unknown() {
+        let v: toml::Value = toml::Value::Table("title = \"x\"".parse().unwrap());
+        assert_eq!(Kind::of(&v).unwrap(), Kind::Heat);
+        let v: toml::Value = toml::Value::Table("kind = \"plasma\"".parse().unwrap());
+        let e = Kind::of(&v).unwrap_err().to_string();
+        assert!(e.contains("plasma") && e.contains("explicit_sinter"), "{e}");
+    }
+}

@@ -1,0 +1,130 @@
+//! Studies: many runs of one or more cases over a design of parameters, executed through the run
+//! API ([`crate::run`]) by the embedded local engine or as a SLURM job array, resumable and
+//! idempotent (docs/studies.md).
+//!
+//! `sinterdem study STUDY.toml [--engine local|slurm] [--jobs N] [--out DIR] [--wait] [--retry-failed]`:
+//! 1. [`spec::load`] validates the study file; [`design::points`] expands the design;
+//! 2. [`store::plan`] resolves every run (case × point) and hashes it; `DIR/plan.json`;
+//! 3. the runs without a result record are executed ([`local`] or [`slurm`]);
+//! 4. [`report`] gathers `study.csv`, `study.json` and the plots.
+
+pub mod design;
+pub mod local;
+pub mod report;
+pub mod slurm;
+pub mod bench;
+pub mod spec;
+pub mod store;
+
+use crate::error::{ConfigError, Error};
+use std::path::{Path, PathBuf};
+
+/// Which engine executes the runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Engine {
+    /// In-process, N runs at a time (default).
+    Local,
+    /// A SLURM job array on the study directory's (shared) file system.
+    Slurm,
+}
+
+/// Command-line options of `sinterdem study`.
+#[derive(Debug, Clone)]
+pub struct StudyOptions {
+    pub engine: Engine,
+    /// Runs at a time on the local engine (overrides `engine.jobs`).
+    pub jobs: Option<usize>,
+    /// Output directory (default `out/<study file stem>`).
+    pub out: Option<PathBuf>,
+    /// SLURM: wait for the array, resubmit lost tasks and gather.
+    pub wait: bool,
+    /// Run failed runs again.
+    pub retry_failed: bool,
+    /// `--set` overrides applied to every run (after the study's own).
+    pub overrides: Vec<String>,
+    /// Progress bar on a terminal.
+    pub progress: bool,
+    /// SLURM settings given on the command line (override the study file's).
+    pub slurm: slurm::SlurmOverrides,
+}
+
+impl Default for StudyOptions {
+    fn default() -> Self {
+        StudyOptions { engine: Engine::Local, jobs: None, out: None, wait: false, retry_failed: false, overrides: vec![], progress: false, slurm: Default::default() }
+    }
+}
+
+/// What a study reports when it returns.
+#[derive(Debug, Clone)]
+pub struct StudyInfo {
+    pub dir: PathBuf,
+    pub counts: report::Counts,
+    /// Runs executed by this invocation (not those found done).
+    pub executed: usize,
+    /// Whether study.csv was (re)written.
+    pub gathered: bool,
+    pub wall_seconds: f64,
+}
+
+/// The plan of a study file: validated study, output directory and planned runs.
+pub fn prepare(path: &Path, opts: &StudyOptions) -> Result<(spec::Study, PathBuf, Vec<store::PlannedRun>), Error> {
+    let study = spec::load(path)?;
+    let dir = opts.out.clone().unwrap_or_else(|| PathBuf::from("out").join(path.file_stem().unwrap_or_default()));
+    for o in &opts.overrides {
+        if !o.contains('=') {
+            return Err(ConfigError::invalid(format!("--set {o}: expected key.path=value")).into());
+        }
+    }
+    let points = design::points(&study.parameters, study.design);
+    let mut overrides = study.overrides.clone();
+    overrides.extend(opts.overrides.iter().cloned());
+    let plan = store::plan(&study.cases, study.case_column, &overrides, &points)?;
+    Ok((study, dir, plan))
+}
+
+/// Runs (or continues) a study and gathers its results.
+pub fn run_study(path: &Path, opts: &StudyOptions, log: &mut dyn FnMut(&str)) -> Result<StudyInfo, Error> {
+    let wall = std::time::Instant::now();
+    let (study, dir, plan) = prepare(path, opts)?;
+    crate::io::ensure_dir(&dir)?;
+    store::write_plan(&dir, &plan)?;
+    let todo: Vec<usize> = plan.iter().filter(|r| store::pending(&dir, r, opts.retry_failed)).map(|r| r.index).collect();
+    log(&format!(
+        "study \"{}\": {} runs ({} case file{} × {} point{}), {} to run, {} done before → {}",
+        study.title,
+        plan.len(),
+        study.cases.len(),
+        if study.cases.len() == 1 { "" } else { "s" },
+        plan.len() / study.cases.len().max(1),
+        if plan.len() / study.cases.len().max(1) == 1 { "" } else { "s" },
+        todo.len(),
+        plan.len() - todo.len(),
+        dir.display()
+    ));
+    let (executed, gather) = match opts.engine {
+        Engine::Local => {
+            let jobs = opts.jobs.filter(|&j| j > 0).unwrap_or(study.jobs);
+            let n = local::run(&dir, &plan, &todo, jobs, study.threads, opts.progress, log)?;
+            (n, true)
+        }
+        Engine::Slurm => slurm::run(&study, &dir, &plan, &todo, opts, log)?,
+    };
+    let mut counts = report::Counts::default();
+    if gather {
+        let rows = report::gather(&study, &dir, &plan);
+        counts = report::write(&study, &dir, &rows)?;
+        log(&format!(
+            "study.csv: {} runs, {} ok, {} failed, {} missing ({} executed now) in {:.2} s",
+            counts.runs,
+            counts.ok,
+            counts.failed,
+            counts.missing,
+            executed,
+            wall.elapsed().as_secs_f64()
+        ));
+        for r in rows.iter().filter(|r| r.record.as_ref().is_some_and(|x| !x.ok())).take(5) {
+            log(&format!("  run {} failed: {}", r.run.index, r.record.as_ref().and_then(|x| x.error.clone()).unwrap_or_default()));
+        }
+    }
+    Ok(StudyInfo { dir, counts, executed, gathered: gather, wall_seconds: wall.elapsed().as_secs_f64() })
+}
