@@ -233,6 +233,9 @@ fn item09_steps_that_cannot_finish_are_refused() {
     assert!(e.contains("time.dt_max") && e.contains("steps"), "{e}");
     let e = check_err(&c, &["time.dt_min=1e-3", "time.dt_max=1e-4"]);
     assert!(e.contains("time.dt_min") && e.contains("larger than time.dt_max"), "{e}");
+    // dt_min above the default dt_max (10 s, strategy 2)
+    let e = check_err(&c, &["time.dt_min=100"]);
+    assert!(e.contains("time.dt_min") && e.contains("larger than time.dt_max = 10"), "{e}");
     // t + dt_min == t near the end time
     let e = check_err(&c, &["time.end=1e9", "time.dt_min=1e-9"]);
     assert!(e.contains("time.dt_min") && e.contains("resolution"), "{e}");
