@@ -408,3 +408,16 @@ fn item03_corrupted_checkpoints_are_refused_before_resuming() {
         assert!(err.contains(needle), "resume with {k} = {v}: \"{err}\" does not name {needle}");
     }
 }
+
+#[test]
+fn item09_explicit_protocols_that_cannot_finish_are_refused() {
+    let case = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases/luding-pressure.toml");
+    assert!(check(&case, &[]).is_ok());
+    let e = check_err(&case, &["protocol.t_prepare=1e9"]);
+    assert!(e.contains("protocol") && e.contains("steps"), "{e}");
+    let e = check_err(&case, &["protocol.output_interval=1e-300"]);
+    assert!(e.contains("protocol.output_interval") && e.contains("history rows"), "{e}");
+    let t0 = std::time::Instant::now();
+    assert!(check(&case, &["sample.particles=1000000"]).is_ok());
+    assert!(t0.elapsed().as_secs() < 10, "check built the whole sample");
+}

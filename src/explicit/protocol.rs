@@ -387,7 +387,41 @@ pub fn parse_explicit_case(case: &toml::Value) -> Result<ExplicitSinterCase, Err
 
 /// `sinterdem check` for `kind = "explicit_sinter"`.
 pub fn check_explicit_case(case: &toml::Value) -> Result<(), Error> {
-    parse_explicit_case(case).map(|_| ())
+    let c = parse_explicit_case(case)?;
+    check_plan(&c)
+}
+
+/// Plausibility of the protocol (issue 16): the particle count against the memory, and the steps
+/// and history rows the protocol's simulated time implies at the sample's explicit step.
+fn check_plan(c: &ExplicitSinterCase) -> Result<(), Error> {
+    use crate::config::plausible::{BYTES_PER_PARTICLE_GENERATE, MAX_STEPS, check_memory};
+    check_memory("sample.particles", c.sample.particles as f64, BYTES_PER_PARTICLE_GENERATE)?;
+    let pressure = c.walls.pressures[0];
+    // the step from a small sample of the same size distribution (building a million-particle
+    // sample is the run's work, not the check's)
+    let mut small = c.clone();
+    small.sample.particles = small.sample.particles.min(200.0);
+    let dt = match &small.model {
+        SinterModel::Luding(p) => Sample::new(&small, LudingLaw::new(p.clone()), pressure)?.driver.settings.dt,
+        SinterModel::Frenkel(p) => Sample::new(&small, FrenkelLaw { params: p.clone() }, pressure)?.driver.settings.dt,
+    };
+    let pr = &c.protocol;
+    let compression = if c.compression.enabled { c.compression.max_strain / c.compression.strain_rate } else { 0.0 };
+    let per_pressure = pr.t_prepare + pr.t_heat + pr.t_sinter.iter().map(|ts| ts + pr.t_cool + pr.t_relax + compression).sum::<f64>();
+    let total = per_pressure * c.walls.pressures.len() as f64;
+    let steps = total / dt;
+    if !(steps <= MAX_STEPS) {
+        return Err(ConfigError::inconsistent(
+            "protocol",
+            format!("{} s of simulated time at the explicit step {} s imply about {steps:.0e} steps (at most {MAX_STEPS:e})", crate::error::fmt_value(total), crate::error::fmt_value(dt)),
+        )
+        .into());
+    }
+    let rows = per_pressure / c.output_interval();
+    if !(rows <= 1e7) {
+        return Err(ConfigError::inconsistent("protocol.output_interval", format!("{} s gives about {rows:.0e} history rows per pressure (at most 1e7)", crate::error::fmt_value(c.output_interval()))).into());
+    }
+    Ok(())
 }
 
 /// What the protocol needs of a sintering law beyond [`ContactModel`].
