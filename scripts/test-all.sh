@@ -30,7 +30,7 @@ fi
 echo "== cargo test --release $features"
 set +e
 # shellcheck disable=SC2086
-cargo test --release $features 2>&1 | tee /tmp/sinterdem-cargo-test.log
+cargo test --release --no-fail-fast $features 2>&1 | tee /tmp/sinterdem-cargo-test.log
 rust_status=${PIPESTATUS[0]}
 set -e
 python_status=0

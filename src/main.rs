@@ -161,6 +161,20 @@ enum Command {
         #[arg(long, default_value_t = 1)]
         threads: usize,
     },
+    /// Fit diffusion data / path factors to measured neck ratios and shrinkages (docs/calibration.md).
+    Calibrate {
+        #[command(flatten)]
+        case: CaseArgs,
+        /// Output directory.
+        #[arg(long, default_value = "out/calibration")]
+        out: PathBuf,
+        /// No progress lines.
+        #[arg(long)]
+        quiet: bool,
+        /// Rewrite the file's data CSV with the bundled synthetic titanium data instead of fitting.
+        #[arg(long, hide = true)]
+        generate_synthetic: bool,
+    },
     /// Print every numeric case-file key with its allowed range and unit (Markdown).
     Keys {
         /// The keys of a study file instead (docs/studies.md).
@@ -357,6 +371,7 @@ fn real_main(cli: Cli) -> Result<(), Error> {
             println!("{}", serde_json::to_string_pretty(&v).unwrap());
             Ok(())
         }
+        Command::Calibrate { case, out, quiet, generate_synthetic } => sinterdem::calibrate::run_file(&case.case, &case.set, &out, quiet, generate_synthetic),
         Command::Keys { study } => {
             print!("{}", if study { sinterdem::study::spec::markdown() } else { sinterdem::config::ranges::markdown() });
             Ok(())

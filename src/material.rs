@@ -32,6 +32,9 @@ pub struct MaterialSpec {
     pub calibrated_min_temperature: Option<f64>,
     /// Upper end of the calibrated temperature range of user-defined diffusion data [K].
     pub calibrated_max_temperature: Option<f64>,
+    /// Melting (solidus) temperature of user-defined diffusion data [K] (default: the bundled
+    /// data's of the same name).
+    pub melting_temperature: Option<f64>,
     /// User-defined 7-DOF diffusion data, the `[[materials.phases]]` of pair cases.
     pub phases: Option<Vec<crate::models::diffusion7::Phase>>,
 }
@@ -90,7 +93,7 @@ impl MaterialSpec {
         let diffusion_name = self.diffusion.clone().or_else(|| base.as_ref().and_then(|b| b.diffusion.clone()));
         let diffusion_data = match &self.phases {
             None => {
-                for (k, v) in [("calibrated_min_temperature", self.calibrated_min_temperature), ("calibrated_max_temperature", self.calibrated_max_temperature)] {
+                for (k, v) in [("calibrated_min_temperature", self.calibrated_min_temperature), ("calibrated_max_temperature", self.calibrated_max_temperature), ("melting_temperature", self.melting_temperature)] {
                     if v.is_some() {
                         return Err(ConfigError::invalid(format!("{}: only with user-defined diffusion data ([[materials.phases]])", key(k))));
                     }
@@ -110,6 +113,7 @@ impl MaterialSpec {
                     poisson_ratio: poisson,
                     calibrated_min_temperature: range(self.calibrated_min_temperature, "calibrated_min_temperature", bundled.as_ref().map(|b| b.calibrated_min_temperature))?,
                     calibrated_max_temperature: range(self.calibrated_max_temperature, "calibrated_max_temperature", bundled.as_ref().map(|b| b.calibrated_max_temperature))?,
+                    melting_temperature: self.melting_temperature.or_else(|| bundled.as_ref().and_then(|b| b.melting_temperature)),
                     phases: phases.clone(),
                 };
                 m.validate()?;

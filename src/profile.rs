@@ -127,11 +127,14 @@ impl Profile {
                         return Err(bad("the schedule must begin with \"start T K\""));
                     };
                     let d = parse_duration(&words[1..]).map_err(|e| bad(&e))?;
-                    if !(d > 0.0 && d.is_finite()) {
-                        return Err(bad("the hold time must be positive"));
+                    if !(d >= 0.0 && d.is_finite()) {
+                        return Err(bad("the hold time must be zero or positive"));
                     }
-                    times.push(times.last().unwrap() + d);
-                    temps.push(t0);
+                    // `hold 0 min` (lab tables list zero holds) adds no breakpoint
+                    if d > 0.0 {
+                        times.push(times.last().unwrap() + d);
+                        temps.push(t0);
+                    }
                 }
                 _ => return Err(bad("expected start, heat, cool or hold")),
             }
@@ -304,6 +307,15 @@ mod tests {
         let end = t_heat + 1800.0 + (1203.0 - 313.0) * 3.0;
         assert!((p.duration() - end).abs() < 1e-9);
         assert_eq!(p.temperature(end + 10.0), 313.0);
+    }
+
+    #[test]
+    fn zero_hold_is_accepted_and_adds_no_breakpoint() {
+        let a = Profile::from_schedule("start 793 K, heat 20 K/min to 1203 K, hold 0 min, cool 20 K/min to 313 K").unwrap();
+        let b = Profile::from_schedule("start 793 K, heat 20 K/min to 1203 K, cool 20 K/min to 313 K").unwrap();
+        assert_eq!(a, b);
+        assert_eq!(a.breakpoints().len(), 3);
+        assert!(Profile::from_schedule("start 793 K, hold -1 min").is_err());
     }
 
     #[test]

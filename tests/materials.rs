@@ -134,3 +134,20 @@ fn mixed_material_bonds_use_their_own_poisson_ratio() {
         assert!(rel > 1e-6 && rel < 0.05, "axis {a}: E of the second material: {} vs {} ({rel:e})", e_only[a], lo[a]);
     }
 }
+
+#[test]
+fn a_calibrated_material_file_runs_in_a_compact() {
+    // the file exactly as `sinterdem calibrate` writes it, with grain-boundary diffusion ten
+    // times faster than the bundled copper: the compact includes it and shrinks more
+    let dir = tmp("calibrated");
+    let p = packing(&dir, 1.6e-4);
+    let mut m = sinterdem::models::diffusion7::Material::copper();
+    m.phases[0].d0_gb *= 10.0;
+    sinterdem::calibrate::report::write_material(&dir.join("material.toml"), &m, None, "test").unwrap();
+    let inc = "name = \"copper\"\npreset = \"copper\"\ninclude = \"material.toml\"";
+    let fast = shrink(&dir, "cal", &case(&p, inc, PRESET_B));
+    let base = shrink(&dir, "base", &case(&p, PRESET_A, PRESET_B));
+    for a in 0..3 {
+        assert!(fast[a] > base[a] * 1.02, "axis {a}: {} vs {}", fast[a], base[a]);
+    }
+}

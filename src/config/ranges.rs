@@ -120,7 +120,7 @@ pub static TABLE: &[Range] = &[
 
 /// Every range table of the crate: this file's [`TABLE`] and the models' own tables
 /// (a model module may keep its keys beside its code and register the table here).
-pub static TABLES: &[&[Range]] = &[TABLE, crate::models::diffusion7::RANGES, crate::packing::RANGES, crate::models::luding::RANGES, crate::models::frenkel::RANGES, crate::explicit::protocol::RANGES];
+pub static TABLES: &[&[Range]] = &[TABLE, crate::models::diffusion7::RANGES, crate::packing::RANGES, crate::models::luding::RANGES, crate::models::frenkel::RANGES, crate::explicit::protocol::RANGES, crate::calibrate::RANGES];
 
 /// Looks up `key` in [`TABLES`], matching `*` against any one path segment.
 pub fn lookup(key: &str) -> Option<&'static Range> {

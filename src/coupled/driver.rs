@@ -36,6 +36,17 @@ pub fn run_from(mut sim: Simulation, out: &Path, progress: bool, log: &mut dyn F
         sim.settings.dt_max,
         sim.settings.end
     ));
+    let isolated = sim.isolated_particles();
+    if !isolated.is_empty() {
+        let ids: Vec<String> = isolated.iter().take(20).map(|i| i.to_string()).collect();
+        log(&format!(
+            "warning: {} particle{} without a conductive path to any heat source (no contact chain to a heated, fixed or exposed particle): {}{}; they keep their initial temperature and are left out of the mean/min/max temperatures (series.csv, summary.json)",
+            isolated.len(),
+            if isolated.len() == 1 { "" } else { "s" },
+            ids.join(", "),
+            if isolated.len() > 20 { ", …" } else { "" }
+        ));
+    }
     let (vtu_on, h5_on) = (sim.prep.case.output.vtu, sim.prep.case.output.hdf5);
     let (mut series, mut snaps, mut series_lines) = if resumed {
         (
@@ -65,8 +76,7 @@ pub fn run_from(mut sim: Simulation, out: &Path, progress: bool, log: &mut dyn F
     let mut failure: Option<Error> = None;
     let write_row = |sim: &Simulation, series: &mut Series, dt: f64| -> Result<(), IoError> {
         let sh = sim.shrinkage();
-        let t = &sim.prep.scene.particles.temperature;
-        let mean = t.iter().sum::<f64>() / t.len() as f64;
+        let (mean, t_lo, t_hi) = sim.temperature_stats();
         let frac = sim.contacts.substeps.iter().filter(|&&s| s > 1).count() as f64 / sim.contacts.len().max(1) as f64;
         series.row(&[
             sim.t,
@@ -79,8 +89,8 @@ pub fn run_from(mut sim: Simulation, out: &Path, progress: bool, log: &mut dyn F
             sim.mean_neck_ratio(),
             sim.contacts.len() as f64,
             mean,
-            t.iter().copied().fold(f64::INFINITY, f64::min),
-            t.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+            t_lo,
+            t_hi,
             frac,
             sim.ode.rhs as f64,
         ])
@@ -155,7 +165,8 @@ pub fn run_from(mut sim: Simulation, out: &Path, progress: bool, log: &mut dyn F
     let sh = sim.shrinkage();
     let stored_total: f64 = sim.prep.scene.particles.capacity.iter().zip(&sim.prep.scene.particles.temperature).map(|(c, t)| c * t).sum();
     let balance = if sim.heat.is_some() { crate::heat::run::energy_balance_rel(sim.heat_stored, sim.heat_in, sim.heat_scale, stored_total) } else { 0.0 };
-    let t = &sim.prep.scene.particles.temperature;
+    let t_stats = sim.temperature_stats();
+    let isolated = sim.isolated_particles();
     let dl: Vec<f64> = sim.contacts.dl_bar.clone();
     let dl_mean = dl.iter().sum::<f64>() / dl.len().max(1) as f64;
     let dl_std = (dl.iter().map(|v| (v - dl_mean) * (v - dl_mean)).sum::<f64>() / dl.len().max(1) as f64).sqrt();
@@ -176,9 +187,12 @@ pub fn run_from(mut sim: Simulation, out: &Path, progress: bool, log: &mut dyn F
         "relative_density_initial": rho0,
         "coordination_mean": 2.0 * sim.contacts.len() as f64 / n as f64,
         "neck_ratio": sim.mean_neck_ratio(),
-        "mean_temperature_K": t.iter().sum::<f64>() / t.len() as f64,
-        "min_temperature_K": t.iter().copied().fold(f64::INFINITY, f64::min),
-        "max_temperature_K": t.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        "mean_temperature_K": t_stats.0,
+        "min_temperature_K": t_stats.1,
+        "max_temperature_K": t_stats.2,
+        "isolated_particles": isolated.len(),
+        "isolated_particle_ids": isolated.iter().take(100).collect::<Vec<_>>(),
+        "temperatures_exclude_isolated": !isolated.is_empty() && isolated.len() < n,
         "energy_balance_rel": balance,
         "rhs_evaluations": sim.ode.rhs,
         "limited_corrections": sim.limited_corrections,
@@ -207,6 +221,12 @@ pub fn run_from(mut sim: Simulation, out: &Path, progress: bool, log: &mut dyn F
     summary["layer_contact_shrinkage"] = json!(prof.iter().map(|l| l.1).collect::<Vec<_>>());
     summary["layer_neck_ratio"] = json!(prof.iter().map(|l| l.2).collect::<Vec<_>>());
     io::write_json(&out.join("summary.json"), &summary)?;
+    // the series and summary also go into the HDF5 file (docs/outputs.md)
+    if sim.prep.case.output.hdf5
+        && let Err(e) = io::hdf5::finish(out)
+    {
+        log(&format!("warning: series and summary not copied into sinterdem.h5: {e}"));
+    }
     if !sim.settings.plots {
         log("plots skipped (turned off by the caller)");
     } else if let Err(e) = write_plots(out, &sim) {

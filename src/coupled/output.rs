@@ -51,15 +51,19 @@ pub(crate) fn write_snapshot(sim: &Simulation, snaps: &mut SnapshotWriter) -> Re
     let p = &sim.prep.scene.particles;
     let neck: Vec<f64> = sim.contacts.state.iter().map(|c| c.y[0]).collect();
     let shrink: Vec<f64> = sim.contacts.state.iter().map(|c| c.shrinkage()).collect();
-    let disp: Vec<f64> = p.position.iter().zip(&sim.x0).map(|(x, x0)| (x - x0).norm()).collect();
+    let disp: Vec<nalgebra::Vector3<f64>> = p.position.iter().zip(&sim.x0).map(|(x, x0)| x - x0).collect();
+    let materials_json = serde_json::to_string_pretty(&sim.d7_materials).unwrap_or_default();
     snaps.write(&Snapshot {
         time: sim.t,
+        step: sim.step,
         position: &p.position,
         radius: &p.radius,
         temperature: &p.temperature,
         contacts: &sim.contacts.pairs,
-        contact_data: vec![("neck_radius_y1_m", &neck), ("contact_shrinkage", &shrink), ("dl_bar_m", &sim.contacts.dl_bar)],
-        particle_data: vec![("displacement_m", &disp)],
+        contact_data: vec![("neck_radius_m", &neck), ("contact_shrinkage", &shrink), ("dl_bar_m", &sim.contacts.dl_bar)],
+        particle_data: vec![],
+        particle_vectors: vec![("displacement_m", &disp)],
+        parameters: Some(crate::io::Parameters { case_toml: sim.source.0.clone(), materials_json }),
     })
 }
 
@@ -82,7 +86,7 @@ pub fn write_correction_histogram(out: &Path, sim: &Simulation, tag: &str) -> Re
     use crate::plot::{Plot, Series as Line};
     let dl: Vec<f64> = sim.contacts.dl_bar.iter().zip(&sim.contacts.state).map(|(d, c)| d / c.l0).collect();
     let csv_path = out.join(format!("dl_bar_{tag}.csv"));
-    let mut text = format!("# y4/y7 corrections of the step ending at t = {} s (eq. 44)\nparticle_a,particle_b,l0_m,dl_bar_m,dl_bar_rel\n", sim.t);
+    let mut text = String::from("particle_a,particle_b,l0_m,dl_bar_m,dl_bar_rel\n");
     for (k, (&[a, b], c)) in sim.contacts.pairs.iter().zip(&sim.contacts.state).enumerate() {
         text.push_str(&format!("{a},{b},{:e},{:e},{:e}\n", c.l0, sim.contacts.dl_bar[k], dl[k]));
     }

@@ -266,6 +266,9 @@ pub struct Simulation {
     pub planes: Vector3<f64>,
     /// Particles of the far layer per axis (for the shrinkage measure) and their initial mean extent [m].
     pub far_layer: [Vec<u32>; 3],
+    /// The near layer of each axis (used instead of the principal planes when they are not
+    /// constrained: the body then moves as a whole).
+    pub near_layer: [Vec<u32>; 3],
     pub extent0: Vector3<f64>,
     pub ode: OdeStats,
     pub timing: Timing,
@@ -312,7 +315,15 @@ impl Simulation {
             touching[i as usize] = true;
             touching[j as usize] = true;
         }
+        // the far faces of the touching particles (a particle touching nothing beyond the body,
+        // e.g. an isolated one, must not empty the far layer)
+        let hi: Vector3<f64> = if touching.iter().any(|&t| t) {
+            Vector3::from_fn(|a, _| (0..n).filter(|&i| touching[i]).map(|i| p.position[i][a] + p.radius[i]).fold(f64::NEG_INFINITY, f64::max))
+        } else {
+            hi
+        };
         let far_layer: [Vec<u32>; 3] = std::array::from_fn(|a| (0..n as u32).filter(|&i| touching[i as usize] && p.position[i as usize][a] + p.radius[i as usize] >= hi[a] - r_mean).collect());
+        let near_layer: [Vec<u32>; 3] = std::array::from_fn(|a| (0..n as u32).filter(|&i| touching[i as usize] && p.position[i as usize][a] - p.radius[i as usize] <= lo[a] + r_mean).collect());
         let mut sim = Simulation {
             mechanics: MechanicsStage::new(n, &settings.mechanics),
             settings,
@@ -326,6 +337,7 @@ impl Simulation {
             x0: p.position.clone(),
             planes: lo,
             far_layer,
+            near_layer,
             extent0: Vector3::zeros(),
             ode: OdeStats::default(),
             timing: Timing::default(),
@@ -378,10 +390,19 @@ impl Simulation {
     /// Extent from the principal planes to the mean far face along each axis [m].
     pub fn extents(&self) -> Vector3<f64> {
         let p = &self.prep.scene.particles;
+        let free = !self.settings.mechanics.constrain_planes;
         Vector3::from_fn(|a, _| {
             let l = &self.far_layer[a];
             let s: f64 = l.iter().map(|&i| p.position[i as usize][a] + p.radius[i as usize]).sum();
-            s / l.len().max(1) as f64 - self.planes[a]
+            // with constrained planes the near face is the plane itself; without, it is the mean
+            // near face of the particles that started on it (eq. 49 with both faces measured)
+            let near = if free && !self.near_layer[a].is_empty() {
+                let l = &self.near_layer[a];
+                l.iter().map(|&i| p.position[i as usize][a] - p.radius[i as usize]).sum::<f64>() / l.len() as f64
+            } else {
+                self.planes[a]
+            };
+            s / l.len().max(1) as f64 - near
         })
     }
 
@@ -651,9 +672,120 @@ impl Simulation {
                     }
                 }
             };
-            crate::finite::ensure_finite_groups("mechanics", self.step, self.t, "particle", "position", self.prep.scene.particles.position.iter().map(|x| x.as_ref()))?;
+            self.check_state(log)?;
             return Ok(());
         }
+    }
+
+    /// After a completed step: every state finite, relative density at most 1, no particle at or
+    /// above its material's melting temperature (ModelErrors naming step and particle/contact),
+    /// and a warning, once per material and side, when a contact temperature leaves the range its
+    /// diffusion data are calibrated for.
+    fn check_state(&mut self, log: &mut dyn FnMut(&str)) -> Result<(), Error> {
+        let p = &self.prep.scene.particles;
+        let at = format!("step {}, t = {:e} s", self.step, self.t);
+        if let Some(i) = (0..p.len()).find(|&i| !(p.position[i].iter().all(|v| v.is_finite()) && p.temperature[i].is_finite())) {
+            return Err(ModelError::new(format!("non-finite state of particle {i} (position {:?}, temperature {} K) after {at}", p.position[i].as_slice(), p.temperature[i])).into());
+        }
+        if let Some(k) = self.contacts.state.iter().position(|c| !c.y.iter().all(|v| v.is_finite())) {
+            let [i, j] = self.contacts.pairs[k];
+            return Err(ModelError::new(format!("non-finite 7-DOF state of contact {k} (particles {i}, {j}) after {at}: {:?}", self.contacts.state[k].y)).into());
+        }
+        let rho = self.relative_density();
+        if !(rho.is_finite() && rho <= 1.0) {
+            return Err(ModelError::new(format!("relative density {rho:.6} after {at}: above 1 (or not finite), the packing has left the model's range (eq. 49)")).into());
+        }
+        for (i, (&t, &m)) in p.temperature.iter().zip(&p.material).enumerate() {
+            let mat = &self.d7_materials[m as usize];
+            if let Some(tm) = mat.melting_temperature
+                && t >= tm
+            {
+                return Err(ModelError::new(format!("particle {i} of material \"{}\" reached {t:.1} K after {at}, at or above its melting/solidus temperature {tm} K: solid-state sintering no longer applies", mat.name)).into());
+            }
+        }
+        // calibrated range of each material's diffusion data, seen at the contacts
+        let harmonic = self.settings.harmonic;
+        let iso = self.prep.isothermal.as_ref().map(|prof| prof.temperature(self.t));
+        let mut lo_hi = vec![(f64::INFINITY, f64::NEG_INFINITY); self.d7_materials.len()];
+        for &[i, j] in &self.contacts.pairs {
+            let (ti, tj) = (p.temperature[i as usize], p.temperature[j as usize]);
+            let tc = iso.unwrap_or(if harmonic { 2.0 * ti * tj / (ti + tj) } else { 0.5 * (ti + tj) });
+            for m in [p.material[i as usize], p.material[j as usize]] {
+                let e = &mut lo_hi[m as usize];
+                *e = (e.0.min(tc), e.1.max(tc));
+            }
+        }
+        for (m, &(lo, hi)) in lo_hi.iter().enumerate() {
+            let mat = &self.d7_materials[m];
+            for (below, t, lim) in [(true, lo, mat.calibrated_min_temperature), (false, hi, mat.calibrated_max_temperature)] {
+                let out = if below { t < lim } else { t > lim };
+                let tag = format!("material \"{}\": contact temperature {} the calibrated range", mat.name, if below { "below" } else { "above" });
+                if out && !self.warnings.iter().any(|w| w.starts_with(&tag)) {
+                    let w = format!(
+                        "{tag} {:.1}–{:.1} K ({t:.1} K first at {at}): its diffusion data are extrapolated",
+                        mat.calibrated_min_temperature, mat.calibrated_max_temperature
+                    );
+                    log(&format!("warning: {w}"));
+                    self.warnings.push(w);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Particles without a conductive path to any heat source (no contact chain to a particle of
+    /// prescribed temperature, exposed to the furnace or heated volumetrically); empty in
+    /// isothermal runs. Their temperature stays where it started.
+    pub fn isolated_particles(&self) -> Vec<u32> {
+        let Some(net) = self.heat.as_ref() else { return vec![] };
+        let src = &self.prep.sources;
+        let n = self.prep.scene.particles.len();
+        let mut parent: Vec<u32> = (0..n as u32).collect();
+        fn find(p: &mut [u32], mut x: u32) -> u32 {
+            while p[x as usize] != x {
+                p[x as usize] = p[p[x as usize] as usize];
+                x = p[x as usize];
+            }
+            x
+        }
+        for &[i, j] in &self.contacts.pairs {
+            let (a, b) = (find(&mut parent, i), find(&mut parent, j));
+            if a != b {
+                parent[a.max(b) as usize] = a.min(b);
+            }
+        }
+        let furnace = src.furnace.is_some();
+        let mut heated = vec![false; n];
+        for i in 0..n {
+            let source = net.is_fixed(i) || src.fixed.get(i).is_some_and(Option::is_some) || (furnace && src.exposed_area.get(i).is_some_and(|&a| a > 0.0)) || src.power.get(i).is_some_and(|&q| q != 0.0);
+            if source {
+                let r = find(&mut parent, i as u32);
+                heated[r as usize] = true;
+            }
+        }
+        (0..n as u32).filter(|&i| !heated[find(&mut parent, i) as usize]).collect()
+    }
+
+    /// Mean, min and max particle temperature [K] over the particles with a conductive path
+    /// (all particles when none is isolated or every one is).
+    pub fn temperature_stats(&self) -> (f64, f64, f64) {
+        let t = &self.prep.scene.particles.temperature;
+        let iso = self.isolated_particles();
+        let mut skip = vec![false; t.len()];
+        if iso.len() < t.len() {
+            for &i in &iso {
+                skip[i as usize] = true;
+            }
+        }
+        let vals = t.iter().zip(&skip).filter(|(_, s)| !**s).map(|(v, _)| *v);
+        let (mut sum, mut n, mut lo, mut hi) = (0.0, 0usize, f64::INFINITY, f64::NEG_INFINITY);
+        for v in vals {
+            sum += v;
+            n += 1;
+            lo = lo.min(v);
+            hi = hi.max(v);
+        }
+        (sum / n.max(1) as f64, lo, hi)
     }
 
     /// Undoes the heat step and the diffusion sweep of a step that is not kept: every contact

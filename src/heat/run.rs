@@ -230,15 +230,22 @@ pub fn run(mut prep: Prepared, out: &Path, progress: bool, log: &mut dyn FnMut(&
         (0..temps.len()).filter(|&i| !net.is_fixed(i)).map(|i| cap[i] * temps[i]).sum()
     };
     let stored0 = stored_of(&p.temperature, &net, &p.capacity);
-    let write_snapshot = |snaps: &mut SnapshotWriter, t: f64, p: &crate::particles::Particles, pipes: &Pipes| -> Result<(), IoError> {
+    let parameters = io::Parameters {
+        case_toml: toml::to_string(case).unwrap_or_else(|e| format!("# the case could not be written as TOML: {e}")),
+        materials_json: serde_json::to_string_pretty(&case.materials).unwrap_or_default(),
+    };
+    let write_snapshot = |snaps: &mut SnapshotWriter, t: f64, step: usize, p: &crate::particles::Particles, pipes: &Pipes| -> Result<(), IoError> {
         snaps.write(&Snapshot {
             time: t,
+            step: step as u64,
             position: &p.position,
             radius: &p.radius,
             temperature: &p.temperature,
             contacts: &pipes.pairs,
             contact_data: vec![("neck_radius_m", &pipes.neck), ("conductance_W_per_K", &pipes.conductance), ("overlap_m", &pipes.overlap)],
             particle_data: vec![],
+            particle_vectors: vec![],
+            parameters: Some(parameters.clone()),
         })
     };
     let stats = |t: &[f64]| {
@@ -265,7 +272,7 @@ pub fn run(mut prep: Prepared, out: &Path, progress: bool, log: &mut dyn FnMut(&
         kinks.extend_from_slice(f.wall.breakpoints());
     }
     while next_snap < snap_times.len() && snap_times[next_snap] <= t + 1e-12 * end {
-        write_snapshot(&mut snaps, t, p, &prep.pipes)?;
+        write_snapshot(&mut snaps, t, steps, p, &prep.pipes)?;
         next_snap += 1;
     }
     while t < end * (1.0 - 1e-12) {
@@ -321,7 +328,7 @@ pub fn run(mut prep: Prepared, out: &Path, progress: bool, log: &mut dyn FnMut(&
             series.row(&[t, dt, mean, lo, hi, hin, stored_of(&p.temperature, &net, &p.capacity), heat_in, iters as f64])?;
         }
         while next_snap < snap_times.len() && snap_times[next_snap] <= t + 1e-9 * dt {
-            write_snapshot(&mut snaps, t, p, &prep.pipes)?;
+            write_snapshot(&mut snaps, t, steps, p, &prep.pipes)?;
             next_snap += 1;
         }
         bar.set(t, "");
@@ -360,6 +367,9 @@ pub fn run(mut prep: Prepared, out: &Path, progress: bool, log: &mut dyn FnMut(&
         "skipped": if prep.isothermal.is_some() { vec!["heat solve (isothermal)", "neighbour search (static packing)", "diffusion", "mechanics"] } else { vec!["neighbour search after start (static packing)", "diffusion", "mechanics"] },
     });
     io::write_json(&out.join("summary.json"), &summary)?;
+    if snaps.hdf5_enabled() {
+        io::hdf5::finish(out)?;
+    }
     log(&format!(
         "done: {steps} steps to t = {t} s in {:.3} s; mean T = {mean:.3} K (min {lo:.3}, max {hi:.3}); energy balance residual {balance:.2e} (relative)",
         wall.elapsed().as_secs_f64()

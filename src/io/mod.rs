@@ -42,18 +42,42 @@ pub fn write_json(path: &Path, value: &serde_json::Value) -> Result<(), IoError>
     std::fs::write(path, text + "\n").map_err(|e| IoError::new(path, e))
 }
 
+/// Whether a CSV column holds a count (written as an integer, read by pandas as `int64`): the
+/// column names without a unit suffix that count things.
+pub fn is_count_column(name: &str) -> bool {
+    matches!(name, "contacts" | "steps" | "particles" | "rhs_evaluations" | "radiation_iterations" | "stage" | "particle_a" | "particle_b" | "id")
+        || name.ends_with("_count")
+}
+
+/// One CSV field: counts as integers, everything else in full precision (`{:e}`); a non-finite
+/// value is left empty (pandas reads NaN).
+pub fn csv_field(value: f64, count: bool) -> String {
+    if !value.is_finite() {
+        String::new()
+    } else if count {
+        format!("{}", value.round() as i64)
+    } else {
+        format!("{value:e}")
+    }
+}
+
 /// A CSV time series written row by row (flushed at every row, so an interrupted run keeps its rows).
+///
+/// Every CSV the project writes has one plain header line (no comment line before it, so
+/// `pandas.read_csv(path)` reads it unchanged), column names that carry their unit (`time_s`,
+/// `temperature_K`; no suffix = dimensionless) and counts written as integers ([`is_count_column`]).
 pub struct Series {
     path: PathBuf,
     file: std::io::BufWriter<std::fs::File>,
-    columns: usize,
+    counts: Vec<bool>,
 }
 
 impl Series {
     /// Creates the file and writes the header. Column names carry their unit, e.g. `time_s`.
     pub fn create(path: &Path, header: &[&str]) -> Result<Self, IoError> {
         let f = std::fs::File::create(path).map_err(|e| IoError::new(path, e))?;
-        let mut s = Series { path: path.to_path_buf(), file: std::io::BufWriter::new(f), columns: header.len() };
+        let counts = header.iter().map(|h| is_count_column(h)).collect();
+        let mut s = Series { path: path.to_path_buf(), file: std::io::BufWriter::new(f), counts };
         writeln!(s.file, "{}", header.join(",")).map_err(|e| IoError::new(path, e))?;
         Ok(s)
     }
@@ -66,27 +90,45 @@ impl Series {
         if kept.len() != keep_lines {
             return Err(IoError::new(path, format!("has {} lines, the checkpoint expects at least {keep_lines}", kept.len())));
         }
+        let counts: Vec<bool> = match kept.first() {
+            Some(h) if h.split(',').count() == columns => h.split(',').map(is_count_column).collect(),
+            _ => vec![false; columns],
+        };
         let mut body = kept.join("\n");
         body.push('\n');
         std::fs::write(path, body).map_err(|e| IoError::new(path, e))?;
         let f = std::fs::OpenOptions::new().append(true).open(path).map_err(|e| IoError::new(path, e))?;
-        Ok(Series { path: path.to_path_buf(), file: std::io::BufWriter::new(f), columns })
+        Ok(Series { path: path.to_path_buf(), file: std::io::BufWriter::new(f), counts })
     }
 
-    /// Appends one row (full precision).
+    /// Appends one row (full precision; counts as integers).
     pub fn row(&mut self, values: &[f64]) -> Result<(), IoError> {
-        debug_assert_eq!(values.len(), self.columns);
-        let line: Vec<String> = values.iter().map(|v| format!("{v:e}")).collect();
+        debug_assert_eq!(values.len(), self.counts.len());
+        let line: Vec<String> = values.iter().zip(&self.counts).map(|(&v, &c)| csv_field(v, c)).collect();
         writeln!(self.file, "{}", line.join(",")).map_err(|e| IoError::new(&self.path, e))?;
         self.file.flush().map_err(|e| IoError::new(&self.path, e))
     }
 }
 
+/// What a run writes once into its HDF5 file (`/parameters`): the case as run and the material data.
+#[derive(Debug, Clone, Default)]
+pub struct Parameters {
+    /// The resolved case (overrides applied), TOML.
+    pub case_toml: String,
+    /// The material data the run used, JSON.
+    pub materials_json: String,
+}
+
 /// One snapshot of a packing: particles as points, contacts as lines.
+///
+/// Array names carry their unit (`neck_radius_m`, no suffix = dimensionless) and mean the same in
+/// every kind (docs/outputs.md). Particle ids and the coordination are derived by the writers.
 #[derive(Debug, Clone, Default)]
 pub struct Snapshot<'a> {
     /// Simulated time [s].
     pub time: f64,
+    /// Step number of the run at this snapshot.
+    pub step: u64,
     /// Particle centres [m].
     pub position: &'a [nalgebra::Vector3<f64>],
     /// Particle radii [m].
@@ -99,6 +141,10 @@ pub struct Snapshot<'a> {
     pub contact_data: Vec<(&'a str, &'a [f64])>,
     /// Extra particle data arrays: (name with unit, values).
     pub particle_data: Vec<(&'a str, &'a [f64])>,
+    /// Particle vector arrays (3 components): (name with unit, values), e.g. `displacement_m`.
+    pub particle_vectors: Vec<(&'a str, &'a [nalgebra::Vector3<f64>])>,
+    /// Run metadata for the HDF5 file (written once, with the first snapshot that carries it).
+    pub parameters: Option<Parameters>,
 }
 
 /// Writes snapshots as VTU (with PVD indexes) and HDF5 as configured.

@@ -103,7 +103,11 @@ fn parse_csv(text: &str, name: &str) -> Result<ImportedPacking, Error> {
         let fields: Vec<&str> = l.split(',').map(|s| s.trim()).collect();
         match &cols {
             None => {
-                let find = |c: &str| fields.iter().position(|f| f.eq_ignore_ascii_case(c));
+                // a column is named plainly or with its unit suffix (`x` or `x_m`, `radius_m`, `temperature_K`)
+                let find = |c: &str| {
+                    let with_unit = |f: &&str, u: &str| f.len() == c.len() + u.len() && f.to_ascii_lowercase() == format!("{}{u}", c.to_ascii_lowercase());
+                    fields.iter().position(|f| f.eq_ignore_ascii_case(c) || with_unit(f, "_m") || with_unit(f, "_k"))
+                };
                 let mut req = [0usize; 4];
                 for (a, c) in ["x", "y", "z", "r"].iter().enumerate() {
                     req[a] = find(c).or_else(|| if *c == "r" { find("radius") } else { None }).ok_or_else(|| {

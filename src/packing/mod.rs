@@ -789,7 +789,7 @@ pub fn requested_mean_diameter(s: &SizeDistribution) -> f64 {
 /// and `summary.json` into `out_dir`.
 pub fn write_outputs(case: &GenerateCase, packing: &Packing, summary: &GenerateSummary, out_dir: &Path) -> Result<(), Error> {
     std::fs::create_dir_all(out_dir).map_err(|e| IoError::new(out_dir, e))?;
-    let mut csv = String::from("x,y,z,r\n");
+    let mut csv = String::from("x_m,y_m,z_m,radius_m\n");
     for (x, r) in packing.positions.iter().zip(&packing.radii) {
         csv.push_str(&format!("{:.10e},{:.10e},{:.10e},{:.10e}\n", x[0], x[1], x[2], r));
     }
@@ -801,7 +801,8 @@ pub fn write_outputs(case: &GenerateCase, packing: &Packing, summary: &GenerateS
     report::write_vtu(out_dir, "packing", &packing.positions, &packing.radii, &[], &z, &pairs)?;
     // laminae (eq. 48)
     let hi = V3::new(packing.box_size[0], packing.box_size[1], packing.box_size[2]);
-    let mut lam = String::from("# relative density of laminae (Ivannikov et al. 2022 eq. 48); position = lamina centre [m]\naxis,position,relative_density,interior\n");
+    // relative density of laminae (Ivannikov et al. 2022 eq. 48); position_m = lamina centre
+    let mut lam = String::from("axis,position_m,relative_density,interior\n");
     let mut series = Vec::new();
     for a in 0..3 {
         let l = report::laminae(&packing.positions, &packing.radii, &V3::zeros(), &hi, a, summary.lamina_width, 2.0 * summary.mean_radius);
@@ -819,7 +820,8 @@ pub fn write_outputs(case: &GenerateCase, packing: &Packing, summary: &GenerateS
     // size distribution achieved vs asked
     let mut d: Vec<f64> = packing.radii.iter().map(|r| 2.0 * r).collect();
     d.sort_by(f64::total_cmp);
-    let mut sd = String::from("# number-weighted cumulative distribution of diameters: achieved (sample) vs requested\ndiameter,achieved,requested\n");
+    // number-weighted cumulative distribution of diameters: achieved (sample) vs requested
+    let mut sd = String::from("diameter_m,cdf_achieved,cdf_requested\n");
     let (lo, hi) = case.size.support();
     for k in 0..=50 {
         let x = lo + (hi - lo) * k as f64 / 50.0;

@@ -72,6 +72,10 @@ pub struct Material {
     pub calibrated_min_temperature: f64,
     /// Upper end of the calibrated temperature range [K].
     pub calibrated_max_temperature: f64,
+    /// Melting (solidus) temperature [K]: a compact run stops with a ModelError when a particle
+    /// reaches it. Optional.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub melting_temperature: Option<f64>,
     /// Phases in increasing `from_temperature`.
     pub phases: Vec<Phase>,
 }
@@ -131,6 +135,9 @@ impl Material {
                     self.calibrated_min_temperature, self.calibrated_max_temperature
                 ),
             ));
+        }
+        if let Some(tm) = self.melting_temperature {
+            check(&format!("materials.{n}.melting_temperature"), tm)?;
         }
         if self.phases.is_empty() {
             return Err(ConfigError::inconsistent(format!("materials.{n}.phases"), "at least one phase is needed"));

@@ -34,6 +34,7 @@ pub static RANGES: &[Range] = &[
     // materials of the 7-DOF model (spec §12)
     c("materials.*.calibrated_min_temperature", 1.0, 1e4, "K", "lower end of the calibrated temperature range"),
     c("materials.*.calibrated_max_temperature", 1.0, 1e4, "K", "upper end of the calibrated temperature range"),
+    p("materials.*.melting_temperature", 1.0, 1e4, "K", "melting (solidus) temperature: a compact run stops when a particle reaches it"),
     c("materials.*.phases.*.from_temperature", 0.0, 1e4, "K", "lowest temperature of the phase"),
     o("materials.*.phases.*.atomic_volume", 0.0, 1e-27, "m^3", "atomic volume Omega"),
     o("materials.*.phases.*.gamma_surface", 0.0, 20.0, "J/m^2", "surface energy gamma_s"),

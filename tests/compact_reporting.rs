@@ -1,0 +1,120 @@
+//! Honest reporting of compact runs: warnings when contact temperatures leave the calibrated range
+//! of the diffusion data, a ModelError at the melting temperature, isolated particles named and
+//! left out of the temperature statistics, and shrinkage without constrained planes measured
+//! from both faces (so that it agrees with the constrained run on a symmetric packing).
+
+use sinterdem::run::{self, RunParams};
+use std::path::{Path, PathBuf};
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("sinterdem-reporting-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// A corner of the bundled green copper packing (all coordinates below `edge`), plus `extra` rows.
+fn packing(dir: &Path, edge: f64, extra: &str) -> PathBuf {
+    let text = std::fs::read_to_string("cases/data/green-copper.csv").unwrap();
+    let mut out = String::from("x,y,z,r\n");
+    for line in text.lines().filter(|l| !l.starts_with('#') && !l.starts_with('x')) {
+        let v: Vec<f64> = line.split(',').map(|s| s.parse().unwrap()).collect();
+        if v[0] < edge && v[1] < edge && v[2] < edge {
+            out.push_str(line);
+            out.push('\n');
+        }
+    }
+    out.push_str(extra);
+    let path = dir.join("packing.csv");
+    std::fs::write(&path, out).unwrap();
+    path
+}
+
+fn isothermal(packing: &Path, material: &str, temperature: f64, end: f64) -> toml::Value {
+    let text = format!(
+        "kind = \"compact\"\n[time]\nend = {end}\ndt = 1.0e-6\ndt_max = 10.0\n[output]\nsnapshots = 0\nvtu = false\nhdf5 = false\n\
+         [[materials]]\nname = \"{material}\"\npreset = \"{material}\"\n[particles]\nsource = \"file\"\nfile = \"{}\"\n\
+         [thermal]\nmode = \"isothermal\"\nfurnace = {{ profile = {{ constant = {temperature:?} }} }}\n",
+        packing.display()
+    );
+    toml::Value::Table(text.parse::<toml::Table>().unwrap())
+}
+
+fn params(dir: &Path) -> RunParams {
+    RunParams { base_dir: dir.to_path_buf(), plots: false, ..Default::default() }
+}
+
+#[test]
+fn leaving_the_calibrated_range_warns_once_per_material_and_side() {
+    let dir = tmp("range");
+    let p = packing(&dir, 1.6e-4, "");
+    // copper data are calibrated for 1193–1353 K
+    let s = run::run(&isothermal(&p, "copper", 1100.0, 50.0), &[], &dir.join("cold"), &params(&dir)).unwrap();
+    let w: Vec<String> = serde_json::from_value(s.summary["warnings"].clone()).unwrap();
+    assert_eq!(w.len(), 1, "{w:?}");
+    assert!(w[0].contains("copper") && w[0].contains("below the calibrated range") && w[0].contains("1193.0–1353.0 K"), "{w:?}");
+    let s = run::run(&isothermal(&p, "copper", 1293.0, 50.0), &[], &dir.join("ok"), &params(&dir)).unwrap();
+    assert_eq!(s.summary["warnings"].as_array().unwrap().len(), 0);
+}
+
+#[test]
+fn a_particle_at_the_melting_temperature_stops_the_run() {
+    let dir = tmp("melt");
+    let p = packing(&dir, 1.6e-4, "");
+    for (m, t, tm) in [("copper", 1400.0, "1358"), ("titanium", 2000.0, "1941")] {
+        let e = run::run(&isothermal(&p, m, t, 50.0), &[], &dir.join(m), &params(&dir)).unwrap_err().to_string();
+        assert!(e.contains("melting") && e.contains(tm) && e.contains(m) && e.contains("particle"), "{e}");
+        // the summary of the last completed step is still written, saying why the run stopped
+        let s: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join(m).join("summary.json")).unwrap()).unwrap();
+        assert_eq!(s["completed"], false);
+    }
+}
+
+#[test]
+fn an_isolated_particle_is_named_and_left_out_of_the_temperatures() {
+    let dir = tmp("isolated");
+    // one particle far above the corner: no contact, not on the hot face, not exposed
+    let p = packing(&dir, 1.6e-4, "8.0e-5,8.0e-5,6.0e-4,2.5e-5\n");
+    let text = format!(
+        "kind = \"compact\"\n[time]\nend = 20.0\ndt = 1.0e-3\ndt_max = 1.0\nscheme = \"bdf2\"\n[output]\nsnapshots = 0\nvtu = false\nhdf5 = false\n\
+         [[materials]]\nname = \"copper\"\npreset = \"copper\"\n[particles]\nsource = \"file\"\nfile = \"{}\"\ninitial_temperature = 1200.0\n\
+         [thermal]\nmode = \"network\"\n[[thermal.fixed]]\nregion = {{ face = \"z-\" }}\nprofile = {{ constant = 1293.0 }}\n",
+        p.display()
+    );
+    let case = toml::Value::Table(text.parse::<toml::Table>().unwrap());
+    let s = run::run(&case, &[], &dir.join("out"), &params(&dir)).unwrap();
+    let n = s.summary["particles"].as_u64().unwrap();
+    // the added particle (the last one) and any rattler of the corner that touches nothing
+    let ids: Vec<u64> = serde_json::from_value(s.summary["isolated_particle_ids"].clone()).unwrap();
+    assert_eq!(s.summary["isolated_particles"].as_u64().unwrap(), ids.len() as u64);
+    assert!(ids.contains(&(n - 1)) && ids.len() < 5, "{ids:?}");
+    assert_eq!(s.summary["temperatures_exclude_isolated"], true);
+    // the isolated particle keeps 1200 K; the connected body warms towards the plate's 1293 K
+    let lo = s.f64("min_temperature_K").unwrap();
+    assert!(lo > 1200.0 + 1e-6, "min temperature {lo} must not be the isolated particle's 1200 K");
+    let log = std::fs::read_to_string(dir.join("out/log.txt")).unwrap();
+    assert!(log.contains(&format!("{} particle", ids.len())) && log.contains("without a conductive path") && log.contains(&format!("{}", n - 1)), "{log}");
+}
+
+#[test]
+fn shrinkage_without_constrained_planes_agrees_with_the_constrained_run() {
+    let dir = tmp("planes");
+    // a symmetric packing: an FCC block
+    let case = |constrain: bool| -> toml::Value {
+        let text = format!(
+            "kind = \"compact\"\n[time]\nend = 200.0\ndt = 1.0e-6\ndt_max = 10.0\n[output]\nsnapshots = 0\nvtu = false\nhdf5 = false\n\
+             [[materials]]\nname = \"copper\"\npreset = \"copper\"\n[particles]\nsource = \"lattice\"\nlattice = \"fcc\"\ncells = [3, 3, 3]\nradius = 25e-6\noverlap = 0.0\n\
+             [thermal]\nmode = \"isothermal\"\nfurnace = {{ profile = {{ constant = 1293.0 }} }}\n[mechanics]\nconstrain_planes = {constrain}\n"
+        );
+        toml::Value::Table(text.parse::<toml::Table>().unwrap())
+    };
+    let c = run::run(&case(true), &[], &dir.join("c"), &params(&dir)).unwrap();
+    let f = run::run(&case(false), &[], &dir.join("f"), &params(&dir)).unwrap();
+    for a in ["shrinkage_x", "shrinkage_y", "shrinkage_z"] {
+        let (sc, sf) = (c.f64(a).unwrap(), f.f64(a).unwrap());
+        assert!(sc > 1e-3, "{a}: {sc}");
+        assert!((sf / sc - 1.0).abs() < 0.05, "{a}: free {sf} vs constrained {sc}");
+    }
+    let (rc, rf) = (c.f64("relative_density").unwrap(), f.f64("relative_density").unwrap());
+    assert!((rf / rc - 1.0).abs() < 0.01, "relative density free {rf} vs constrained {rc}");
+}
