@@ -4,11 +4,17 @@
 
 use thiserror::Error;
 
+/// A number as a user reads it: plain between 1e-4 and 1e7, scientific notation otherwise
+/// (a tiny value such as 5e-324 prints as `5e-324`, not as a 300-digit decimal).
+pub fn fmt_value(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() || (1e-4..1e7).contains(&x.abs()) { format!("{x}") } else { format!("{x:e}") }
+}
+
 /// A case file or command-line value that is malformed or non-physical.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum ConfigError {
     /// A numeric key outside its allowed interval.
-    #[error("{key} = {value} is out of range: allowed {range} ({unit})")]
+    #[error("{key} = {} is out of range: allowed {range} ({unit})", fmt_value(*value))]
     OutOfRange { key: String, value: f64, range: String, unit: String },
     /// A key the schema does not know, or a value of the wrong type or form.
     #[error("{0}")]

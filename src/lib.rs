@@ -18,6 +18,7 @@ pub mod calibrate;
 pub mod config;
 pub mod contacts;
 pub mod error;
+pub mod finite;
 pub mod explicit;
 pub mod heat;
 pub mod io;

@@ -64,28 +64,28 @@ enum Command {
     /// Neck geometry and pipe conductance of two spheres; prints JSON (SI units).
     Neck {
         /// Radius of particle 1 [m].
-        #[arg(long)]
+        #[arg(long, allow_hyphen_values = true)]
         r1: f64,
         /// Radius of particle 2 [m].
-        #[arg(long)]
+        #[arg(long, allow_hyphen_values = true)]
         r2: f64,
         /// Overlap h = r1 + r2 − d [m].
-        #[arg(long)]
+        #[arg(long, allow_hyphen_values = true)]
         overlap: f64,
         /// Thermal conductivity of particle 1 [W/(m K)].
-        #[arg(long)]
+        #[arg(long, allow_hyphen_values = true)]
         kappa: f64,
         /// Thermal conductivity of particle 2 [W/(m K)] (default: --kappa).
-        #[arg(long)]
+        #[arg(long, allow_hyphen_values = true)]
         kappa2: Option<f64>,
         /// Conductance law: linear (1.064 κ π a) or fe_fit.
         #[arg(long, default_value = "linear")]
         conductance: String,
         /// c_K of the linear law.
-        #[arg(long, default_value_t = 1.064)]
+        #[arg(long, default_value_t = 1.064, allow_hyphen_values = true)]
         factor: f64,
         /// Interface conductance in series [W/K].
-        #[arg(long)]
+        #[arg(long, allow_hyphen_values = true)]
         contact_conductance: Option<f64>,
     },
     /// Steady-state effective conductivity tensor of a packing; prints JSON.
@@ -103,7 +103,7 @@ enum Command {
         #[arg(long)]
         full: bool,
         /// Use one common particle diameter [m] instead of each experiment's own.
-        #[arg(long)]
+        #[arg(long, allow_hyphen_values = true)]
         diameter: Option<f64>,
     },
     /// Run a study: many runs over a design of parameters, locally or on SLURM (docs/studies.md).
@@ -351,9 +351,10 @@ fn real_main(cli: Cli) -> Result<(), Error> {
                 "fe_fit" => sinterdem::heat::ConductanceLaw::FeFit,
                 other => return Err(sinterdem::ConfigError::invalid(format!("--conductance {other}: expected linear or fe_fit")).into()),
             };
-            for (k, v) in [("--r1", r1), ("--r2", r2), ("--kappa", kappa), ("--factor", factor)] {
+            let optional = [("--kappa2", kappa2), ("--contact-conductance", contact_conductance)];
+            for (k, v) in [("--r1", r1), ("--r2", r2), ("--kappa", kappa), ("--factor", factor)].into_iter().chain(optional.into_iter().filter_map(|(k, v)| Some((k, v?)))) {
                 if !(v > 0.0 && v.is_finite()) {
-                    return Err(sinterdem::ConfigError::OutOfRange { key: k.into(), value: v, range: "(0, inf)".into(), unit: if k.starts_with("--r") { "m".into() } else { "SI".into() } }.into());
+                    return Err(sinterdem::ConfigError::OutOfRange { key: k.into(), value: v, range: "(0, inf)".into(), unit: match k { "--r1" | "--r2" => "m", "--kappa" | "--kappa2" => "W/(m K)", "--factor" => "1", _ => "W/K" }.into() }.into());
                 }
             }
             let n = sinterdem::neck::solve(r1, r2, overlap)?;

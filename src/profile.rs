@@ -160,10 +160,11 @@ impl Profile {
             Self::constant(spec.constant.unwrap())
         };
         r.map_err(|e| match e {
+            // the inner keys start with "profile." (a profile alone); `key` already ends there
             ConfigError::OutOfRange { key: k, value, range, unit } => {
-                ConfigError::OutOfRange { key: format!("{key}.{k}"), value, range, unit }
+                ConfigError::OutOfRange { key: format!("{key}.{}", k.strip_prefix("profile.").unwrap_or(&k)), value, range, unit }
             }
-            ConfigError::Invalid(m) => ConfigError::Invalid(format!("{key}: {m}")),
+            ConfigError::Invalid(m) => ConfigError::Invalid(format!("{key}.{}", m.strip_prefix("profile.").unwrap_or(&m))),
             other => other,
         })
     }

@@ -77,9 +77,25 @@ fn material_index(materials: &[Material], name: Option<&str>, key: &str) -> Resu
     }
 }
 
+/// The number of particles a lattice or pair scene will have (None for a packing file), known
+/// before anything is built (for the memory estimate of `check`).
+pub fn particle_count(spec: &ParticlesSpec) -> Option<f64> {
+    match spec.source.as_str() {
+        "lattice" => {
+            let basis = spec.lattice.as_deref().and_then(|l| Lattice::parse(l).ok()).map_or(1, |l| l.basis().len());
+            spec.cells.map(|c| c.iter().map(|&n| n as f64).product::<f64>() * basis as f64)
+        }
+        "pair" => Some(2.0),
+        _ => None,
+    }
+}
+
 /// Builds the particles of `spec`; `base` is the case file's directory (for `file`).
 pub fn build(spec: &ParticlesSpec, materials: Vec<Material>, base: &Path) -> Result<Scene, Error> {
     let t0 = config::check("particles.initial_temperature", spec.initial_temperature.unwrap_or(293.15))?;
+    // every key present is range-checked, also where this source does not read it
+    config::check_opt("particles.radius", spec.radius)?;
+    config::check_opt("particles.radius_2", spec.radius_2)?;
     let mat = material_index(&materials, spec.material.as_deref(), "particles.material")?;
     let mut p = Particles::default();
     let push = |p: &mut Particles, x: Vector3<f64>, r: f64, m: u16, t: f64| {

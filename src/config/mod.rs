@@ -7,24 +7,28 @@
 //!   whose error names key, value, allowed range and unit.
 
 pub mod case;
+pub mod plausible;
 pub mod ranges;
 
-use crate::error::{ConfigError, IoError, Error};
+use crate::error::{ConfigError, Error};
 use serde::de::DeserializeOwned;
 use std::path::Path;
 
 /// Reads a TOML case file and applies the command-line overrides (`key.path=value`).
 pub fn load_case(path: &Path, overrides: &[String]) -> Result<toml::Value, Error> {
-    let text = std::fs::read_to_string(path).map_err(|e| IoError::new(path, e))?;
-    let mut value: toml::Value = text
-        .parse::<toml::Table>()
-        .map(toml::Value::Table)
-        .map_err(|e| ConfigError::invalid(format!("{}: {}", path.display(), e.message())))?;
+    let text = crate::io::read_input(path)?;
+    let mut value = parse_case_str(&text, &path.display().to_string())?;
     expand_includes(&mut value, path.parent().unwrap_or(Path::new(".")))?;
     for o in overrides {
         apply_override(&mut value, o)?;
     }
     Ok(value)
+}
+
+/// Parses case text (`name` appears in the error).
+pub fn parse_case_str(text: &str, name: &str) -> Result<toml::Value, ConfigError> {
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    text.parse::<toml::Table>().map(toml::Value::Table).map_err(|e| ConfigError::invalid(format!("{name}: {}", e.message())))
 }
 
 /// Expands `include = "file.toml"` in `[[materials]]` entries (docs/case-file.md, "Materials from
@@ -40,7 +44,7 @@ pub fn expand_includes(root: &mut toml::Value, base: &Path) -> Result<(), Config
         let key = format!("materials.{i}.include");
         let file = inc.as_str().ok_or_else(|| ConfigError::invalid(format!("{key} = {inc}: expected a file name (string)")))?;
         let path = base.join(file);
-        let text = std::fs::read_to_string(&path).map_err(|e| ConfigError::invalid(format!("{key} = \"{file}\": cannot read {}: {e}", path.display())))?;
+        let text = crate::io::read_input(&path).map_err(|e| ConfigError::invalid(format!("{key} = \"{file}\": cannot read {e}")))?;
         let inc_root: toml::Table = text.parse().map_err(|e: toml::de::Error| ConfigError::invalid(format!("{key}: {}: {}", path.display(), e.message())))?;
         let mats: Vec<toml::Table> = inc_root
             .get("materials")

@@ -27,7 +27,7 @@ impl Range {
     }
 
     pub fn describe(&self) -> String {
-        let fmt = |x: f64| if x.is_infinite() { "inf".to_string() } else { format!("{x}") };
+        let fmt = |x: f64| if x.is_infinite() { "inf".to_string() } else { crate::error::fmt_value(x) };
         format!(
             "{}{}, {}{}",
             if self.lo_open { "(" } else { "[" },
@@ -72,9 +72,9 @@ pub const fn o(key: &'static str, lo: f64, hi: f64, unit: &'static str, meaning:
 pub static TABLE: &[Range] = &[
     // time stepping
     p("time.end", 0.0, 1e9, "s", "simulated end time"),
-    p("time.dt", 0.0, 1e7, "s", "time step (initial step where adaptive)"),
-    p("time.dt_min", 0.0, 1e7, "s", "smallest step the step control may take"),
-    p("time.dt_max", 0.0, 1e7, "s", "largest step the step control may take"),
+    c("time.dt", 1e-15, 1e7, "s", "time step (initial step where adaptive); end/dt at most 1e9 steps"),
+    c("time.dt_min", 1e-15, 1e7, "s", "smallest step the step control may take (at most dt_max)"),
+    c("time.dt_max", 1e-15, 1e7, "s", "largest step the step control may take; end/dt_max at most 1e9 steps"),
     c("time.strategy", 1.0, 2.0, "1", "step control: 1 global, 2 per-contact subdivision"),
     c("time.alpha", 1.01, 10.0, "1", "step growth/shrink factor alpha (spec: below 1.58 for 4th-order pairs)"),
     c("time.grow_below", 0.0, 1.0, "1", "strategy 2: grow when fewer contacts than this fraction subdivided"),
@@ -101,8 +101,9 @@ pub static TABLE: &[Range] = &[
     c("materials.*.poisson_ratio", -0.99, 0.4999, "1", "Poisson's ratio nu"),
     c("materials.*.emissivity", 0.0, 1.0, "1", "total hemispherical emissivity"),
     // particles
-    p("particles.radius", 0.0, 1.0, "m", "particle radius"),
-    p("particles.radius_2", 0.0, 1.0, "m", "second particle radius of a pair"),
+    c("particles.radius", 1e-9, 1.0, "m", "particle radius (also every radius of a packing file)"),
+    c("particles.radius_2", 1e-9, 1.0, "m", "second particle radius of a pair"),
+    c("particles.position", -1e3, 1e3, "m", "packing file: every centre coordinate x, y, z"),
     c("particles.overlap", 0.0, 0.6, "1", "initial overlap h relative to the smaller radius"),
     c("particles.initial_temperature", 1.0, 1e4, "K", "initial temperature of every particle"),
     // thermal

@@ -101,9 +101,7 @@ impl Simulation {
         let value: toml::Value = toml::Value::Table(ck.case_toml.parse::<toml::Table>().map_err(|e| ConfigError::invalid(format!("checkpoint case: {e}")))?);
         let mut sim = prepare(value, &ck.base_dir, &mut |_| {})?;
         let n = sim.prep.scene.particles.len();
-        if ck.position.len() != n || ck.temperature.len() != n || ck.pairs.len() != ck.contacts.len() {
-            return Err(ConfigError::invalid("checkpoint does not match its case (particle or contact counts differ)").into());
-        }
+        ck.validate(n, &sim.settings)?;
         let p = &mut sim.prep.scene.particles;
         p.position = ck.position.iter().map(|x| Vector3::new(x[0], x[1], x[2])).collect();
         p.temperature = ck.temperature.clone();
@@ -141,7 +139,7 @@ pub(crate) fn write_checkpoint(dir: &Path, ck: &Checkpoint) -> Result<(), IoErro
 /// Reads `dir/checkpoint.json`.
 pub fn read_checkpoint(dir: &Path) -> Result<Checkpoint, Error> {
     let path = dir.join("checkpoint.json");
-    let text = std::fs::read_to_string(&path).map_err(|e| IoError::new(&path, e))?;
+    let text = crate::io::read_input(&path)?;
     Ok(serde_json::from_str(&text).map_err(|e| IoError::new(&path, e))?)
 }
 

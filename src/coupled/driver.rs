@@ -163,7 +163,8 @@ pub fn run_from(mut sim: Simulation, out: &Path, progress: bool, log: &mut dyn F
         write_snapshot(&sim, &mut snaps)?;
     }
     let sh = sim.shrinkage();
-    let balance = if sim.heat.is_some() { (sim.heat_stored - sim.heat_in).abs() / sim.heat_scale.max(sim.heat_stored.abs()).max(1e-300) } else { 0.0 };
+    let stored_total: f64 = sim.prep.scene.particles.capacity.iter().zip(&sim.prep.scene.particles.temperature).map(|(c, t)| c * t).sum();
+    let balance = if sim.heat.is_some() { crate::heat::run::energy_balance_rel(sim.heat_stored, sim.heat_in, sim.heat_scale, stored_total) } else { 0.0 };
     let t_stats = sim.temperature_stats();
     let isolated = sim.isolated_particles();
     let dl: Vec<f64> = sim.contacts.dl_bar.clone();

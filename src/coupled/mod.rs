@@ -13,11 +13,13 @@ mod checkpoint;
 mod driver;
 mod output;
 mod step;
+mod validate;
 
 pub use bench::bench_coupled;
 pub use checkpoint::{read_checkpoint, resume, Checkpoint, OutputState};
 pub use driver::{run, run_from};
 pub use output::{compact_conductivity, write_correction_histogram, write_plots};
 pub use step::*;
+pub use validate::MAX_CHECKPOINT_STEP;
 pub(crate) use checkpoint::write_checkpoint;
 pub(crate) use output::{write_snapshot, Due};

@@ -89,7 +89,11 @@ impl Settings {
             config::check(&format!("output.correction_histogram_at.{k}"), tc)?;
         }
         let dt_max = config::check("time.dt_max", t.dt_max.unwrap_or(if strategy == 1 { 100.0 } else { 10.0 }))?;
-        let dt_min = config::check("time.dt_min", t.dt_min.unwrap_or(1e-12))?;
+        // a step must advance time also near the end: at least 4 ulp of time.end (3.6e5 s: 3e-10 s)
+        let dt_min = config::check("time.dt_min", t.dt_min.unwrap_or(1e-12))?.max(4.0 * f64::EPSILON * t.end);
+        if dt_min > dt_max {
+            return Err(ConfigError::inconsistent("time.dt_min", format!("{} s is larger than time.dt_max = {} s", crate::error::fmt_value(dt_min), crate::error::fmt_value(dt_max))));
+        }
         Ok(Settings {
             end: config::check("time.end", t.end)?,
             dt0: config::check("time.dt", t.dt)?.min(dt_max),
@@ -477,6 +481,10 @@ impl Simulation {
                     net.set_topology(&self.contacts.pairs)?;
                     heat_info = Some(net.step(t0, dt, &mut self.prep.scene.particles.temperature, &k)?);
                 }
+                if let Err(e) = crate::finite::ensure_finite("heat", self.step + 1, t1, "particle", "temperature", self.prep.scene.particles.temperature.iter().copied()) {
+                    self.undo_sweep(temps_old);
+                    return Err(e.into());
+                }
             }
             self.timing.heat += tic.elapsed().as_secs_f64();
             // 3. diffusion sweep
@@ -533,6 +541,10 @@ impl Simulation {
                     }
                 }
             }
+            if let Err(e) = crate::finite::ensure_finite_groups("diffusion", self.step + 1, t1, "contact", "7-DOF state", self.contacts.state.iter().map(|c| &c.y)) {
+                self.undo_sweep(temps_old);
+                return Err(e.into());
+            }
             self.timing.diffusion += tic.elapsed().as_secs_f64();
             let subdivided = if strategy1 { trial_rejected } else { stats.iter().filter(|s| s.steps > self.settings.substeps_allowed).count() };
             if strategy1 && subdivided > 0 {
@@ -575,6 +587,7 @@ impl Simulation {
                 }
                 xi
             };
+            crate::finite::ensure_finite("mechanics", self.step + 1, t1, "contact", "axial approach", xi.iter().copied())?;
             self.timing.mechanics += tic.elapsed().as_secs_f64();
             // 5. correction (C1)–(C4)
             let tic = Instant::now();
@@ -630,6 +643,7 @@ impl Simulation {
                     ps.position[j as usize] -= xi[k] * e3[k];
                 }
             }
+            crate::finite::ensure_finite_groups("correction", self.step + 1, t1, "contact", "7-DOF state", self.contacts.state.iter().map(|c| &c.y))?;
             self.timing.correction += tic.elapsed().as_secs_f64();
             // 6. step control
             self.t = if t1 >= end * (1.0 - 1e-12) { end } else { t1 };

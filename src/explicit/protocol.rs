@@ -387,7 +387,41 @@ pub fn parse_explicit_case(case: &toml::Value) -> Result<ExplicitSinterCase, Err
 
 /// `sinterdem check` for `kind = "explicit_sinter"`.
 pub fn check_explicit_case(case: &toml::Value) -> Result<(), Error> {
-    parse_explicit_case(case).map(|_| ())
+    let c = parse_explicit_case(case)?;
+    check_plan(&c)
+}
+
+/// Plausibility of the protocol (issue 16): the particle count against the memory, and the steps
+/// and history rows the protocol's simulated time implies at the sample's explicit step.
+fn check_plan(c: &ExplicitSinterCase) -> Result<(), Error> {
+    use crate::config::plausible::{BYTES_PER_PARTICLE_GENERATE, MAX_STEPS, check_memory};
+    check_memory("sample.particles", c.sample.particles as f64, BYTES_PER_PARTICLE_GENERATE)?;
+    let pressure = c.walls.pressures[0];
+    // the step from a small sample of the same size distribution (building a million-particle
+    // sample is the run's work, not the check's)
+    let mut small = c.clone();
+    small.sample.particles = small.sample.particles.min(200.0);
+    let dt = match &small.model {
+        SinterModel::Luding(p) => Sample::new(&small, LudingLaw::new(p.clone()), pressure)?.driver.settings.dt,
+        SinterModel::Frenkel(p) => Sample::new(&small, FrenkelLaw { params: p.clone() }, pressure)?.driver.settings.dt,
+    };
+    let pr = &c.protocol;
+    let compression = if c.compression.enabled { c.compression.max_strain / c.compression.strain_rate } else { 0.0 };
+    let per_pressure = pr.t_prepare + pr.t_heat + pr.t_sinter.iter().map(|ts| ts + pr.t_cool + pr.t_relax + compression).sum::<f64>();
+    let total = per_pressure * c.walls.pressures.len() as f64;
+    let steps = total / dt;
+    if !(steps <= MAX_STEPS) {
+        return Err(ConfigError::inconsistent(
+            "protocol",
+            format!("{} s of simulated time at the explicit step {} s imply about {steps:.0e} steps (at most {MAX_STEPS:e})", crate::error::fmt_value(total), crate::error::fmt_value(dt)),
+        )
+        .into());
+    }
+    let rows = per_pressure / c.output_interval();
+    if !(rows <= 1e7) {
+        return Err(ConfigError::inconsistent("protocol.output_interval", format!("{} s gives about {rows:.0e} history rows per pressure (at most 1e7)", crate::error::fmt_value(c.output_interval()))).into());
+    }
+    Ok(())
 }
 
 /// What the protocol needs of a sintering law beyond [`ContactModel`].
@@ -421,7 +455,8 @@ impl SinterLaw for LudingLaw {
     }
     fn state_mean(states: &[((u32, u32), f64, LudingSlot)]) -> f64 {
         let v: Vec<f64> = states.iter().filter_map(|(_, _, s)| s.0.map(|s| s.k1_t)).collect();
-        if v.is_empty() { f64::NAN } else { v.iter().sum::<f64>() / v.len() as f64 }
+        // no (bonded) contact: 0, like the force columns of a row without contacts
+        if v.is_empty() { 0.0 } else { v.iter().sum::<f64>() / v.len() as f64 }
     }
     const STATE_COLUMN: &'static str = "k1_t_mean_N_per_m";
 }
@@ -438,7 +473,7 @@ impl SinterLaw for FrenkelLaw {
         r_ref
     }
     fn state_mean(states: &[((u32, u32), f64, FrenkelState)]) -> f64 {
-        if states.is_empty() { f64::NAN } else { states.iter().map(|(_, _, s)| s.delta_p).sum::<f64>() / states.len() as f64 }
+        if states.is_empty() { 0.0 } else { states.iter().map(|(_, _, s)| s.delta_p).sum::<f64>() / states.len() as f64 }
     }
     const STATE_COLUMN: &'static str = "delta_p_mean_m";
 }
@@ -871,9 +906,15 @@ fn run_law<M: SinterLaw>(case: &ExplicitSinterCase, law: M, progress: bool) -> R
                 b.advance(case, &profile, &mut bnet, t_start + duration, d_int, false, Some((z0, v)))?;
                 compression = b.rows.clone();
             }
-            let min_f = |f: &[f64]| f.iter().copied().fold(f64::INFINITY, f64::min);
-            let max_f = |f: &[f64]| f.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-            let (mut peak, mut eps_peak) = (f64::NEG_INFINITY, 0.0);
+            // no contact left: 0 (as in the history rows), with a warning below
+            let min_f = |f: &[f64]| if f.is_empty() { 0.0 } else { f.iter().copied().fold(f64::INFINITY, f64::min) };
+            let max_f = |f: &[f64]| if f.is_empty() { 0.0 } else { f.iter().copied().fold(f64::NEG_INFINITY, f64::max) };
+            for (f, when) in [(&forces_sintered, "after sintering"), (&forces_cooled, "after cool-down")] {
+                if f.is_empty() {
+                    warnings.push(format!("p = {pressure} Pa, t_sinter = {ts} s: no contacts {when}; its force extremes are reported as 0"));
+                }
+            }
+            let (mut peak, mut eps_peak) = (if compression.is_empty() { 0.0 } else { f64::NEG_INFINITY }, 0.0);
             for r in &compression {
                 if r.stress[2] > peak {
                     peak = r.stress[2];
@@ -885,7 +926,11 @@ fn run_law<M: SinterLaw>(case: &ExplicitSinterCase, law: M, progress: bool) -> R
                 let r1 = compression.iter().find(|r| r.strain >= e1).unwrap();
                 (r1.stress[2] - compression[0].stress[2]) / r1.strain.max(f64::MIN_POSITIVE)
             } else {
-                f64::NAN
+                // the stress never rose above its start (or no compression test): no resistance
+                if case.compression.enabled {
+                    warnings.push(format!("p = {pressure} Pa, t_sinter = {ts} s: the compression stress never rose above its initial value; stiffness reported as 0"));
+                }
+                0.0
             };
             warnings.extend(b.warnings.iter().cloned());
             branches.push(Branch {

@@ -85,8 +85,8 @@ pub fn prepare(value: toml::Value, base: &Path) -> Result<Prepared, Error> {
 /// heat sources and the initial contact pipes.
 pub fn prepare_scene(value: toml::Value, base: &Path) -> Result<Prepared, Error> {
     let case: Case = from_value(value, "")?;
-    config::check("time.end", case.time.end)?;
-    config::check("time.dt", case.time.dt)?;
+    let compact = case.kind.as_deref() == Some("compact");
+    config::plausible::check_time(&case.time, compact)?;
     config::check("output.snapshots", case.output.snapshots)?;
     config::check("output.series_every", case.output.series_every)?;
     config::check("thermal.radiation_tolerance", case.thermal.radiation_tolerance)?;
@@ -94,9 +94,22 @@ pub fn prepare_scene(value: toml::Value, base: &Path) -> Result<Prepared, Error>
         return Err(ConfigError::invalid("output.snapshots and output.series_every must be whole numbers").into());
     }
     let conductance = conductance_of(&case)?;
+    // keys that this case's mode does not read are range-checked all the same
+    if let Some(f) = &case.thermal.furnace {
+        config::check("thermal.furnace.convection_coefficient", f.convection_coefficient)?;
+        config::check("thermal.furnace.emissivity", f.emissivity)?;
+        config::check("thermal.furnace.exposure", f.exposure)?;
+    }
+    config::check("conductivity.temperature_difference", case.conductivity.temperature_difference)?;
+    config::check_opt("conductivity.layer_fraction", case.conductivity.layer_fraction)?;
+    let per_particle = if compact { config::plausible::BYTES_PER_PARTICLE_COMPACT } else { config::plausible::BYTES_PER_PARTICLE_HEAT };
+    if let Some(count) = scene::particle_count(&case.particles) {
+        config::plausible::check_memory("particles.cells", count, per_particle)?;
+    }
     let materials = crate::material::from_case(&case.materials)?;
     let scene = scene::build(&case.particles, materials, base)?;
     let n = scene.particles.len();
+    config::plausible::check_memory("particles.file", n as f64, per_particle)?;
     let th = &case.thermal;
     let isothermal = match th.mode.as_str() {
         "network" => None,
@@ -159,6 +172,18 @@ pub fn prepare_scene(value: toml::Value, base: &Path) -> Result<Prepared, Error>
     }
     let pipes = scene::pipes(&scene.particles, &scene.materials, &conductance)?;
     Ok(Prepared { case, scene, pipes, sources, isothermal, conductance })
+}
+
+/// Floor of the energy-balance denominator, relative to the stored heat Σ C_i T_i [1].
+pub const ENERGY_BALANCE_FLOOR: f64 = 1e-6;
+
+/// The energy-balance residual |ΔE − Q| / max(Σ|Q_step|, |ΔE|, 1e-6·E) of a run: `stored_change`
+/// ΔE and `heat_in` Q [J] over the run, `scale` Σ|Q_step| [J], `stored_total` E = Σ C_i T_i [J].
+/// The floor tied to the stored heat keeps the figure meaningful when almost no heat flows (then
+/// the residual is round-off of E, and a purely relative figure would read O(1)).
+pub fn energy_balance_rel(stored_change: f64, heat_in: f64, scale: f64, stored_total: f64) -> f64 {
+    let denom = scale.max(stored_change.abs()).max(ENERGY_BALANCE_FLOOR * stored_total.abs()).max(f64::MIN_POSITIVE);
+    (stored_change - heat_in).abs() / denom
 }
 
 /// Runs a prepared heat case into `out`, returning the summary that is also written to
@@ -259,6 +284,7 @@ pub fn run(mut prep: Prepared, out: &Path, progress: bool, log: &mut dyn FnMut(&
             p.temperature.iter_mut().for_each(|v| *v = tt);
         } else {
             let info = net.step(t, dt, &mut p.temperature, &prep.pipes.conductance)?;
+            crate::finite::ensure_finite("heat", steps as u64 + 1, t + dt, "particle", "temperature", p.temperature.iter().copied())?;
             heat_in += info.heat_in;
             stored += info.stored_change;
             stored_plain += info.stored_change_plain;
@@ -309,8 +335,7 @@ pub fn run(mut prep: Prepared, out: &Path, progress: bool, log: &mut dyn FnMut(&
     }
     bar.finish();
     let (mean, lo, hi) = stats(&p.temperature);
-    let denom = scale.max(stored.abs()).max(1e-300);
-    let balance = if prep.isothermal.is_some() { 0.0 } else { (stored - heat_in).abs() / denom };
+    let balance = if prep.isothermal.is_some() { 0.0 } else { energy_balance_rel(stored, heat_in, scale, stored0) };
     let stored_end = stored_of(&p.temperature, &net, &p.capacity);
     let summary = json!({
         "kind": "heat",

@@ -14,6 +14,28 @@ pub fn ensure_dir(dir: &Path) -> Result<(), IoError> {
     std::fs::create_dir_all(dir).map_err(|e| IoError::new(dir, e))
 }
 
+/// Largest input file read as text (case, packing, checkpoint) [bytes].
+pub const MAX_INPUT_BYTES: u64 = 4 << 30;
+
+/// Reads an input file (case, packing file, checkpoint) as UTF-8 text. Refuses what is not a
+/// regular file (a FIFO would block forever, `/dev/zero` would fill the memory) and files above
+/// [`MAX_INPUT_BYTES`]; a leading UTF-8 byte-order mark is dropped.
+pub fn read_input(path: &Path) -> Result<String, IoError> {
+    let meta = std::fs::metadata(path).map_err(|e| IoError::new(path, e))?;
+    if !meta.is_file() {
+        let what = if meta.is_dir() { "a directory" } else { "not a regular file (a device, FIFO or socket)" };
+        return Err(IoError::new(path, format!("is {what}; an input must be a regular file")));
+    }
+    if meta.len() > MAX_INPUT_BYTES {
+        return Err(IoError::new(path, format!("is {} bytes; inputs above {} bytes are refused", meta.len(), MAX_INPUT_BYTES)));
+    }
+    let text = std::fs::read_to_string(path).map_err(|e| IoError::new(path, e))?;
+    Ok(match text.strip_prefix('\u{feff}') {
+        Some(rest) => rest.to_string(),
+        None => text,
+    })
+}
+
 /// Writes pretty JSON.
 pub fn write_json(path: &Path, value: &serde_json::Value) -> Result<(), IoError> {
     let text = serde_json::to_string_pretty(value).map_err(|e| IoError::new(path, e))?;

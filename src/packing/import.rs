@@ -1,7 +1,7 @@
 //! Import of packings made elsewhere: sinterdem's CSV, LIGGGHTS/LAMMPS text dumps and Yade's
 //! text export of spheres. Every malformed line is reported with its file name and line number.
 
-use crate::error::{ConfigError, Error, IoError};
+use crate::error::{ConfigError, Error};
 use nalgebra::Vector3;
 use std::path::Path;
 
@@ -46,7 +46,7 @@ pub struct ImportedPacking {
 
 /// Reads a packing file.
 pub fn import(path: &Path, format: ImportFormat) -> Result<ImportedPacking, Error> {
-    let text = std::fs::read_to_string(path).map_err(|e| IoError::new(path, e))?;
+    let text = crate::io::read_input(path)?;
     import_str(&text, format, &path.display().to_string())
 }
 
@@ -62,10 +62,16 @@ fn num(name: &str, line: usize, col: &str, s: &str) -> Result<f64, Error> {
     Ok(v)
 }
 
+/// Checks a value of a packing file against the range table entry `key`, naming file and line.
+fn ranged(name: &str, line: usize, col: &str, key: &str, v: f64) -> Result<f64, Error> {
+    crate::config::check(key, v).map_err(|e| line_err(name, line, format!("column {col}: {e}")))
+}
+
 fn push_sphere(out: &mut ImportedPacking, name: &str, line: usize, x: [f64; 3], r: f64) -> Result<(), Error> {
-    if !(r > 0.0) {
-        return Err(line_err(name, line, format!("radius {r} must be > 0 (m)")));
+    for (c, v) in ["x", "y", "z"].iter().zip(x) {
+        ranged(name, line, c, "particles.position", v)?;
     }
+    ranged(name, line, "r", "particles.radius", r)?;
     out.positions.push(Vector3::new(x[0], x[1], x[2]));
     out.radii.push(r);
     Ok(())
@@ -73,6 +79,7 @@ fn push_sphere(out: &mut ImportedPacking, name: &str, line: usize, x: [f64; 3], 
 
 /// Parses packing text; `name` appears in error messages.
 pub fn import_str(text: &str, format: ImportFormat, name: &str) -> Result<ImportedPacking, Error> {
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let out = match format {
         ImportFormat::Csv => parse_csv(text, name)?,
         ImportFormat::Liggghts => parse_dump(text, name)?,
@@ -129,10 +136,7 @@ fn parse_csv(text: &str, name: &str) -> Result<ImportedPacking, Error> {
                     v.push(m);
                 }
                 if let (Some(c), Some(v)) = (temp, out.temperatures.as_mut()) {
-                    let t = num(name, line, "temperature", fields[*c])?;
-                    if t <= 0.0 {
-                        return Err(line_err(name, line, format!("temperature {t} must be > 0 (K)")));
-                    }
+                    let t = ranged(name, line, "temperature", "particles.initial_temperature", num(name, line, "temperature", fields[*c])?)?;
                     v.push(t);
                 }
             }

@@ -58,12 +58,12 @@ pub static RANGES: &[Range] = &[
     rg("packing.seed", 0.0, 1.8e19, false, "1", "random seed (integer)"),
     rg("packing.target_solid_fraction", 0.05, 0.72, false, "1", "solid fraction the walls compress to (eq. 49 with the wall box)"),
     rg("packing.box.*", 0.0, 10.0, true, "m", "box edge; only the shape is kept, scaled to the volume of the target"),
-    rg("packing.lamina_width", 0.0, 1.0, true, "m", "lamina width q_s of the density report (eq. 48); default the mean radius"),
-    rg("packing.size.mean_diameter", 0.0, 1.0, true, "m", "mean particle diameter"),
+    rg("packing.lamina_width", 1e-9, 1.0, false, "m", "lamina width q_s of the density report (eq. 48); default the mean radius; at least 1/100 of the mean radius"),
+    rg("packing.size.mean_diameter", 2e-9, 1.0, false, "m", "mean particle diameter"),
     rg("packing.size.spread", 0.0, 0.9, false, "1", "uniform: relative half-width, d = mean (1 ± spread)"),
     rg("packing.size.std_diameter", 0.0, 1.0, false, "m", "normal: standard deviation of the diameter"),
     rg("packing.size.truncate", 0.1, 10.0, false, "1", "normal: truncation at mean ± truncate·std"),
-    rg("packing.size.diameters.*", 0.0, 1.0, true, "m", "tabulated: diameters, increasing"),
+    rg("packing.size.diameters.*", 2e-9, 1.0, false, "m", "tabulated: diameters, increasing"),
     rg("packing.size.cumulative.*", 0.0, 1.0, false, "1", "tabulated: cumulative number fraction at each diameter"),
     rg("packing.protocol.friction", 0.0, 2.0, false, "1", "particle friction coefficient during settling and compaction (lowered if the packing jams)"),
     rg("packing.protocol.wall_friction", 0.0, 2.0, false, "1", "particle-wall friction coefficient"),
@@ -250,6 +250,19 @@ pub fn parse_generate_case(case: &toml::Value) -> Result<GenerateCase, Error> {
         }
     };
     size.validate()?;
+    if let Some(w) = lamina_width {
+        // eq. 48's laminae are cut at width w along each edge: a width far below a radius asks
+        // for an absurd number of laminae (1e-12 m: 1e8 per axis) and says nothing more
+        let r = 0.5 * requested_mean_diameter(&size);
+        if w < 0.01 * r {
+            return Err(ConfigError::inconsistent(
+                "packing.lamina_width",
+                format!("{} m is below 1/100 of the mean radius ({} m)", crate::error::fmt_value(w), crate::error::fmt_value(r)),
+            )
+            .into());
+        }
+    }
+    crate::config::plausible::check_memory("packing.particles", particles as f64, crate::config::plausible::BYTES_PER_PARTICLE_GENERATE)?;
     let d = Protocol::default();
     let pr = pf.protocol;
     let get = |v: Option<f64>, k: &str, def: f64| -> Result<f64, ConfigError> { chk(&format!("packing.protocol.{k}"), v.unwrap_or(def)) };
@@ -827,6 +840,14 @@ pub fn write_outputs(case: &GenerateCase, packing: &Packing, summary: &GenerateS
 pub fn generate_case(case: &toml::Value, out_dir: &Path, progress: bool) -> Result<GenerateSummary, Error> {
     let c = parse_generate_case(case)?;
     let (packing, summary) = generate(&c, progress)?;
+    // a non-finite figure is a model error, not a summary with null in it
+    let s = &summary;
+    let figures = [("solid_fraction", s.solid_fraction), ("coordination_mean", s.coordination_mean), ("max_overlap_rel", s.max_overlap_rel), ("kinetic_energy_rel", s.kinetic_energy_rel), ("mean_radius", s.mean_radius), ("size_ks_distance", s.size_ks_distance)];
+    let more = s.box_size.iter().chain(&s.laminae_max_deviation).chain(&s.laminae_mean).map(|&v| ("box_size/laminae", v));
+    if let Some((k, v)) = figures.into_iter().chain(more).find(|(_, v)| !v.is_finite()) {
+        return Err(crate::error::ModelError::new(format!("packing generation produced a non-finite {k} ({v})")).with_context(format!("{} particles, {} steps", s.particles, s.steps)).into());
+    }
+    crate::finite::ensure_finite_groups("packing generation", summary.steps, 0.0, "particle", "position", packing.positions.iter().map(|x| x.as_ref()))?;
     write_outputs(&c, &packing, &summary, out_dir)?;
     if !summary.thresholds_met {
         return Err(SolveError::new(
