@@ -260,8 +260,9 @@ enum Bench {
     },
 }
 
+/// The folder of a case file (relative paths in it start there); "." for a bare file name.
 fn base_dir(case: &Path) -> PathBuf {
-    case.parent().map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from("."))
+    case.parent().filter(|p| !p.as_os_str().is_empty()).map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from("."))
 }
 
 /// `run` and `generate`: the run API with the case's folder as base and log lines on stderr.
