@@ -55,6 +55,8 @@ pub struct Checkpoint {
     pub contacts: Vec<Contact7>,
     pub dl_bar: Vec<f64>,
     pub substeps: Vec<u32>,
+    /// The heat network's BDF2 history; absent for runs without a heat solve.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub heat_history: Option<(Vec<f64>, f64)>,
     pub output: OutputState,
 }

@@ -213,7 +213,7 @@ pub fn run_from(mut sim: Simulation, out: &Path, progress: bool, log: &mut dyn F
         "warnings": sim.warnings,
         "threads": rayon::current_num_threads(),
         "completed": stop_reason.is_none(),
-        "stop_reason": stop_reason,
+        "stop_reason": stop_reason.clone().unwrap_or_else(|| "end time reached".into()),
     });
     let mut summary = summary;
     let prof = sim.layer_profile(5);
