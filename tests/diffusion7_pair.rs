@@ -113,7 +113,7 @@ fn bad_pair_cases_are_rejected_clearly() {
         parse_pair_case(&c).unwrap_err().to_string()
     };
     let e = bad("pair.radius=-1e-6");
-    assert!(e.contains("pair.radius") && e.contains("-0.000001") && e.contains("m"), "{e}");
+    assert!(e.contains("pair.radius") && e.contains("-1e-6") && e.contains("(m)"), "{e}");
     let e = bad("solver.rtol=2");
     assert!(e.contains("solver.rtol") && e.contains("(0, 0.1)"), "{e}");
     assert!(bad("pair.radius_typo=1").contains("radius_typo"));
