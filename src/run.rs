@@ -156,7 +156,9 @@ pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunPar
     let base = &params.base_dir;
     let summary = match kind {
         Kind::Heat => {
-            let prep = crate::heat::run::prepare(value, base)?;
+            let text = toml::to_string(&value).map_err(|e| ConfigError::invalid(format!("case cannot be re-serialised: {e}")))?;
+            let mut prep = crate::heat::run::prepare(value, base)?;
+            prep.source = Some((text, base.canonicalize().unwrap_or_else(|_| base.to_path_buf())));
             crate::heat::run::run(prep, out, params.progress, &mut logf)?
         }
         Kind::Compact => {
@@ -198,8 +200,16 @@ pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunPar
 pub fn resume(dir: &Path, params: &RunParams) -> Result<RunSummary, Error> {
     let wall = Instant::now();
     let mut log = RunLog::open(dir, true, params.echo_log);
-    let summary = crate::coupled::resume(dir, params.progress, &mut |m: &str| log.line(m))?;
-    Ok(RunSummary { kind: Kind::Compact, wall_seconds: wall.elapsed().as_secs_f64(), summary })
+    // the checkpoint's format names the kind
+    let path = dir.join("checkpoint.json");
+    let text = std::fs::read_to_string(&path).map_err(|e| IoError::new(&path, e))?;
+    let heat = text.contains(&format!("\"format\":\"{}\"", crate::heat::run::HEAT_CHECKPOINT_FORMAT));
+    let (kind, summary) = if heat {
+        (Kind::Heat, crate::heat::run::resume(dir, params.progress, &mut |m: &str| log.line(m))?)
+    } else {
+        (Kind::Compact, crate::coupled::resume(dir, params.progress, &mut |m: &str| log.line(m))?)
+    };
+    Ok(RunSummary { kind, wall_seconds: wall.elapsed().as_secs_f64(), summary })
 }
 
 /// Validates a case without running it; returns a one-line description.

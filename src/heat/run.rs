@@ -22,6 +22,8 @@ pub struct Prepared {
     /// `Some(profile)` for `thermal.mode = "isothermal"`.
     pub isothermal: Option<Profile>,
     pub conductance: Conductance,
+    /// The case as run (overrides applied) and its folder, for checkpoints; set by the run API.
+    pub source: Option<(String, std::path::PathBuf)>,
 }
 
 fn furnace(spec: &FurnaceSpec) -> Result<Furnace, ConfigError> {
@@ -71,12 +73,11 @@ pub fn prepare(value: toml::Value, base: &Path) -> Result<Prepared, Error> {
         (t.shrink_above.is_some(), "time.shrink_above"),
         (t.substeps_allowed.is_some(), "time.substeps_allowed"),
         (t.stop_relative_density.is_some(), "time.stop_relative_density"),
-        (o.checkpoint_every != 0.0, "output.checkpoint_every"),
         (!o.conductivity_at.is_empty(), "output.conductivity_at"),
         (!o.correction_histogram_at.is_empty(), "output.correction_histogram_at"),
     ];
     if let Some((_, key)) = compact_only.iter().find(|(present, _)| *present) {
-        return Err(ConfigError::inconsistent(*key, "this key is read by kind = \"compact\" runs only (a heat run has no checkpoints, step control or sintering analyses)").into());
+        return Err(ConfigError::inconsistent(*key, "this key is read by kind = \"compact\" runs only (a heat run has no step control or sintering analyses)").into());
     }
     Ok(prep)
 }
@@ -171,7 +172,7 @@ pub fn prepare_scene(value: toml::Value, base: &Path) -> Result<Prepared, Error>
         sources.furnace = Some(fur);
     }
     let pipes = scene::pipes(&scene.particles, &scene.materials, &conductance)?;
-    Ok(Prepared { case, scene, pipes, sources, isothermal, conductance })
+    Ok(Prepared { case, scene, pipes, sources, isothermal, conductance, source: None })
 }
 
 /// Floor of the energy-balance denominator, relative to the stored heat Σ C_i T_i [1].
@@ -186,9 +187,96 @@ pub fn energy_balance_rel(stored_change: f64, heat_in: f64, scale: f64, stored_t
     (stored_change - heat_in).abs() / denom
 }
 
+/// The heat run's loop state: what a checkpoint must carry besides the temperatures.
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
+pub struct HeatLoop {
+    /// Time [s] and steps done.
+    pub t: f64,
+    pub steps: usize,
+    /// Energy accounts [J]: heat in, scheme's stored change, plain stored change, Σ|Q_step|,
+    /// stored heat at the start.
+    pub heat_in: f64,
+    pub stored: f64,
+    pub stored_plain: f64,
+    pub scale: f64,
+    pub stored0: f64,
+    /// Wall-time shares [s] and solver counters.
+    pub t_assemble: f64,
+    pub t_factor: f64,
+    pub t_solve: f64,
+    pub factorizations: usize,
+    pub max_resid: f64,
+    pub max_iters: u32,
+    /// Temperatures of the last steps of equal Δt for the local error estimate [K], that Δt [s].
+    pub hist: Vec<Vec<f64>>,
+    pub hist_dt: Option<f64>,
+    pub max_err_est: f64,
+    /// Next snapshot, series lines written (header included), snapshots and VTU entries so far.
+    pub next_snap: usize,
+    pub series_lines: usize,
+    pub snapshots: usize,
+    pub vtu_entries: Vec<(f64, String, String)>,
+    /// Wall time before the checkpoint [s].
+    pub wall_before: f64,
+}
+
+/// `DIR/checkpoint.json` of a heat run.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub struct HeatCheckpoint {
+    pub format: String,
+    pub case_toml: String,
+    pub base_dir: std::path::PathBuf,
+    pub state: HeatLoop,
+    /// Particle temperatures [K].
+    pub temperature: Vec<f64>,
+    /// The network's BDF2 history (T^{n−1} [K], Δt_{n−1} [s]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bdf2: Option<(Vec<f64>, f64)>,
+}
+
+/// Format tag of heat checkpoints.
+pub const HEAT_CHECKPOINT_FORMAT: &str = "sinterdem-heat-checkpoint-1";
+
 /// Runs a prepared heat case into `out`, returning the summary that is also written to
 /// `out/summary.json`.
-pub fn run(mut prep: Prepared, out: &Path, progress: bool, log: &mut dyn FnMut(&str)) -> Result<serde_json::Value, Error> {
+pub fn run(prep: Prepared, out: &Path, progress: bool, log: &mut dyn FnMut(&str)) -> Result<serde_json::Value, Error> {
+    run_from(prep, out, progress, log, None, None)
+}
+
+/// `sinterdem resume DIR` for a heat run: rebuilds the case from the checkpoint's text, restores
+/// temperatures, BDF2 history and loop state, and continues bit for bit.
+pub fn resume(dir: &Path, progress: bool, log: &mut dyn FnMut(&str)) -> Result<serde_json::Value, Error> {
+    let path = dir.join("checkpoint.json");
+    let text = std::fs::read_to_string(&path).map_err(|e| IoError::new(&path, e))?;
+    let ck: HeatCheckpoint = serde_json::from_str(&text).map_err(|e| IoError::new(&path, e))?;
+    if ck.format != HEAT_CHECKPOINT_FORMAT {
+        return Err(ConfigError::invalid(format!("{}: format \"{}\" is not {HEAT_CHECKPOINT_FORMAT}", path.display(), ck.format)).into());
+    }
+    let value = toml::Value::Table(ck.case_toml.parse::<toml::Table>().map_err(|e| ConfigError::invalid(format!("{}: case: {e}", path.display())))?);
+    let mut prep = prepare(value, &ck.base_dir)?;
+    prep.source = Some((ck.case_toml.clone(), ck.base_dir.clone()));
+    let n = prep.scene.particles.len();
+    let st = &ck.state;
+    let end = prep.case.time.end;
+    let bad = |m: String| -> Error { ConfigError::invalid(format!("{}: {m}", path.display())).into() };
+    if ck.temperature.len() != n || ck.temperature.iter().any(|t| !(t.is_finite() && *t > 0.0)) {
+        return Err(bad(format!("temperatures: need {n} finite positive values")));
+    }
+    if !(st.t.is_finite() && st.t >= 0.0 && st.t <= end) || st.steps as f64 > 1e12 || st.series_lines == 0 || st.hist.iter().any(|h| h.len() != n) {
+        return Err(bad(format!("loop state out of range (t = {} s of end {end} s, steps {}, series lines {})", st.t, st.steps, st.series_lines)));
+    }
+    if let Some((h, dt)) = &ck.bdf2
+        && (h.len() != n || !(dt.is_finite() && *dt > 0.0))
+    {
+        return Err(bad("BDF2 history does not match the case".into()));
+    }
+    log(&format!("resumed from the checkpoint at t = {} s (step {})", st.t, st.steps));
+    run_from(prep, dir, progress, log, Some(ck), None)
+}
+
+/// Runs from the start or from a checkpoint; `stop_after_step` ends the run right after the
+/// checkpoint of that step (as if killed there; for tests) with `Ok(Value::Null)`.
+pub fn run_from(mut prep: Prepared, out: &Path, progress: bool, log: &mut dyn FnMut(&str), ck: Option<HeatCheckpoint>, stop_after_step: Option<usize>) -> Result<serde_json::Value, Error> {
     let wall = Instant::now();
     io::ensure_dir(out)?;
     let case = &prep.case;
@@ -214,22 +302,33 @@ pub fn run(mut prep: Prepared, out: &Path, progress: bool, log: &mut dyn FnMut(&
         // neighbour search is done once: the packing is static in a heat run
         log("static packing: neighbour search done once, mechanics and diffusion are not part of a heat run");
     }
-    let mut series = Series::create(
-        &out.join("series.csv"),
-        &["time_s", "dt_s", "mean_temperature_K", "min_temperature_K", "max_temperature_K", "heat_in_J", "stored_heat_J", "heat_in_cumulative_J", "radiation_iterations"],
-    )?;
-    let mut snaps = SnapshotWriter::new(out, case.output.vtu, case.output.hdf5, log)?;
+    const HEADER: [&str; 9] = ["time_s", "dt_s", "mean_temperature_K", "min_temperature_K", "max_temperature_K", "heat_in_J", "stored_heat_J", "heat_in_cumulative_J", "radiation_iterations"];
+    let resumed = ck.is_some();
+    let (mut series, mut snaps) = match &ck {
+        Some(c) => {
+            p.temperature = c.temperature.clone();
+            net.set_history(c.bdf2.clone());
+            (
+                Series::resume(&out.join("series.csv"), c.state.series_lines, HEADER.len())?,
+                SnapshotWriter::resume(out, case.output.vtu, case.output.hdf5, c.state.snapshots, c.state.vtu_entries.clone(), log)?,
+            )
+        }
+        None => (Series::create(&out.join("series.csv"), &HEADER)?, SnapshotWriter::new(out, case.output.vtu, case.output.hdf5, log)?),
+    };
+    let ck_every = case.output.checkpoint_every as usize;
     let n_snap = case.output.snapshots as usize;
     let snap_times: Vec<f64> = match n_snap {
         0 => vec![],
         1 => vec![end],
         k => (0..k).map(|i| end * i as f64 / (k - 1) as f64).collect(),
     };
-    let mut next_snap = 0usize;
+    let st0 = ck.as_ref().map(|c| c.state.clone()).unwrap_or_default();
+    let mut next_snap = st0.next_snap;
+    let mut series_lines = if resumed { st0.series_lines } else { 1 };
     let stored_of = |temps: &[f64], net: &HeatNetwork, cap: &[f64]| -> f64 {
         (0..temps.len()).filter(|&i| !net.is_fixed(i)).map(|i| cap[i] * temps[i]).sum()
     };
-    let stored0 = stored_of(&p.temperature, &net, &p.capacity);
+    let stored0 = if resumed { st0.stored0 } else { stored_of(&p.temperature, &net, &p.capacity) };
     let parameters = io::Parameters {
         case_toml: toml::to_string(case).unwrap_or_else(|e| format!("# the case could not be written as TOML: {e}")),
         materials_json: serde_json::to_string_pretty(&case.materials).unwrap_or_default(),
@@ -255,16 +354,17 @@ pub fn run(mut prep: Prepared, out: &Path, progress: bool, log: &mut dyn FnMut(&
         (mean, lo, hi)
     };
     let bar = io::progress::Progress::new(end, progress);
-    let (mut t, mut steps) = (0.0f64, 0usize);
-    let (mut heat_in, mut stored, mut stored_plain, mut scale) = (0.0, 0.0, 0.0, 0.0f64);
-    let (mut t_assemble, mut t_factor, mut t_solve, mut factorizations, mut max_resid) = (0.0, 0.0, 0.0, 0usize, 0.0f64);
-    let mut max_iters = 0u32;
+    let (mut t, mut steps) = (st0.t, st0.steps);
+    let (mut heat_in, mut stored, mut stored_plain, mut scale) = (st0.heat_in, st0.stored, st0.stored_plain, st0.scale);
+    let (mut t_assemble, mut t_factor, mut t_solve, mut factorizations, mut max_resid) = (st0.t_assemble, st0.t_factor, st0.t_solve, st0.factorizations, st0.max_resid);
+    let mut max_iters = st0.max_iters;
     // local error estimate (docs/heat-model.md): difference between the step's result and an
     // explicit extrapolation from earlier steps of the same size, scaled by the scheme's error
     // constant: BE ½|T¹ − (2T⁰ − T⁻¹)|, CN (1/11)|T¹ − P|, BDF2 (2/7)|T¹ − P|, P = 3T⁰ − 3T⁻¹ + T⁻².
-    let mut hist: Vec<Vec<f64>> = Vec::new();
-    let mut hist_dt = f64::NAN;
-    let mut max_err_est = 0.0f64;
+    let mut hist: Vec<Vec<f64>> = st0.hist.clone();
+    let mut hist_dt = st0.hist_dt.unwrap_or(f64::NAN);
+    let mut max_err_est = st0.max_err_est;
+    let wall_before = st0.wall_before;
     // the extrapolation is not valid across a kink of a prescribed profile: restart it there
     let mut kinks: Vec<f64> = prep.sources.profiles.iter().flat_map(|p| p.breakpoints().to_vec()).collect();
     if let Some(f) = &prep.sources.furnace {
@@ -326,10 +426,45 @@ pub fn run(mut prep: Prepared, out: &Path, progress: bool, log: &mut dyn FnMut(&
         if steps % case.output.series_every as usize == 0 || t >= end * (1.0 - 1e-12) {
             let (mean, lo, hi) = stats(&p.temperature);
             series.row(&[t, dt, mean, lo, hi, hin, stored_of(&p.temperature, &net, &p.capacity), heat_in, iters as f64])?;
+            series_lines += 1;
         }
         while next_snap < snap_times.len() && snap_times[next_snap] <= t + 1e-9 * dt {
             write_snapshot(&mut snaps, t, steps, p, &prep.pipes)?;
             next_snap += 1;
+        }
+        if ck_every > 0 && steps.is_multiple_of(ck_every) && t < end * (1.0 - 1e-12) {
+            let (text, base) = prep.source.clone().unwrap_or_else(|| (toml::to_string(&prep.case).unwrap_or_default(), std::path::PathBuf::from(".")));
+            let state = HeatLoop {
+                t,
+                steps,
+                heat_in,
+                stored,
+                stored_plain,
+                scale,
+                stored0,
+                t_assemble,
+                t_factor,
+                t_solve,
+                factorizations,
+                max_resid,
+                max_iters,
+                hist: hist.clone(),
+                hist_dt: hist_dt.is_finite().then_some(hist_dt),
+                max_err_est,
+                next_snap,
+                series_lines,
+                snapshots: snaps.count(),
+                vtu_entries: snaps.vtu_entries(),
+                wall_before: wall_before + wall.elapsed().as_secs_f64(),
+            };
+            let hc = HeatCheckpoint { format: HEAT_CHECKPOINT_FORMAT.into(), case_toml: text, base_dir: base, state, temperature: p.temperature.clone(), bdf2: net.history().cloned() };
+            let path = out.join("checkpoint.json");
+            let json = serde_json::to_string(&hc).map_err(|e| IoError::new(&path, e))?;
+            crate::study::store::write_atomic(&path, &json)?;
+            if stop_after_step.is_some_and(|k| steps >= k) {
+                bar.finish();
+                return Ok(serde_json::Value::Null);
+            }
         }
         bar.set(t, "");
     }
@@ -341,7 +476,7 @@ pub fn run(mut prep: Prepared, out: &Path, progress: bool, log: &mut dyn FnMut(&
         "kind": "heat",
         "final_time_s": t,
         "steps": steps,
-        "wall_seconds": wall.elapsed().as_secs_f64(),
+        "wall_seconds": wall_before + wall.elapsed().as_secs_f64(),
         "particles": n,
         "contacts": prep.pipes.pairs.len(),
         "contacts_extrapolated": prep.pipes.extrapolated,
