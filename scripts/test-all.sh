@@ -10,6 +10,18 @@ start=$(date +%s)
 echo "== cargo build --release $features"
 # shellcheck disable=SC2086
 cargo build --release --quiet $features
+echo "== cargo fmt --check and cargo clippy --all-targets -D warnings (allow-list in Cargo.toml [lints.clippy])"
+gate_status=0
+if ! cargo fmt --check >/tmp/sinterdem-fmt.log 2>&1; then
+    echo "cargo fmt --check: the tree is not formatted (run cargo fmt):"; head -n 40 /tmp/sinterdem-fmt.log
+    gate_status=1
+fi
+# shellcheck disable=SC2086
+if ! cargo clippy --release --quiet --all-targets $features -- -D warnings >/tmp/sinterdem-clippy.log 2>&1; then
+    echo "cargo clippy: warnings or errors:"; head -n 60 /tmp/sinterdem-clippy.log
+    gate_status=1
+fi
+[ "$gate_status" = "0" ] && echo "fmt and clippy: clean"
 echo "== SLURM: a single-node cluster on localhost for the SLURM engine tests (scripts/slurm-local.sh)"
 slurm_dir=$(mktemp -d /tmp/sinterdem-slurm-XXXXXX)
 set +e
@@ -50,9 +62,9 @@ py_passed=$(grep -Eo "[0-9]+ passed" /tmp/sinterdem-pytest.log 2>/dev/null | tai
 py_failed=$(grep -Eo "[0-9]+ failed" /tmp/sinterdem-pytest.log 2>/dev/null | tail -n 1 | awk '{print $1+0}')
 set -e
 echo "== Rust: $passed passed, $failed failed; Python: ${py_passed:-0} passed, ${py_failed:-0} failed (exit $python_status); $(( $(date +%s) - start )) s"
-if [ "$rust_status" != "0" ] || [ "$python_status" != "0" ]; then
+if [ "$rust_status" != "0" ] || [ "$python_status" != "0" ] || [ "$gate_status" != "0" ]; then
     echo "SOME TESTS FAILED"
-    echo "$(( passed + ${py_passed:-0} )) passed, $(( failed + ${py_failed:-0} + (rust_status != 0 && failed == 0) + (python_status != 0 && ${py_failed:-0} == 0) )) failed"
+    echo "$(( passed + ${py_passed:-0} )) passed, $(( failed + ${py_failed:-0} + (rust_status != 0 && failed == 0) + (python_status != 0 && ${py_failed:-0} == 0) + gate_status )) failed"
     exit 1
 fi
 echo "$(( passed + ${py_passed:-0} )) passed, 0 failed"

@@ -44,10 +44,8 @@ impl SpdPattern {
             return Err(SolveError::new("sparse pattern", format!("entry ({r}, {c}) is not in the lower triangle of a {n}×{n} matrix")));
         }
         let idx: Vec<Pair<usize, usize>> = entries.iter().map(|&(r, c)| Pair::new(r as usize, c as usize)).collect();
-        let (symbolic, argsort) = SymbolicSparseColMat::try_new_from_indices(n, n, &idx)
-            .map_err(|e| SolveError::new("sparse pattern", format!("{e:?}")))?;
-        let llt = SymbolicLlt::try_new(symbolic.as_ref(), Side::Lower)
-            .map_err(|e| SolveError::new("symbolic Cholesky", format!("{e:?}")))?;
+        let (symbolic, argsort) = SymbolicSparseColMat::try_new_from_indices(n, n, &idx).map_err(|e| SolveError::new("sparse pattern", format!("{e:?}")))?;
+        let llt = SymbolicLlt::try_new(symbolic.as_ref(), Side::Lower).map_err(|e| SolveError::new("symbolic Cholesky", format!("{e:?}")))?;
         Ok(SpdPattern {
             n,
             rows: entries.iter().map(|e| e.0).collect(),
@@ -82,8 +80,7 @@ impl SpdPattern {
             return Err(SolveError::new("Cholesky", format!("matrix entry ({}, {}) is {}", self.rows[k], self.cols[k], values[k])));
         }
         let t0 = Instant::now();
-        let mat = SparseColMat::new_from_argsort(self.symbolic.clone(), &self.argsort, values)
-            .map_err(|e| SolveError::new("Cholesky", format!("{e:?}")))?;
+        let mat = SparseColMat::new_from_argsort(self.symbolic.clone(), &self.argsort, values).map_err(|e| SolveError::new("Cholesky", format!("{e:?}")))?;
         let llt = Llt::try_new_with_symbolic(self.llt.clone(), mat.as_ref(), Side::Lower)
             .map_err(|e| SolveError::new("Cholesky", format!("matrix is not positive definite ({e:?})")))?;
         Ok(SpdFactor { values: values.to_vec(), llt, factor_seconds: t0.elapsed().as_secs_f64() })
@@ -149,11 +146,7 @@ impl SpdFactor {
 /// Chooses faer's parallelism for a system of `n` unknowns: sequential below 1e5 (stack.md §3:
 /// two threads are neutral or slower there), rayon above.
 pub fn set_parallelism_for(n: usize) {
-    let par = if n >= 100_000 && rayon::current_num_threads() > 1 {
-        faer::Par::rayon(rayon::current_num_threads())
-    } else {
-        faer::Par::Seq
-    };
+    let par = if n >= 100_000 && rayon::current_num_threads() > 1 { faer::Par::rayon(rayon::current_num_threads()) } else { faer::Par::Seq };
     faer::set_global_parallelism(par);
 }
 

@@ -315,7 +315,11 @@ fn real_main(cli: Cli) -> Result<(), Error> {
         Command::Titanium { out, full, diameter } => {
             let study = PathBuf::from("cases/studies/titanium-28.toml");
             if !study.is_file() {
-                return Err(sinterdem::ConfigError::invalid(format!("{} not found: run `sinterdem titanium` from the repository root, or `sinterdem study PATH/titanium-28.toml`", study.display())).into());
+                return Err(sinterdem::ConfigError::invalid(format!(
+                    "{} not found: run `sinterdem titanium` from the repository root, or `sinterdem study PATH/titanium-28.toml`",
+                    study.display()
+                ))
+                .into());
             }
             let mut set = vec![];
             if full {
@@ -353,9 +357,24 @@ fn real_main(cli: Cli) -> Result<(), Error> {
                 other => return Err(sinterdem::ConfigError::invalid(format!("--conductance {other}: expected linear or fe_fit")).into()),
             };
             let optional = [("--kappa2", kappa2), ("--contact-conductance", contact_conductance)];
-            for (k, v) in [("--r1", r1), ("--r2", r2), ("--kappa", kappa), ("--factor", factor)].into_iter().chain(optional.into_iter().filter_map(|(k, v)| Some((k, v?)))) {
+            for (k, v) in [("--r1", r1), ("--r2", r2), ("--kappa", kappa), ("--factor", factor)]
+                .into_iter()
+                .chain(optional.into_iter().filter_map(|(k, v)| Some((k, v?))))
+            {
                 if !(v > 0.0 && v.is_finite()) {
-                    return Err(sinterdem::ConfigError::OutOfRange { key: k.into(), value: v, range: "(0, inf)".into(), unit: match k { "--r1" | "--r2" => "m", "--kappa" | "--kappa2" => "W/(m K)", "--factor" => "1", _ => "W/K" }.into() }.into());
+                    return Err(sinterdem::ConfigError::OutOfRange {
+                        key: k.into(),
+                        value: v,
+                        range: "(0, inf)".into(),
+                        unit: match k {
+                            "--r1" | "--r2" => "m",
+                            "--kappa" | "--kappa2" => "W/(m K)",
+                            "--factor" => "1",
+                            _ => "W/K",
+                        }
+                        .into(),
+                    }
+                    .into());
                 }
             }
             let n = sinterdem::neck::solve(r1, r2, overlap)?;
@@ -376,7 +395,9 @@ fn real_main(cli: Cli) -> Result<(), Error> {
             println!("{}", serde_json::to_string_pretty(&v).unwrap());
             Ok(())
         }
-        Command::Calibrate { case, out, quiet, generate_synthetic, validate_compact } => sinterdem::calibrate::run_file(&case.case, &case.set, &out, quiet, generate_synthetic, validate_compact),
+        Command::Calibrate { case, out, quiet, generate_synthetic, validate_compact } => {
+            sinterdem::calibrate::run_file(&case.case, &case.set, &out, quiet, generate_synthetic, validate_compact)
+        }
         Command::Keys { study } => {
             print!("{}", if study { sinterdem::study::spec::markdown() } else { sinterdem::config::ranges::markdown() });
             Ok(())

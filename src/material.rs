@@ -66,8 +66,26 @@ pub struct Material {
 /// Table 4 (β-Ti at 1273 K; the same values as the bundled 7-DOF titanium data).
 pub fn preset(name: &str) -> Option<Material> {
     match name {
-        "copper" => Some(Material { name: "copper".into(), density: 8960.0, heat_capacity: 385.0, conductivity: 394.0, young_modulus: 72e9, poisson_ratio: 0.34, diffusion: Some("copper".into()), diffusion_data: None }),
-        "titanium" => Some(Material { name: "titanium".into(), density: 4506.0, heat_capacity: 523.0, conductivity: 21.9, young_modulus: 57e9, poisson_ratio: 0.39, diffusion: Some("titanium".into()), diffusion_data: None }),
+        "copper" => Some(Material {
+            name: "copper".into(),
+            density: 8960.0,
+            heat_capacity: 385.0,
+            conductivity: 394.0,
+            young_modulus: 72e9,
+            poisson_ratio: 0.34,
+            diffusion: Some("copper".into()),
+            diffusion_data: None,
+        }),
+        "titanium" => Some(Material {
+            name: "titanium".into(),
+            density: 4506.0,
+            heat_capacity: 523.0,
+            conductivity: 21.9,
+            young_modulus: 57e9,
+            poisson_ratio: 0.39,
+            diffusion: Some("titanium".into()),
+            diffusion_data: None,
+        }),
         _ => None,
     }
 }
@@ -77,9 +95,7 @@ impl MaterialSpec {
     pub fn resolve(&self) -> Result<Material, ConfigError> {
         let key = |k: &str| format!("materials.{}.{k}", self.name);
         let base = match &self.preset {
-            Some(p) => Some(preset(p).ok_or_else(|| {
-                ConfigError::invalid(format!("{}: unknown preset \"{p}\" (copper, titanium)", key("preset")))
-            })?),
+            Some(p) => Some(preset(p).ok_or_else(|| ConfigError::invalid(format!("{}: unknown preset \"{p}\" (copper, titanium)", key("preset"))))?),
             None => None,
         };
         let get = |v: Option<f64>, k: &str, from_base: Option<f64>| -> Result<f64, ConfigError> {
@@ -93,7 +109,11 @@ impl MaterialSpec {
         let diffusion_name = self.diffusion.clone().or_else(|| base.as_ref().and_then(|b| b.diffusion.clone()));
         let diffusion_data = match &self.phases {
             None => {
-                for (k, v) in [("calibrated_min_temperature", self.calibrated_min_temperature), ("calibrated_max_temperature", self.calibrated_max_temperature), ("melting_temperature", self.melting_temperature)] {
+                for (k, v) in [
+                    ("calibrated_min_temperature", self.calibrated_min_temperature),
+                    ("calibrated_max_temperature", self.calibrated_max_temperature),
+                    ("melting_temperature", self.melting_temperature),
+                ] {
                     if v.is_some() {
                         return Err(ConfigError::invalid(format!("{}: only with user-defined diffusion data ([[materials.phases]])", key(k))));
                     }
@@ -104,15 +124,25 @@ impl MaterialSpec {
                 // the calibrated range defaults to that of the bundled data of the same name
                 let bundled = diffusion_name.as_deref().and_then(|d| crate::models::diffusion7::Material::builtin(d).ok());
                 let range = |v: Option<f64>, k: &str, b: Option<f64>| -> Result<f64, ConfigError> {
-                    v.or(b).ok_or_else(|| ConfigError::invalid(format!("{} is required with [[materials.phases]] (the range the diffusion data are calibrated for)", key(k))))
+                    v.or(b).ok_or_else(|| {
+                        ConfigError::invalid(format!("{} is required with [[materials.phases]] (the range the diffusion data are calibrated for)", key(k)))
+                    })
                 };
                 let m = crate::models::diffusion7::Material {
                     name: self.name.clone(),
                     source: self.source.clone().unwrap_or_default(),
                     young_modulus: young,
                     poisson_ratio: poisson,
-                    calibrated_min_temperature: range(self.calibrated_min_temperature, "calibrated_min_temperature", bundled.as_ref().map(|b| b.calibrated_min_temperature))?,
-                    calibrated_max_temperature: range(self.calibrated_max_temperature, "calibrated_max_temperature", bundled.as_ref().map(|b| b.calibrated_max_temperature))?,
+                    calibrated_min_temperature: range(
+                        self.calibrated_min_temperature,
+                        "calibrated_min_temperature",
+                        bundled.as_ref().map(|b| b.calibrated_min_temperature),
+                    )?,
+                    calibrated_max_temperature: range(
+                        self.calibrated_max_temperature,
+                        "calibrated_max_temperature",
+                        bundled.as_ref().map(|b| b.calibrated_max_temperature),
+                    )?,
                     melting_temperature: self.melting_temperature.or_else(|| bundled.as_ref().and_then(|b| b.melting_temperature)),
                     phases: phases.clone(),
                 };

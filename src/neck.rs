@@ -108,9 +108,7 @@ pub fn solve(r1: f64, r2: f64, h: f64) -> Result<Neck, ModelError> {
         }
         if step.abs() <= 1e-12 * ri {
             if a < r_c * (1.0 - 1e-9) || a > ri * (1.0 + 1e-12) {
-                return Err(ModelError::new(format!(
-                    "neck: root a = {a:.6e} m lies outside [r_c, r_i] = [{r_c:.6e}, {ri:.6e}] m"
-                )));
+                return Err(ModelError::new(format!("neck: root a = {a:.6e} m lies outside [r_c, r_i] = [{r_c:.6e}, {ri:.6e}] m")));
             }
             return Ok(finish(a.min(ri), it, first));
         }
@@ -186,9 +184,7 @@ mod tests {
                 let n = solve(1.0, ratio, h).unwrap();
                 assert!(n.a_coble >= n.a, "ratio {ratio} f {f}");
                 assert!(n.iterations <= 8, "ratio {ratio} f {f}: {} iterations", n.iterations);
-                let z = 3.0 * n.a * n.a * n.h_n
-                    - n.h_cj * n.h_cj * (3.0 * ratio - n.h_cj)
-                    - n.h_ci * n.h_ci * (3.0 - n.h_ci);
+                let z = 3.0 * n.a * n.a * n.h_n - n.h_cj * n.h_cj * (3.0 * ratio - n.h_cj) - n.h_ci * n.h_ci * (3.0 - n.h_ci);
                 let scale = n.h_ci * n.h_ci * 3.0;
                 assert!(z.abs() <= 1e-9 * scale, "ratio {ratio} f {f}: Z = {z}");
             }

@@ -140,16 +140,7 @@ type DrawResult<E> = Result<(), DrawingAreaErrorKind<E>>;
 impl Plot {
     /// An empty 960×640 plot with linear axes.
     pub fn new(title: impl Into<String>) -> Plot {
-        Plot {
-            title: title.into(),
-            x_label: String::new(),
-            y_label: String::new(),
-            log_x: false,
-            log_y: false,
-            width: 960,
-            height: 640,
-            series: Vec::new(),
-        }
+        Plot { title: title.into(), x_label: String::new(), y_label: String::new(), log_x: false, log_y: false, width: 960, height: 640, series: Vec::new() }
     }
 
     /// Axis labels.
@@ -364,8 +355,13 @@ impl Plot {
             (SeriesLabelPosition::LowerRight, 1.0 - lw, 0.0),
             (SeriesLabelPosition::LowerLeft, 0.0, 0.0),
         ];
-        let pts: Vec<(f64, f64)> =
-            self.series.iter().flat_map(|s| s.points.iter()).filter(|&&(x, y)| self.ok(x, y)).map(|&(x, y)| (f(x, x0, x1, self.log_x), f(y, y0, y1, self.log_y))).collect();
+        let pts: Vec<(f64, f64)> = self
+            .series
+            .iter()
+            .flat_map(|s| s.points.iter())
+            .filter(|&&(x, y)| self.ok(x, y))
+            .map(|&(x, y)| (f(x, x0, x1, self.log_x), f(y, y0, y1, self.log_y)))
+            .collect();
         let mut best = (usize::MAX, SeriesLabelPosition::UpperRight);
         for (pos, cx, cy) in corners {
             let hidden = pts.iter().filter(|&&(u, v)| u >= cx - 0.02 && u <= cx + lw + 0.02 && v >= cy - 0.02 && v <= cy + lh + 0.02).count();

@@ -40,12 +40,7 @@ pub const T_MAX: f64 = 1.0e4;
 
 fn check_temperature(key: &str, t: f64) -> Result<f64, ConfigError> {
     if !(T_MIN..=T_MAX).contains(&t) || !t.is_finite() {
-        return Err(ConfigError::OutOfRange {
-            key: key.to_string(),
-            value: t,
-            range: format!("[{T_MIN}, {T_MAX}]"),
-            unit: "K".into(),
-        });
+        return Err(ConfigError::OutOfRange { key: key.to_string(), value: t, range: format!("[{T_MIN}, {T_MAX}]"), unit: "K".into() });
     }
     Ok(t)
 }
@@ -66,19 +61,12 @@ impl Profile {
         let mut temps = Vec::with_capacity(rows.len());
         for (k, r) in rows.iter().enumerate() {
             if !r[0].is_finite() || r[0] < 0.0 {
-                return Err(ConfigError::OutOfRange {
-                    key: format!("profile.table[{k}].time"),
-                    value: r[0],
-                    range: "[0, inf)".into(),
-                    unit: "s".into(),
-                });
+                return Err(ConfigError::OutOfRange { key: format!("profile.table[{k}].time"), value: r[0], range: "[0, inf)".into(), unit: "s".into() });
             }
             if let Some(&last) = times.last()
-                && r[0] <= last {
-                return Err(ConfigError::invalid(format!(
-                    "profile.table[{k}]: time {} s is not after the previous row's {} s",
-                    r[0], last
-                )));
+                && r[0] <= last
+            {
+                return Err(ConfigError::invalid(format!("profile.table[{k}]: time {} s is not after the previous row's {} s", r[0], last)));
             }
             times.push(r[0]);
             temps.push(check_temperature(&format!("profile.table[{k}].temperature"), r[1])?);
@@ -92,9 +80,7 @@ impl Profile {
         let mut temps: Vec<f64> = Vec::new();
         for (k, raw) in s.split(',').map(str::trim).filter(|x| !x.is_empty()).enumerate() {
             let words: Vec<&str> = raw.split_whitespace().collect();
-            let bad = |why: &str| {
-                ConfigError::invalid(format!("profile.schedule: cannot read \"{raw}\": {why}"))
-            };
+            let bad = |why: &str| ConfigError::invalid(format!("profile.schedule: cannot read \"{raw}\": {why}"));
             match words.first().copied() {
                 Some("start") if k == 0 => {
                     let t = parse_temperature(&words[1..]).map_err(|e| bad(&e))?;
@@ -113,10 +99,7 @@ impl Profile {
                     let t1 = check_temperature("profile.schedule target", parse_temperature(&words[to + 1..]).map_err(|e| bad(&e))?)?;
                     let heating = words[0] == "heat";
                     if heating && t1 <= t0 || !heating && t1 >= t0 {
-                        return Err(bad(&format!(
-                            "{} from {t0} K to {t1} K goes the wrong way",
-                            if heating { "heating" } else { "cooling" }
-                        )));
+                        return Err(bad(&format!("{} from {t0} K to {t1} K goes the wrong way", if heating { "heating" } else { "cooling" })));
                     }
                     let dt = (t1 - t0).abs() / rate;
                     times.push(times.last().unwrap() + dt);
@@ -285,7 +268,13 @@ fn parse_duration(words: &[&str]) -> Result<f64, String> {
 fn split_unit(s: &str) -> (&str, &str) {
     let i = s
         .char_indices()
-        .find(|&(i, c)| !(c.is_ascii_digit() || c == '.' || c == '-' || c == '+' || ((c == 'e' || c == 'E') && i > 0 && s[i + 1..].starts_with(|d: char| d.is_ascii_digit() || d == '-'))))
+        .find(|&(i, c)| {
+            !(c.is_ascii_digit()
+                || c == '.'
+                || c == '-'
+                || c == '+'
+                || ((c == 'e' || c == 'E') && i > 0 && s[i + 1..].starts_with(|d: char| d.is_ascii_digit() || d == '-')))
+        })
         .map(|(i, _)| i)
         .unwrap_or(s.len());
     (&s[..i], &s[i..])

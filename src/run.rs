@@ -186,10 +186,7 @@ pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunPar
         }
         Kind::Generate => {
             let s = crate::packing::generate_case(&value, out, params.progress)?;
-            logf(&format!(
-                "done: {} particles, solid fraction {:.4}, coordination {:.3}",
-                s.particles, s.solid_fraction, s.coordination_mean
-            ));
+            logf(&format!("done: {} particles, solid fraction {:.4}, coordination {:.3}", s.particles, s.solid_fraction, s.coordination_mean));
             serde_json::to_value(&s).map_err(|e| IoError::new(out.join("summary.json"), e))?
         }
     };

@@ -111,7 +111,13 @@ pub fn build(spec: &ParticlesSpec, materials: Vec<Material>, base: &Path) -> Res
             let r = config::check("particles.radius", spec.radius.ok_or_else(|| ConfigError::invalid("particles.radius is required"))?)?;
             let cells = spec.cells.ok_or_else(|| ConfigError::invalid("particles.cells = [nx, ny, nz] is required for a lattice"))?;
             if cells.iter().any(|&c| c == 0 || c > 200) {
-                return Err(ConfigError::OutOfRange { key: "particles.cells".into(), value: *cells.iter().max().unwrap() as f64, range: "[1, 200] per axis".into(), unit: "1".into() }.into());
+                return Err(ConfigError::OutOfRange {
+                    key: "particles.cells".into(),
+                    value: *cells.iter().max().unwrap() as f64,
+                    range: "[1, 200] per axis".into(),
+                    unit: "1".into(),
+                }
+                .into());
             }
             if overlap >= kind.max_overlap_for_nearest_neighbours() {
                 return Err(ConfigError::inconsistent(
@@ -164,7 +170,12 @@ pub fn build(spec: &ParticlesSpec, materials: Vec<Material>, base: &Path) -> Res
                     Some(ids) => {
                         let id = ids[k];
                         if id as usize >= materials.len() {
-                            return Err(ConfigError::invalid(format!("{}: particle {k} has material id {id}, but [[materials]] has {} entries (ids are 0-based)", path.display(), materials.len())).into());
+                            return Err(ConfigError::invalid(format!(
+                                "{}: particle {k} has material id {id}, but [[materials]] has {} entries (ids are 0-based)",
+                                path.display(),
+                                materials.len()
+                            ))
+                            .into());
                         }
                         id
                     }
@@ -190,7 +201,11 @@ pub fn build(spec: &ParticlesSpec, materials: Vec<Material>, base: &Path) -> Res
 
 /// The particles of a region, sorted. `key` names the region in errors.
 pub fn select(region: &RegionSpec, p: &Particles, key: &str) -> Result<Vec<u32>, ConfigError> {
-    let given = region.face.is_some() as u8 + region.bbox.is_some() as u8 + region.layer.is_some() as u8 + region.particles.is_some() as u8 + region.all.is_some() as u8;
+    let given = region.face.is_some() as u8
+        + region.bbox.is_some() as u8
+        + region.layer.is_some() as u8
+        + region.particles.is_some() as u8
+        + region.all.is_some() as u8;
     if given != 1 {
         return Err(ConfigError::inconsistent(key, "give exactly one of face, box, layer, particles, all"));
     }
@@ -220,9 +235,7 @@ pub fn select(region: &RegionSpec, p: &Particles, key: &str) -> Result<Vec<u32>,
             })
             .collect()
     } else if let Some(b) = &region.bbox {
-        (0..n as u32)
-            .filter(|&i| (0..3).all(|a| p.position[i as usize][a] >= b[0][a] && p.position[i as usize][a] <= b[1][a]))
-            .collect()
+        (0..n as u32).filter(|&i| (0..3).all(|a| p.position[i as usize][a] >= b[0][a] && p.position[i as usize][a] <= b[1][a])).collect()
     } else if let Some(l) = &region.layer {
         let a = axis(&l.axis)?;
         (0..n as u32).filter(|&i| p.position[i as usize][a] >= l.from && p.position[i as usize][a] <= l.to).collect()

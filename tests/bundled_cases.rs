@@ -10,7 +10,9 @@ fn shorten(kind: &str, name: &str) -> Vec<&'static str> {
     let mut s = match kind {
         "heat" => vec!["time.end=5.0", "output.snapshots=2"],
         // a few dozen adaptive steps from dt0; the analyses at t = 0 still run
-        "compact" => vec!["time.end=2.0", "output.snapshots=2", "output.checkpoint_every=10", "output.conductivity_at=[0.0]", "output.correction_histogram_at=[]"],
+        "compact" => {
+            vec!["time.end=2.0", "output.snapshots=2", "output.checkpoint_every=10", "output.conductivity_at=[0.0]", "output.correction_histogram_at=[]"]
+        }
         "generate" => vec!["packing.particles=60"],
         "pair" => vec![],
         "explicit_sinter" => vec![
@@ -99,7 +101,8 @@ fn cases() -> Vec<PathBuf> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut v = Vec::new();
     for d in ["cases", "cases/titanium"] {
-        let mut f: Vec<PathBuf> = std::fs::read_dir(root.join(d)).unwrap().flatten().map(|e| e.path()).filter(|p| p.extension().is_some_and(|x| x == "toml")).collect();
+        let mut f: Vec<PathBuf> =
+            std::fs::read_dir(root.join(d)).unwrap().flatten().map(|e| e.path()).filter(|p| p.extension().is_some_and(|x| x == "toml")).collect();
         f.sort();
         v.extend(f);
     }

@@ -2,7 +2,7 @@
 //! synthetic titanium pair data, σ and χ² on noisy data, rejection of bad input, determinism.
 //! Run times are kept to seconds: subsets of the 28 experiments, small swarms.
 
-use sinterdem::calibrate::synthetic::{generate, titanium_csv, titanium_experiments, truth_material, BUNDLED_SEED, TRUTH};
+use sinterdem::calibrate::synthetic::{BUNDLED_SEED, TRUTH, generate, titanium_csv, titanium_experiments, truth_material};
 use sinterdem::calibrate::{parse, run, synthetic::csv_text};
 use sinterdem::config::load_case;
 use sinterdem::models::diffusion7::PathFactors;
@@ -63,7 +63,12 @@ fn param(rep: &sinterdem::calibrate::report::CalibrationReport, key: &str, field
 fn noise_free_data_recover_the_four_beta_parameters() {
     let dir = tmp("noise-free");
     let ids = ["E3B", "E5B", "E8B", "E11B", "E14B", "E18B", "E21B", "E23B", "E28B"];
-    let calib = setup(&dir, &ids, None, "seed = 3\n[optimiser]\nswarm_size = 8\nswarm_iterations = 6\nlocal_iterations = 80\ntolerance = 1e-12\n[solver]\nrtol = 1e-9\n");
+    let calib = setup(
+        &dir,
+        &ids,
+        None,
+        "seed = 3\n[optimiser]\nswarm_size = 8\nswarm_iterations = 6\nlocal_iterations = 80\ntolerance = 1e-12\n[solver]\nrtol = 1e-9\n",
+    );
     let rep = calibrate(&calib, &[], &dir.join("out"));
     for (k, t) in TRUTH {
         let v = param(&rep, k, "value");
@@ -100,7 +105,9 @@ fn noisy_data_fit_within_two_sigma_with_reduced_chi2_near_one() {
     assert!(param(&rep, "beta.q_gb", "sigma") < 1.0e4);
     assert!(rep.warnings.iter().any(|w| w.contains("beta.d0_gb and beta.q_gb correlate")), "{:?}", rep.warnings);
     let mat = std::fs::read_to_string(dir.join("material.toml")).unwrap();
-    let case = format!("kind = \"pair\"\n[pair]\nmaterial = \"titanium\"\nradius = 3.3e-5\nend_time = 100.0\n[temperature]\nconstant = 1373.0\n[output]\nplot = false\n{mat}");
+    let case = format!(
+        "kind = \"pair\"\n[pair]\nmaterial = \"titanium\"\nradius = 3.3e-5\nend_time = 100.0\n[temperature]\nconstant = 1373.0\n[output]\nplot = false\n{mat}"
+    );
     let spec = sinterdem::models::diffusion7::pair::parse_pair_case(&toml::Value::Table(case.parse().unwrap())).unwrap();
     assert_eq!(spec.material_a.phases[1].d0_gb, param(&rep, "beta.d0_gb", "value"));
     let csv = std::fs::read_to_string(dir.join("residuals.csv")).unwrap();
@@ -149,7 +156,13 @@ fn bad_input_is_rejected_with_file_line_column_and_key() {
     assert!(e.contains("data.csv line 3, column 3 (schedule)") && e.contains("fortnights"), "{e}");
     std::fs::write(dir.join("data.csv"), format!("{head}{row}")).unwrap();
     let e = parse_err(&dir, &ok.replace("beta.q_surface", "beta.q_surf"), None);
-    assert!(e.contains("parameters[3].key = \"beta.q_surf\"") && e.contains("valid keys: alpha.atomic_volume") && e.contains("beta.q_surface") && e.contains("model.path_factor_gb"), "{e}");
+    assert!(
+        e.contains("parameters[3].key = \"beta.q_surf\"")
+            && e.contains("valid keys: alpha.atomic_volume")
+            && e.contains("beta.q_surface")
+            && e.contains("model.path_factor_gb"),
+        "{e}"
+    );
     let e = parse_err(&dir, &format!("model = \"compact\"\n{ok}"), None);
     assert!(e.contains("model") && e.contains("not yet supported"), "{e}");
     let e = parse_err(&dir, &format!("{ok}\n[optimiser]\nswarm_size = 0\n"), None);
@@ -178,7 +191,7 @@ fn bundled_synthetic_data_match_the_generator() {
 #[test]
 fn time_series_points_are_fitted() {
     use sinterdem::calibrate::data::{Observation, SeriesPoint};
-    use sinterdem::calibrate::forward::{run_experiment, PairGeometry};
+    use sinterdem::calibrate::forward::{PairGeometry, run_experiment};
     use sinterdem::models::diffusion7::SolverOptions;
     let dir = tmp("series");
     let mut ex = titanium_experiments(Some(&["E14B", "E23B"]));

@@ -33,7 +33,11 @@ fn validate_compact_runs_the_fitted_material_on_a_packing() {
     )
     .unwrap();
     let schedule = "start 793 K, heat 20 K/min to 1373 K, hold 90 min, cool 20 K/min to 313 K";
-    std::fs::write(dir.join("data.csv"), format!("id,diameter_m,schedule,neck_ratio,neck_ratio_sigma,shrinkage,shrinkage_sigma\nE14B,6.66e-5,\"{schedule}\",0.54,0.01,0.0318,0.001\n")).unwrap();
+    std::fs::write(
+        dir.join("data.csv"),
+        format!("id,diameter_m,schedule,neck_ratio,neck_ratio_sigma,shrinkage,shrinkage_sigma\nE14B,6.66e-5,\"{schedule}\",0.54,0.01,0.0318,0.001\n"),
+    )
+    .unwrap();
     std::fs::write(
         dir.join("calib.toml"),
         "data = \"data.csv\"\nmaterial = \"titanium\"\nseed = 3\n[[parameters]]\nkey = \"beta.d0_gb\"\nmin = 10.0\nmax = 200.0\n\

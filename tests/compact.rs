@@ -93,7 +93,9 @@ fn pair_through_the_scheduler_equals_the_free_pair() {
     let neck = s["neck_ratio"].as_f64().unwrap();
     assert!((neck / 0.30939 - 1.0).abs() < 2e-5, "{neck}");
     let pair_toml: toml::Value = toml::Value::Table(
-        "kind = \"pair\"\n[pair]\nmaterial = \"copper\"\nradius = 25e-6\nend_time = 1000.0\n[temperature]\nconstant = 1293.0\n[solver]\nrtol = 1e-8\n".parse().unwrap(),
+        "kind = \"pair\"\n[pair]\nmaterial = \"copper\"\nradius = 25e-6\nend_time = 1000.0\n[temperature]\nconstant = 1293.0\n[solver]\nrtol = 1e-8\n"
+            .parse()
+            .unwrap(),
     );
     let spec = sinterdem::models::diffusion7::pair::parse_pair_case(&pair_toml).unwrap();
     let free = sinterdem::models::diffusion7::pair::run_pair(&spec, false, false).unwrap();
@@ -140,7 +142,9 @@ fn resumed_run_is_bit_identical() {
     let ck = coupled::read_checkpoint(&part).unwrap();
     assert_eq!(ck.step, 80);
     let s_res = coupled::resume(&part, false, &mut |_| {}).unwrap();
-    for key in ["final_time_s", "steps", "shrinkage_x", "shrinkage_y", "shrinkage_z", "relative_density", "neck_ratio", "contacts", "rhs_evaluations", "mechanics"] {
+    for key in
+        ["final_time_s", "steps", "shrinkage_x", "shrinkage_y", "shrinkage_z", "relative_density", "neck_ratio", "contacts", "rhs_evaluations", "mechanics"]
+    {
         assert_eq!(s_full[key], s_res[key], "{key}");
     }
     // the mechanics met its tolerance at every step
@@ -260,7 +264,8 @@ fn fcc_compact_of_equal_spheres_shrinks_like_the_free_pair() {
 #[test]
 fn bundled_hot_plate_scene_has_a_monotone_densification_gradient() {
     let dir = tmp("hotplate-case");
-    let v = sinterdem::config::load_case(Path::new("cases/hot-plate-compact.toml"), &["output.snapshots=0".into(), "output.checkpoint_every=0".into()]).unwrap();
+    let v =
+        sinterdem::config::load_case(Path::new("cases/hot-plate-compact.toml"), &["output.snapshots=0".into(), "output.checkpoint_every=0".into()]).unwrap();
     let sim = coupled::prepare(v, Path::new("cases"), &mut |_| {}).unwrap();
     let s = coupled::run(sim, &dir, false, &mut |_| {}).unwrap();
     // measured: shrinkage 5.04 % at the bottom, 4.60 % at the top; neck ratio 0.496 and 0.479

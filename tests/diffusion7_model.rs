@@ -1,7 +1,7 @@
 //! The 7-DOF model against the reference state of seven-dof-model.md §15 and the structural
 //! invariants of §4.2, §5.5, §11.
 
-use sinterdem::models::diffusion7::geometry::{sides, Side};
+use sinterdem::models::diffusion7::geometry::{Side, sides};
 use sinterdem::models::diffusion7::material::{ContactParams, Material, PathFactors};
 use sinterdem::models::diffusion7::{evaluate, initial_state, invariants, rates};
 
@@ -80,7 +80,12 @@ fn diffusivities_match_the_table() {
     close("Cu Ds", d(cu.d0_surface, cu.q_surface, 1293.0), 7.909e-9, 1e-3);
     close("Cu Dgb", d(cu.d0_gb, cu.q_gb, 1293.0), 1.709e-9, 1e-3);
     close("Cu Db", d(cu.d0_lattice, cu.q_lattice, 1293.0), 2.693e-13, 1e-3);
-    let rows = [(793.0, 5.137e-9, 9.463e-12, 3.396e-21), (1155.9, 1.107e-5, 2.512e-11, 3.297e-17), (1156.0, 2.085e-11, 5.267e-9, 2.369e-14), (1373.0, 6.089e-10, 1.994e-7, 2.922e-13)];
+    let rows = [
+        (793.0, 5.137e-9, 9.463e-12, 3.396e-21),
+        (1155.9, 1.107e-5, 2.512e-11, 3.297e-17),
+        (1156.0, 2.085e-11, 5.267e-9, 2.369e-14),
+        (1373.0, 6.089e-10, 1.994e-7, 2.922e-13),
+    ];
     for (t, ds, dgb, db) in rows {
         let ph = &ti.phases[ti.phase_at(t)];
         close("Ti Ds", d(ph.d0_surface, ph.q_surface, t), ds, 1e-3);

@@ -2,7 +2,7 @@
 
 use sinterdem::config::{apply_override, load_case};
 use sinterdem::models::diffusion7::geometry::volume_and_areas;
-use sinterdem::models::diffusion7::pair::{parse_pair_case, run_pair, run_pair_case, PairSpec};
+use sinterdem::models::diffusion7::pair::{PairSpec, parse_pair_case, run_pair, run_pair_case};
 use sinterdem::models::ode::Method;
 use std::path::Path;
 
@@ -14,7 +14,6 @@ fn copper_case(overrides: &[&str]) -> toml::Value {
 fn spec(overrides: &[&str]) -> PairSpec {
     parse_pair_case(&copper_case(overrides)).unwrap()
 }
-
 
 /// §15 copper pair table, 1e-4 relative at every listed time.
 #[test]
@@ -122,7 +121,11 @@ fn bad_pair_cases_are_rejected_clearly() {
     assert!(bad("pair.material=unobtainium").contains("unobtainium"));
     assert!(bad("kind=explicit").contains("pair"));
     let mut c = copper_case(&[]);
-    apply_override(&mut c, "materials=[{name=\"copper\", young_modulus=1e9, poisson_ratio=0.3, calibrated_min_temperature=300, calibrated_max_temperature=200, phases=[]}]").unwrap();
+    apply_override(
+        &mut c,
+        "materials=[{name=\"copper\", young_modulus=1e9, poisson_ratio=0.3, calibrated_min_temperature=300, calibrated_max_temperature=200, phases=[]}]",
+    )
+    .unwrap();
     let e = parse_pair_case(&c).unwrap_err().to_string();
     assert!(e.contains("calibrated_min_temperature"), "{e}");
 }

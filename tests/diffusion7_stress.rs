@@ -2,10 +2,10 @@
 //! tolerances over 7 decades, mixed materials: every run finishes or stops with a clear ModelError,
 //! never a NaN or a panic. Also the force (F4) and the correction (C1)–(C4) of spec §8–9.
 
-use sinterdem::models::diffusion7::material::{Material, PathFactors};
-use sinterdem::models::diffusion7::pair::{ramp_profile, run_pair, PairRun, PairSpec, PairTemperature};
-use sinterdem::models::diffusion7::{correct_y4_y7, load_increment, rates, sintering_force, ContactParams, SolverOptions};
 use sinterdem::error::ModelError;
+use sinterdem::models::diffusion7::material::{Material, PathFactors};
+use sinterdem::models::diffusion7::pair::{PairRun, PairSpec, PairTemperature, ramp_profile, run_pair};
+use sinterdem::models::diffusion7::{ContactParams, SolverOptions, correct_y4_y7, load_increment, rates, sintering_force};
 use sinterdem::models::ode::Method;
 
 fn spec(a: Material, b: Material, ra: f64, rb: f64, temp: PairTemperature, end: f64, rtol: f64) -> PairSpec {

@@ -4,7 +4,7 @@
 use sinterdem::config::load_case;
 use sinterdem::models::diffusion7::geometry::volume_and_areas;
 use sinterdem::models::diffusion7::pair::{parse_pair_case, run_pair};
-use sinterdem::models::diffusion7::titanium::{run_all_titanium, Experiment, EXPERIMENTS, FULL_START, TRUNCATED_START};
+use sinterdem::models::diffusion7::titanium::{EXPERIMENTS, Experiment, FULL_START, TRUNCATED_START, run_all_titanium};
 use std::path::Path;
 
 /// `cases/titanium/*.toml` are the table's case texts (regenerate with SINTERDEM_WRITE_CASES=1).

@@ -62,7 +62,7 @@ fn luding_collision_in_the_driver_has_the_hysteretic_restitution() {
         assert!((dmax - dmax_exact).abs() < 2e-3 * dmax_exact, "v {v}: dmax {dmax} vs {dmax_exact}");
         assert!((e - e_exact).abs() < 3e-3, "v {v}: e {e} vs {e_exact}");
         // the state the driver kept is the law's history: δ_max and k1(T,t) = k1 (cold)
-        assert_eq!(sim.counters.steps > 0, true);
+        assert!(sim.counters.steps > 0);
     }
     // hot contact (T = T_melt + 20 K): k1(T) = k1·(1 + tanh(−2))/2, much softer loading, so a
     // deeper overlap and a lower restitution
@@ -233,8 +233,8 @@ tangential_damping = 0.05
     assert!(long.density_final > short.density_final);
     // mean plastic overlap grows during sintering and not before (k_s = 0 when cold)
     let h = &long.history;
-    let before = h.iter().filter(|r| r.time <= 0.012).last().unwrap().state_mean;
-    let after = h.iter().filter(|r| r.time <= 0.046).last().unwrap().state_mean;
+    let before = h.iter().rfind(|r| r.time <= 0.012).unwrap().state_mean;
+    let after = h.iter().rfind(|r| r.time <= 0.046).unwrap().state_mean;
     assert!(after > 2.0 * before, "delta_p {before:e} -> {after:e}");
 }
 
@@ -255,7 +255,9 @@ fn protocol_is_bit_identical_for_any_thread_count() {
     let key = |r: &sinterdem::explicit::protocol::ExplicitSinterRun| {
         r.branches
             .iter()
-            .flat_map(|b| b.history.iter().chain(&b.compression).flat_map(|r| [r.density, r.stress[2], r.force_min, r.state_mean]).chain(b.forces_cooled.iter().copied()))
+            .flat_map(|b| {
+                b.history.iter().chain(&b.compression).flat_map(|r| [r.density, r.stress[2], r.force_min, r.state_mean]).chain(b.forces_cooled.iter().copied())
+            })
             .map(f64::to_bits)
             .collect::<Vec<u64>>()
     };
@@ -276,7 +278,7 @@ fn network_coupling_heats_the_interior_through_the_contacts() {
     // the mean temperature follows the wall profile with a lag: below T_hot at the end of heating,
     // above T_cold at the start of cooling, back at T_cold after relaxing
     let hot = 413.15;
-    let end_heat = b.history.iter().filter(|r| r.time <= 0.016).last().unwrap();
+    let end_heat = b.history.iter().rfind(|r| r.time <= 0.016).unwrap();
     assert!(end_heat.temperature <= hot + 1e-9);
     let last = b.history.last().unwrap();
     assert!(last.temperature > 353.15 - 1e-6 && last.temperature < 353.15 + 20.0, "final T {}", last.temperature);
@@ -295,7 +297,15 @@ fn writes_series_plots_and_summary() {
     let dir = std::env::temp_dir().join(format!("sinterdem-explicit-sinter-{}", std::process::id()));
     let s = run_explicit_case(&v, &dir, false).unwrap();
     assert_eq!(s["branches"].as_array().unwrap().len(), 1);
-    for f in ["summary.json", "density.png", "compression_stress.png", "force_pdf_cooled.png", "history_p5e4_ts0.001.csv", "compression_p5e4_ts0.001.csv", "forces_p5e4_ts0.001.csv"] {
+    for f in [
+        "summary.json",
+        "density.png",
+        "compression_stress.png",
+        "force_pdf_cooled.png",
+        "history_p5e4_ts0.001.csv",
+        "compression_p5e4_ts0.001.csv",
+        "forces_p5e4_ts0.001.csv",
+    ] {
         assert!(dir.join(f).exists(), "{f} missing");
     }
     let csv = std::fs::read_to_string(dir.join("history_p5e4_ts0.001.csv")).unwrap();

@@ -8,7 +8,6 @@ use common::{doc_snippets, key_of, rel};
 use sinterdem::models::frenkel::*;
 use sinterdem::units::{BOLTZMANN, GAS_CONSTANT};
 
-
 fn base() -> FrenkelSpec {
     FrenkelSpec {
         k1: 100.0,
@@ -290,7 +289,6 @@ fn bouvard_mcmeeking_gives_its_closed_form() {
     assert!(res < 2e-3);
 }
 
-
 #[test]
 fn bad_parameters_are_rejected_with_the_key_named() {
     let cases: Vec<(FrenkelSpec, &str)> = vec![
@@ -349,8 +347,6 @@ contact_temperature = "arithmetic"
     let e = FrenkelParams::from_value(v).unwrap_err().to_string();
     assert!(e.contains("sinter_tpye") && e.contains("[frenkel]"), "{e}");
 }
-
-
 
 #[test]
 fn docs_snippets_are_valid_sections() {

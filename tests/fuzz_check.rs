@@ -70,15 +70,62 @@ fn corpus() -> (Vec<Seed>, Vec<String>) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut files = Vec::new();
     for d in ["cases", "cases/titanium", "tests/fuzz-corpus"] {
-        let mut f: Vec<PathBuf> = std::fs::read_dir(root.join(d)).unwrap().filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.extension().is_some_and(|x| x == "toml")).collect();
+        let mut f: Vec<PathBuf> =
+            std::fs::read_dir(root.join(d)).unwrap().filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.extension().is_some_and(|x| x == "toml")).collect();
         f.sort();
         files.extend(f);
     }
     let mut strings: Vec<String> = [
-        "", "x", "heat", "compact", "generate", "pair", "explicit_sinter", "/dev/zero", "/", "nonexistent.csv", "data/green-copper.csv", "../cases/data/green-titanium.csv",
-        "far.csv", "tiny.csv", "good.csv", "fcc", "sc", "bcc", "file", "lattice", "isothermal", "network", "harmonic", "arithmetic", "cholesky", "cg", "amg", "auto",
-        "rosenbrock4", "dopri5", "rk4_doubling", "linear", "fe_fit", "faces", "periodic", "seven_dof", "volume_conserving", "yade", "liggghts", "csv", "bdf2",
-        "start 293 K, heat 1e300 K/min to 1273 K", "start 293 K, hold 1e-300 s", "start nan K", "start 293 K, heat 10 K/min to 5e-324 K", "z-", "x+", "q", "\u{feff}", "é\u{0}",
+        "",
+        "x",
+        "heat",
+        "compact",
+        "generate",
+        "pair",
+        "explicit_sinter",
+        "/dev/zero",
+        "/",
+        "nonexistent.csv",
+        "data/green-copper.csv",
+        "../cases/data/green-titanium.csv",
+        "far.csv",
+        "tiny.csv",
+        "good.csv",
+        "fcc",
+        "sc",
+        "bcc",
+        "file",
+        "lattice",
+        "isothermal",
+        "network",
+        "harmonic",
+        "arithmetic",
+        "cholesky",
+        "cg",
+        "amg",
+        "auto",
+        "rosenbrock4",
+        "dopri5",
+        "rk4_doubling",
+        "linear",
+        "fe_fit",
+        "faces",
+        "periodic",
+        "seven_dof",
+        "volume_conserving",
+        "yade",
+        "liggghts",
+        "csv",
+        "bdf2",
+        "start 293 K, heat 1e300 K/min to 1273 K",
+        "start 293 K, hold 1e-300 s",
+        "start nan K",
+        "start 293 K, heat 10 K/min to 5e-324 K",
+        "z-",
+        "x+",
+        "q",
+        "\u{feff}",
+        "é\u{0}",
     ]
     .iter()
     .map(|s| s.to_string())
@@ -98,8 +145,44 @@ fn corpus() -> (Vec<Seed>, Vec<String>) {
 }
 
 const NUMBERS: &[f64] = &[
-    0.0, -0.0, 1.0, -1.0, 0.5, 2.0, 3.0, 5e-324, -5e-324, 1e-300, 1e300, -1e300, f64::MAX, f64::MIN, f64::MIN_POSITIVE, f64::NAN, f64::INFINITY, f64::NEG_INFINITY,
-    1e-15, 1e-12, 1e-9, 1e-6, 1e-3, 1e3, 1e6, 1e9, 1e12, 9.3e18, 1.9e19, 200.0, 201.0, 1.0000000000000002, 0.9999999999999999, 293.15, 1e4, 25e-6, 0.64, 0.72,
+    0.0,
+    -0.0,
+    1.0,
+    -1.0,
+    0.5,
+    2.0,
+    3.0,
+    5e-324,
+    -5e-324,
+    1e-300,
+    1e300,
+    -1e300,
+    f64::MAX,
+    f64::MIN,
+    f64::MIN_POSITIVE,
+    f64::NAN,
+    f64::INFINITY,
+    f64::NEG_INFINITY,
+    1e-15,
+    1e-12,
+    1e-9,
+    1e-6,
+    1e-3,
+    1e3,
+    1e6,
+    1e9,
+    1e12,
+    9.3e18,
+    1.9e19,
+    200.0,
+    201.0,
+    1.0000000000000002,
+    0.9999999999999999,
+    293.15,
+    1e4,
+    25e-6,
+    0.64,
+    0.72,
 ];
 const INTS: &[i64] = &[0, -1, 1, 2, 3, 7, 200, 201, 65535, 65536, 1 << 32, 1 << 53, i64::MAX, i64::MIN];
 
@@ -148,7 +231,11 @@ struct Input {
 }
 
 fn input() -> impl Strategy<Value = Input> {
-    (any::<usize>(), proptest::collection::vec(mutation(), 1..5), prop_oneof![7 => Just(Vec::new()), 1 => proptest::collection::vec((any::<usize>(), any::<u8>()), 1..4)])
+    (
+        any::<usize>(),
+        proptest::collection::vec(mutation(), 1..5),
+        prop_oneof![7 => Just(Vec::new()), 1 => proptest::collection::vec((any::<usize>(), any::<u8>()), 1..4)],
+    )
         .prop_map(|(seed, mutations, raw)| Input { seed, mutations, raw })
 }
 
@@ -214,7 +301,13 @@ fn mutate(seed: &Seed, input: &Input, strings: &[String], keys: &[String]) -> to
             }
             _ => {
                 let node = match m {
-                    Mutation::Number { node, .. } | Mutation::Scale { node, .. } | Mutation::Int { node, .. } | Mutation::Text { node, .. } | Mutation::Bool { node, .. } | Mutation::Array { node, .. } | Mutation::Table { node } => *node,
+                    Mutation::Number { node, .. }
+                    | Mutation::Scale { node, .. }
+                    | Mutation::Int { node, .. }
+                    | Mutation::Text { node, .. }
+                    | Mutation::Bool { node, .. }
+                    | Mutation::Array { node, .. }
+                    | Mutation::Table { node } => *node,
                     _ => unreachable!(),
                 };
                 let Some(path) = pick_path(node) else { continue };

@@ -104,7 +104,11 @@ fn bad_case_files_are_rejected_naming_the_key() {
     expect_err(LATTICE, &["particles.radius=0"], &["particles.radius", "m"]);
     expect_err(LATTICE, &["particles.material=\"gold\""], &["particles.material", "gold"]);
     expect_err(LATTICE, &["thermal.mode=\"isothermal\""], &["thermal.mode"]);
-    expect_err(LATTICE, &["thermal.mode=\"isothermal\"", "thermal.furnace.profile.constant=900", "thermal.furnace.emissivity=0.5"], &["thermal.mode", "isothermal"]);
+    expect_err(
+        LATTICE,
+        &["thermal.mode=\"isothermal\"", "thermal.furnace.profile.constant=900", "thermal.furnace.emissivity=0.5"],
+        &["thermal.mode", "isothermal"],
+    );
     expect_err(LATTICE, &["thermal.furnace.profile.constant=-3"], &["thermal.furnace.profile", "K"]);
     expect_err(LATTICE, &["thermal.furnace.profile.constant=900", "thermal.furnace.emissivity=1.5"], &["thermal.furnace.emissivity", "[0, 1]"]);
     expect_err(LATTICE, &["thermal.conductance=\"magic\""], &["magic"]);
@@ -117,7 +121,8 @@ fn bad_case_files_are_rejected_naming_the_key() {
 
 #[test]
 fn bundled_cases_pass_check() {
-    for f in ["cases/hot-plate.toml"] {
+    {
+        let f = "cases/hot-plate.toml";
         let v = load_case(Path::new(f), &[]).unwrap();
         prepare(v, Path::new("cases")).unwrap();
     }
@@ -128,7 +133,8 @@ fn bundled_cases_pass_check() {
 /// the furnace and the plate (backward Euler is monotone).
 #[test]
 fn hot_plate_over_six_decades_of_time_step() {
-    let sets: Vec<String> = ["particles.cells=[3, 3, 5]", "output.snapshots=0", "output.vtu=false", "output.hdf5=false"].iter().map(|s| s.to_string()).collect();
+    let sets: Vec<String> =
+        ["particles.cells=[3, 3, 5]", "output.snapshots=0", "output.vtu=false", "output.hdf5=false"].iter().map(|s| s.to_string()).collect();
     let base = load_case(Path::new("cases/hot-plate.toml"), &sets).unwrap();
     let prep = prepare(base.clone(), Path::new("cases")).unwrap();
     let p = &prep.scene.particles;

@@ -35,7 +35,18 @@ fn a_heat_run_resumed_from_its_checkpoint_equals_the_uninterrupted_run() {
     let resumed = run::resume(&part, &RunParams::default()).unwrap();
     assert_eq!(resumed.kind, run::Kind::Heat);
     assert_eq!(std::fs::read_to_string(part.join("series.csv")).unwrap(), std::fs::read_to_string(dir.join("whole/series.csv")).unwrap());
-    for k in ["final_time_s", "steps", "energy_balance_rel", "heat_in_J", "stored_heat_J", "mean_temperature_K", "min_temperature_K", "max_temperature_K", "max_local_error_estimate_K", "snapshots"] {
+    for k in [
+        "final_time_s",
+        "steps",
+        "energy_balance_rel",
+        "heat_in_J",
+        "stored_heat_J",
+        "mean_temperature_K",
+        "min_temperature_K",
+        "max_temperature_K",
+        "max_local_error_estimate_K",
+        "snapshots",
+    ] {
         assert_eq!(resumed.summary[k], whole.summary[k], "{k}");
     }
     assert_eq!(std::fs::read_to_string(part.join("particles.pvd")).unwrap(), std::fs::read_to_string(dir.join("whole/particles.pvd")).unwrap());

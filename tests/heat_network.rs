@@ -69,7 +69,17 @@ fn chain_matches_discrete_eigen_expansion_at_the_scheme_order() {
     let (tl, tr) = (300.0, 500.0);
     let cap = vec![1.0; n + 2];
     let sources = HeatSources {
-        fixed: (0..n + 2).map(|i| if i == 0 { Some(0) } else if i == n + 1 { Some(1) } else { None }).collect(),
+        fixed: (0..n + 2)
+            .map(|i| {
+                if i == 0 {
+                    Some(0)
+                } else if i == n + 1 {
+                    Some(1)
+                } else {
+                    None
+                }
+            })
+            .collect(),
         profiles: vec![Profile::constant(tl).unwrap(), Profile::constant(tr).unwrap()],
         ..Default::default()
     };

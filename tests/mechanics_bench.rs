@@ -7,11 +7,8 @@ use sinterdem::mechanics::bench::bench_mechanics;
 #[test]
 #[ignore]
 fn bench_mechanics_table() {
-    let sizes: Vec<usize> = std::env::var("MECH_BENCH_SIZES")
-        .unwrap_or_else(|_| "1000,10000".into())
-        .split(',')
-        .filter_map(|s| s.trim().parse().ok())
-        .collect();
+    let sizes: Vec<usize> =
+        std::env::var("MECH_BENCH_SIZES").unwrap_or_else(|_| "1000,10000".into()).split(',').filter_map(|s| s.trim().parse().ok()).collect();
     println!("{}", bench_mechanics(&sizes).unwrap());
 }
 

@@ -3,9 +3,9 @@
 //! failing the same checks; constraints, rattlers, pins and bad input.
 
 use nalgebra::{DMatrix, Matrix3, SMatrix, SymmetricEigen, Vector3};
-use sinterdem::mechanics::bond::{element_matrix, frame, h_matrix, link_forces, link_stiffness, BondGeometry};
-use sinterdem::mechanics::{dof, BondedSystem, Constraints, MechParams, NodalLoad, StepInput};
 use sinterdem::Error;
+use sinterdem::mechanics::bond::{BondGeometry, element_matrix, frame, h_matrix, link_forces, link_stiffness};
+use sinterdem::mechanics::{BondedSystem, Constraints, MechParams, NodalLoad, StepInput, dof};
 use std::f64::consts::PI;
 
 type V12 = SMatrix<f64, 12, 1>;

@@ -6,8 +6,10 @@
 
 use nalgebra::Vector3;
 use sinterdem::mechanics::bench::fcc_packing;
-use sinterdem::mechanics::{dof, link_stiffness, BondedSystem, Constraints, LinearSolver, MechParams, NodalLoad, SolverUsed, StepInput};
-use sinterdem::models::diffusion7::{self, advance, correct_y4_y7, load_increment, sintering_force, Material, PairMaterials, PathFactors, SolverOptions, TemperaturePath};
+use sinterdem::mechanics::{BondedSystem, Constraints, LinearSolver, MechParams, NodalLoad, SolverUsed, StepInput, dof, link_stiffness};
+use sinterdem::models::diffusion7::{
+    self, Material, PairMaterials, PathFactors, SolverOptions, TemperaturePath, advance, correct_y4_y7, load_increment, sintering_force,
+};
 use sinterdem::models::ode::OdeStats;
 use std::f64::consts::PI;
 

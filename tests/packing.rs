@@ -108,10 +108,14 @@ fn bad_case_values_are_rejected_naming_the_key() {
         let e = packing::check_generate_case(&case(&text)).err().unwrap_or_else(|| panic!("{to} accepted")).to_string();
         assert!(e.contains(key), "{to}: {e}");
     }
-    let normal = SMALL.replace("distribution = \"uniform\"\nmean_diameter = 50e-6\nspread = 0.1", "distribution = \"normal\"\nmean_diameter = 50e-6\nstd_diameter = 30e-6");
+    let normal = SMALL
+        .replace("distribution = \"uniform\"\nmean_diameter = 50e-6\nspread = 0.1", "distribution = \"normal\"\nmean_diameter = 50e-6\nstd_diameter = 30e-6");
     let e = packing::check_generate_case(&case(&normal)).unwrap_err().to_string();
     assert!(e.contains("packing.size.truncate"), "{e}");
-    let tab = SMALL.replace("distribution = \"uniform\"\nmean_diameter = 50e-6\nspread = 0.1", "distribution = \"tabulated\"\ndiameters = [40e-6, 30e-6]\ncumulative = [0.0, 1.0]");
+    let tab = SMALL.replace(
+        "distribution = \"uniform\"\nmean_diameter = 50e-6\nspread = 0.1",
+        "distribution = \"tabulated\"\ndiameters = [40e-6, 30e-6]\ncumulative = [0.0, 1.0]",
+    );
     let e = packing::check_generate_case(&case(&tab)).unwrap_err().to_string();
     assert!(e.contains("packing.size.diameters.1"), "{e}");
     packing::check_generate_case(&case(SMALL)).unwrap();

@@ -206,7 +206,14 @@ fn neck(args: &[&str]) -> (bool, String, String) {
 
 #[test]
 fn item08_neck_checks_kappa2_and_contact_conductance() {
-    for (flag, v) in [("--kappa2", "nan"), ("--kappa2", "-3"), ("--kappa2", "0"), ("--contact-conductance", "nan"), ("--contact-conductance", "-1e-3"), ("--contact-conductance", "inf")] {
+    for (flag, v) in [
+        ("--kappa2", "nan"),
+        ("--kappa2", "-3"),
+        ("--kappa2", "0"),
+        ("--contact-conductance", "nan"),
+        ("--contact-conductance", "-1e-3"),
+        ("--contact-conductance", "inf"),
+    ] {
         let (ok, out, err) = neck(&[flag, v]);
         assert!(!ok, "{flag} {v} accepted: {out}");
         assert!(err.contains(flag) && err.contains("out of range"), "{err}");
@@ -373,7 +380,8 @@ fn item03_corrupted_checkpoints_are_refused_before_resuming() {
     let d = tmp("i03");
     let c = compact_with(&d, GOOD_CSV.as_bytes());
     let run = d.join("run");
-    let o = bin().arg("run").arg(&c).arg("--out").arg(&run).arg("--quiet").args(["--set", "time.end=10", "--set", "output.checkpoint_every=3"]).output().unwrap();
+    let o =
+        bin().arg("run").arg(&c).arg("--out").arg(&run).arg("--quiet").args(["--set", "time.end=10", "--set", "output.checkpoint_every=3"]).output().unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let good: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(run.join("checkpoint.json")).unwrap()).unwrap();
     assert_eq!(good["pairs"].as_array().unwrap().len(), 1);

@@ -3,7 +3,7 @@
 //! study killed with SIGKILL and started again loses nothing and runs nothing twice, bad study
 //! files are rejected naming key, value and range.
 
-use sinterdem::models::diffusion7::titanium::{run_all_titanium, TRUNCATED_START};
+use sinterdem::models::diffusion7::titanium::{TRUNCATED_START, run_all_titanium};
 use sinterdem::run::{self, RunParams};
 use sinterdem::study::{self, StudyOptions};
 use std::collections::HashMap;
@@ -117,10 +117,14 @@ fn each_row_equals_the_run_done_alone_and_series_values_interpolate() {
         }
         // series.csv of the run, interpolated by hand at t = 3000 s
         let text = std::fs::read_to_string(dir.join(format!("alone{k}/series.csv"))).unwrap();
-        let pts: Vec<(f64, f64)> = text.lines().skip(1).map(|l| {
-            let v: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
-            (v[0], v[3])
-        }).collect();
+        let pts: Vec<(f64, f64)> = text
+            .lines()
+            .skip(1)
+            .map(|l| {
+                let v: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
+                (v[0], v[3])
+            })
+            .collect();
         let i = pts.iter().position(|p| p.0 >= 3000.0).unwrap();
         let (a, b) = (pts[i - 1], pts[i]);
         let want = a.1 + (b.1 - a.1) * (3000.0 - a.0) / (b.0 - a.0);
@@ -198,7 +202,7 @@ fn sigkill_midway_and_rerun_gives_the_same_study_with_no_run_executed_twice() {
     child.kill().unwrap();
     child.wait().unwrap();
     let before = done_counts(&out).len();
-    assert!(before >= 5 && before < 40, "the kill should land midway ({before} of 40 done)");
+    assert!((5..40).contains(&before), "the kill should land midway ({before} of 40 done)");
     assert!(!out.join("study.csv").exists(), "the killed driver had not gathered yet");
     let st = Command::new(exe).args(["study", s.to_str().unwrap(), "--jobs", "1", "--quiet", "--out", out.to_str().unwrap()]).status().unwrap();
     assert!(st.success());
@@ -247,7 +251,10 @@ fn bad_study_files_name_key_value_and_range() {
     let dir = tmp("bad");
     let case = repo().join("cases/titanium/E14B.toml");
     let cases = [
-        ("[design]\nkind = \"lhs\"\nsamples = 0\n[[parameters]]\nkey = \"pair.radius\"\nmin = 1e-6\nmax = 2e-6\n", &["design.samples", "0", "[1, 1000000]"][..]),
+        (
+            "[design]\nkind = \"lhs\"\nsamples = 0\n[[parameters]]\nkey = \"pair.radius\"\nmin = 1e-6\nmax = 2e-6\n",
+            &["design.samples", "0", "[1, 1000000]"][..],
+        ),
         ("[engine]\njobs = 2.5\n", &["engine.jobs", "whole number"][..]),
         ("[engin]\njobs = 2\n", &["unknown field", "engin"][..]),
         ("[design]\nkind = \"random\"\n", &["design.kind", "random", "grid, zip, lhs or sobol"][..]),

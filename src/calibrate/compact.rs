@@ -84,7 +84,8 @@ pub fn validate(
     out: &Path,
     log: &mut dyn FnMut(&str),
 ) -> Result<PathBuf, Error> {
-    let case_rel = section.case.as_ref().ok_or_else(|| ConfigError::invalid("--validate-compact needs [compact] case = \"compact.toml\" in the calibration file"))?;
+    let case_rel =
+        section.case.as_ref().ok_or_else(|| ConfigError::invalid("--validate-compact needs [compact] case = \"compact.toml\" in the calibration file"))?;
     let case_path = calib_dir.join(case_rel);
     let chosen: Vec<usize> = if section.experiments.is_empty() {
         (0..experiments.len()).collect()
@@ -94,7 +95,10 @@ pub fn validate(
             .iter()
             .map(|id| {
                 experiments.iter().position(|e| &e.id == id).ok_or_else(|| {
-                    ConfigError::invalid(format!("[compact] experiments: no experiment \"{id}\" in the data (it has: {})", experiments.iter().map(|e| e.id.as_str()).collect::<Vec<_>>().join(", ")))
+                    ConfigError::invalid(format!(
+                        "[compact] experiments: no experiment \"{id}\" in the data (it has: {})",
+                        experiments.iter().map(|e| e.id.as_str()).collect::<Vec<_>>().join(", ")
+                    ))
                 })
             })
             .collect::<Result<_, _>>()?
@@ -104,7 +108,8 @@ pub fn validate(
     let case = derived_case(&case_path, material, &section.overrides)?;
     let case_file = dir.join("case.toml");
     let text = toml::to_string(&case).map_err(|e| IoError::new(&case_file, e))?;
-    std::fs::write(&case_file, format!("# {} with the pair-calibrated material (sinterdem calibrate --validate-compact)\n{text}", case_path.display())).map_err(|e| IoError::new(&case_file, e))?;
+    std::fs::write(&case_file, format!("# {} with the pair-calibrated material (sinterdem calibrate --validate-compact)\n{text}", case_path.display()))
+        .map_err(|e| IoError::new(&case_file, e))?;
     let list = |f: &dyn Fn(&Experiment) -> String| chosen.iter().map(|&i| f(&experiments[i])).collect::<Vec<_>>().join(", ");
     let q = |s: &str| toml::Value::String(s.to_string()).to_string();
     let study_text = format!(
@@ -123,7 +128,9 @@ pub fn validate(
     let opts = StudyOptions { out: Some(dir.join("study")), progress: true, ..Default::default() };
     let info = study::run_study(&study_file, &opts, log)?;
     let (_, _, plan) = study::prepare(&study_file, &opts)?;
-    let mut csv = String::from("id,measured_shrinkage,measured_shrinkage_sigma,pair_shrinkage,compact_shrinkage_mean,compact_shrinkage_x,compact_shrinkage_y,compact_shrinkage_z,compact_relative_density,compact_neck_ratio,status,error\n");
+    let mut csv = String::from(
+        "id,measured_shrinkage,measured_shrinkage_sigma,pair_shrinkage,compact_shrinkage_mean,compact_shrinkage_x,compact_shrinkage_y,compact_shrinkage_z,compact_relative_density,compact_neck_ratio,status,error\n",
+    );
     for (k, run) in plan.iter().enumerate() {
         let e = &experiments[chosen[k]];
         let rec = study::store::read_record(&info.dir, run);

@@ -140,7 +140,11 @@ fn read_table(path: &Path, expected: &[&str]) -> Result<Table, Error> {
         }
     }
     if let Some(m) = expected.iter().find(|c| !columns.contains_key(**c)) {
-        return Err(ConfigError::invalid(format!("{file} line {header_line}: column \"{m}\" is missing; the header must name exactly: {}", expected.join(","))).into());
+        return Err(ConfigError::invalid(format!(
+            "{file} line {header_line}: column \"{m}\" is missing; the header must name exactly: {}",
+            expected.join(",")
+        ))
+        .into());
     }
     let mut rows = Vec::new();
     for rec in rd.records() {
@@ -164,7 +168,9 @@ pub fn read_experiments(path: &Path) -> Result<Vec<Experiment>, Error> {
         if out.iter().any(|e| e.id == id) {
             return Err(t.err(line, "id", format!("id \"{id}\" appears twice")).into());
         }
-        let diameter = t.number(rec, line, "diameter_m", "data.diameter_m")?.ok_or_else(|| t.err(line, "diameter_m", "empty: the mean particle diameter [m] is needed"))?;
+        let diameter = t
+            .number(rec, line, "diameter_m", "data.diameter_m")?
+            .ok_or_else(|| t.err(line, "diameter_m", "empty: the mean particle diameter [m] is needed"))?;
         let schedule = t.cell(rec, "schedule").to_string();
         if schedule.is_empty() {
             return Err(t.err(line, "schedule", "empty schedule").into());
@@ -243,7 +249,9 @@ mod tests {
     fn reads_quoted_schedules_empty_values_and_comments() {
         let p = write(
             "ok.csv",
-            &format!("# comment\n{HEAD}E1,65e-6,\"start 793 K, heat 20 K/min to 1203 K, hold 0 min, cool 20 K/min to 313 K\",0.48,0.01,,\nE2,66e-6,\"start 793 K, heat 20 K/min to 1373 K, hold 30 min\",,,0.014,0.001\n"),
+            &format!(
+                "# comment\n{HEAD}E1,65e-6,\"start 793 K, heat 20 K/min to 1203 K, hold 0 min, cool 20 K/min to 313 K\",0.48,0.01,,\nE2,66e-6,\"start 793 K, heat 20 K/min to 1373 K, hold 30 min\",,,0.014,0.001\n"
+            ),
         );
         let e = read_experiments(&p).unwrap();
         assert_eq!(e.len(), 2);

@@ -6,9 +6,9 @@
 //! order, so an evaluation is bit-identical for any thread count.
 
 use super::data::Experiment;
-use super::params::{apply, Parameter};
+use super::params::{Parameter, apply};
 use crate::error::ModelError;
-use crate::models::diffusion7::advance::{advance, PairMaterials, SolverOptions, TemperaturePath};
+use crate::models::diffusion7::advance::{PairMaterials, SolverOptions, TemperaturePath, advance};
 use crate::models::diffusion7::contact::Contact7;
 use crate::models::diffusion7::{Material, PathFactors};
 use crate::models::ode::OdeStats;
@@ -95,7 +95,14 @@ pub fn run_experiment(e: &Experiment, material: &Material, factors: PathFactors,
 }
 
 impl Forward {
-    pub fn new(experiments: Vec<Experiment>, material: Material, factors: PathFactors, params: Vec<Parameter>, solver: SolverOptions, geometry: PairGeometry) -> Forward {
+    pub fn new(
+        experiments: Vec<Experiment>,
+        material: Material,
+        factors: PathFactors,
+        params: Vec<Parameter>,
+        solver: SolverOptions,
+        geometry: PairGeometry,
+    ) -> Forward {
         Forward { experiments, material, factors, params, solver, geometry, evaluations: AtomicU64::new(0), failures: AtomicU64::new(0) }
     }
 

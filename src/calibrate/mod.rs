@@ -21,7 +21,7 @@ pub mod params;
 pub mod report;
 pub mod synthetic;
 
-use crate::config::ranges::{c, o, p, Range};
+use crate::config::ranges::{Range, c, o, p};
 use crate::config::{check, from_value};
 use crate::error::{ConfigError, Error, IoError};
 use crate::models::diffusion7::{Material, PathFactors, SolverOptions};
@@ -163,7 +163,10 @@ pub fn parse(value: &toml::Value, base: &Path) -> Result<Setup, Error> {
         let t: toml::Table = text.parse().map_err(|e: toml::de::Error| ConfigError::invalid(format!("{}: {}", path.display(), e.message())))?;
         for k in t.keys() {
             if k != "materials" && k != "model" {
-                return Err(ConfigError::invalid(format!("include = \"{inc}\": unknown key \"{k}\" (a material file holds [[materials]] and optionally [model])")).into());
+                return Err(ConfigError::invalid(format!(
+                    "include = \"{inc}\": unknown key \"{k}\" (a material file holds [[materials]] and optionally [model])"
+                ))
+                .into());
             }
         }
         let list = t.get("materials").and_then(|m| m.as_array()).cloned().unwrap_or_default();
@@ -234,7 +237,12 @@ pub fn run(setup: Setup, out: &Path, log: &mut dyn FnMut(&str)) -> Result<report
     std::fs::create_dir_all(out).map_err(|e| IoError::new(out, e))?;
     let Setup { title, data_path, series_path, experiments, material, factors, params, settings, solver, geometry, compact, base, validate_compact } = setup;
     let nvals: usize = experiments.iter().map(|e| e.count()).sum();
-    log(&format!("calibrating {} parameters against {nvals} values of {} experiments ({} rayon threads)", params.len(), experiments.len(), rayon::current_num_threads()));
+    log(&format!(
+        "calibrating {} parameters against {nvals} values of {} experiments ({} rayon threads)",
+        params.len(),
+        experiments.len(),
+        rayon::current_num_threads()
+    ));
     let fwd = Forward::new(experiments, material, factors, params, solver, geometry);
     let u0: Vec<f64> = fwd.params.iter().map(|p| p.unit_of(p.get(&fwd.material, &fwd.factors)).clamp(0.0, 1.0)).collect();
     let opt = optimise::optimise(&fwd, &u0, &settings, log)?;
@@ -247,10 +255,14 @@ pub fn run(setup: Setup, out: &Path, log: &mut dyn FnMut(&str)) -> Result<report
     let dof = nvals as i64 - n as i64;
     let reduced = if dof > 0 { chi2 / dof as f64 } else { f64::NAN };
     let ju = optimise::jacobian(&fwd, &opt.u, settings.fd_step, None);
-    let spans: Vec<f64> = fwd.params.iter().map(|p| {
-        let (a, b) = p.theta_bounds();
-        b - a
-    }).collect();
+    let spans: Vec<f64> = fwd
+        .params
+        .iter()
+        .map(|p| {
+            let (a, b) = p.theta_bounds();
+            b - a
+        })
+        .collect();
     let jt: Vec<Vec<f64>> = ju.iter().map(|row| row.iter().zip(&spans).map(|(x, s)| x / s).collect()).collect();
     let scale = if reduced > 1.0 { reduced } else { 1.0 };
     let unc = report::uncertainty(&jt, n, scale);
@@ -298,7 +310,8 @@ pub fn run(setup: Setup, out: &Path, log: &mut dyn FnMut(&str)) -> Result<report
     let text = serde_json::to_string_pretty(&rep).map_err(|e| IoError::new(&json_path, e))?;
     std::fs::write(&json_path, text + "\n").map_err(|e| IoError::new(&json_path, e))?;
     let mut m_out = m_fit.clone();
-    m_out.source = format!("calibrated by sinterdem calibrate ({title}; data {}; chi2/dof = {reduced:.4}), starting from: {}", data_path.display(), fwd.material.source);
+    m_out.source =
+        format!("calibrated by sinterdem calibrate ({title}; data {}; chi2/dof = {reduced:.4}), starting from: {}", data_path.display(), fwd.material.source);
     let fitted_model = fwd.params.iter().any(|p| matches!(p.target, params::Target::Model { .. }));
     let mut header = format!("Calibrated material written by `sinterdem calibrate` ({title}).\nchi2 = {chi2:.6}, dof = {dof}, chi2/dof = {reduced:.4}\n");
     for (p, v) in fwd.params.iter().zip(&values) {

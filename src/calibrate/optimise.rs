@@ -14,7 +14,9 @@
 
 use super::forward::Forward;
 use super::loss::{chi2, residual_vector};
-use argmin::core::{CostFunction, Error as ArgminError, Executor, Gradient, Hessian, IterState, Problem, Solver, State, TerminationReason, TerminationStatus, KV};
+use argmin::core::{
+    CostFunction, Error as ArgminError, Executor, Gradient, Hessian, IterState, KV, Problem, Solver, State, TerminationReason, TerminationStatus,
+};
 use argmin::solver::particleswarm::ParticleSwarm;
 use argmin::solver::trustregion::{Steihaug, TrustRegion};
 use rand::SeedableRng;
@@ -105,7 +107,8 @@ impl Calib<'_> {
     fn r(&self, u: &[f64]) -> Vec<f64> {
         let mut c = self.cache.lock().unwrap();
         if let Some((cu, r, _)) = c.as_ref()
-            && cu == u {
+            && cu == u
+        {
             return r.clone();
         }
         let r = residuals_at(self.fwd, u);
@@ -212,7 +215,11 @@ where
     fn init(&mut self, problem: &mut Problem<O>, state: IterState<P, G, (), H, (), f64>) -> Result<(IterState<P, G, (), H, (), f64>, Option<KV>), ArgminError> {
         self.inner.init(problem, state)
     }
-    fn next_iter(&mut self, problem: &mut Problem<O>, state: IterState<P, G, (), H, (), f64>) -> Result<(IterState<P, G, (), H, (), f64>, Option<KV>), ArgminError> {
+    fn next_iter(
+        &mut self,
+        problem: &mut Problem<O>,
+        state: IterState<P, G, (), H, (), f64>,
+    ) -> Result<(IterState<P, G, (), H, (), f64>, Option<KV>), ArgminError> {
         self.inner.next_iter(problem, state)
     }
     fn terminate(&mut self, state: &IterState<P, G, (), H, (), f64>) -> TerminationStatus {
@@ -227,11 +234,7 @@ where
             self.count = 0;
         }
         self.last = self.last.min(c);
-        if self.count >= self.stall {
-            TerminationStatus::Terminated(TerminationReason::SolverConverged)
-        } else {
-            TerminationStatus::NotTerminated
-        }
+        if self.count >= self.stall { TerminationStatus::Terminated(TerminationReason::SolverConverged) } else { TerminationStatus::NotTerminated }
     }
 }
 
@@ -266,7 +269,8 @@ pub fn optimise(fwd: &Forward, u0: &[f64], s: &Settings, log: &mut dyn FnMut(&st
         let st = res.state();
         swarm_iters = st.get_iter();
         if let Some(best) = st.get_best_param()
-            && best.cost < chi2_global {
+            && best.cost < chi2_global
+        {
             u = best.position.clone();
             chi2_global = best.cost;
         }
@@ -278,7 +282,8 @@ pub fn optimise(fwd: &Forward, u0: &[f64], s: &Settings, log: &mut dyn FnMut(&st
     let mut local_history = Vec::new();
     if s.local_iterations > 0 {
         let problem = Calib { fwd, fd_step: s.fd_step, cache: Mutex::new(None) };
-        let tr = TrustRegion::new(Steihaug::new().with_max_iters(10 * n as u64 + 10)).with_radius(0.05).and_then(|t| t.with_max_radius(1.0)).map_err(argmin_err)?;
+        let tr =
+            TrustRegion::new(Steihaug::new().with_max_iters(10 * n as u64 + 10)).with_radius(0.05).and_then(|t| t.with_max_radius(1.0)).map_err(argmin_err)?;
         let solver = Stall { inner: tr, tol: s.tolerance, stall: s.stall, last: f64::INFINITY, count: 0, history: Vec::new() };
         let res = Executor::new(problem, solver).configure(|st| st.param(u.clone()).max_iters(s.local_iterations)).run().map_err(argmin_err)?;
         local_history = res.solver.history.iter().map(|c| 2.0 * c).collect();

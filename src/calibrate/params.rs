@@ -246,7 +246,13 @@ mod tests {
         let q = Parameter::new(&entry("model.path_factor_gb", 0.1, 1.0), 1, &ti).unwrap();
         assert!(!q.log);
         let e = Parameter::new(&entry("gamma.d0_gb", 1.0, 2.0), 3, &ti).unwrap_err().to_string();
-        assert!(e.contains("parameters[3].key = \"gamma.d0_gb\"") && e.contains("beta.q_surface") && e.contains("alpha.d0_gb") && e.contains("model.path_factor_cap"), "{e}");
+        assert!(
+            e.contains("parameters[3].key = \"gamma.d0_gb\"")
+                && e.contains("beta.q_surface")
+                && e.contains("alpha.d0_gb")
+                && e.contains("model.path_factor_cap"),
+            "{e}"
+        );
         let e = Parameter::new(&entry("beta.d0", 1.0, 2.0), 0, &ti).unwrap_err().to_string();
         assert!(e.contains("valid keys"), "{e}");
         let e = Parameter::new(&entry("beta.q_gb", 3e5, 2e5), 0, &ti).unwrap_err().to_string();

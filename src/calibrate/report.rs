@@ -12,7 +12,7 @@
 //! ν = values − parameters; σ_θ = √C_ii, r_ij = C_ij/(σ_i σ_j). A log parameter's `sigma` is the
 //! linearised `value·ln10·σ_θ`, its `sigma_log10` is σ_θ.
 
-use super::data::{quote, Experiment};
+use super::data::{Experiment, quote};
 use super::forward::{Forward, Prediction};
 use super::loss::{Quantity, Residual};
 use crate::error::{Error, IoError, ModelError};
@@ -55,7 +55,8 @@ pub fn uncertainty(j: &[Vec<f64>], n: usize, scale: f64) -> Uncertainty {
     let mut undetermined = vec![false; n];
     for (k, s) in svd.singular_values.iter().enumerate() {
         if (*s <= tol || !s.is_finite())
-            && let Some(vt) = svd.v_t.as_ref() {
+            && let Some(vt) = svd.v_t.as_ref()
+        {
             for (i, u) in undetermined.iter_mut().enumerate() {
                 if vt[(k, i)].abs() > 1e-6 {
                     *u = true;
@@ -159,7 +160,13 @@ pub struct CalibrationReport {
 }
 
 /// Parameter reports, warnings and correlation at the optimum.
-pub fn parameter_reports(fwd: &Forward, values: &[f64], u: &[f64], unc: &Uncertainty, warnings: &mut Vec<String>) -> (serde_json::Map<String, serde_json::Value>, Vec<Vec<f64>>) {
+pub fn parameter_reports(
+    fwd: &Forward,
+    values: &[f64],
+    u: &[f64],
+    unc: &Uncertainty,
+    warnings: &mut Vec<String>,
+) -> (serde_json::Map<String, serde_json::Value>, Vec<Vec<f64>>) {
     let mut map = serde_json::Map::new();
     for (i, p) in fwd.params.iter().enumerate() {
         let st = unc.sigma_theta[i];
@@ -208,7 +215,12 @@ pub fn experiment_reports(experiments: &[Experiment], preds: &[Result<Prediction
         .map(|(i, e)| {
             let mine: Vec<&Residual> = res.iter().filter(|r| r.experiment == i).collect();
             let pick = |q: Quantity| {
-                mine.iter().find(|r| r.end && r.quantity == q).map(|r| ValueReport { measured: r.measured.value, sigma: r.measured.sigma, fitted: r.fitted, residual: r.residual })
+                mine.iter().find(|r| r.end && r.quantity == q).map(|r| ValueReport {
+                    measured: r.measured.value,
+                    sigma: r.measured.sigma,
+                    fitted: r.fitted,
+                    residual: r.residual,
+                })
             };
             ExperimentReport {
                 id: e.id.clone(),
@@ -231,7 +243,7 @@ fn toml_float(x: f64) -> String {
 
 /// The `[[materials]]` (and optional `[model]`) text of a material, fields in schema order.
 pub fn material_toml(m: &Material, factors: Option<&PathFactors>) -> String {
-    use super::params::{model_field, phase_field, MODEL_FIELDS, PHASE_FIELDS};
+    use super::params::{MODEL_FIELDS, PHASE_FIELDS, model_field, phase_field};
     let q = |s: &str| toml::Value::String(s.to_string()).to_string();
     let mut t = String::new();
     if let Some(f) = factors {
@@ -307,7 +319,11 @@ pub fn write_plots(dir: &Path, experiments: &[Experiment], res: &[Residual]) -> 
         }
         let x = |r: &Residual| (r.experiment + 1) as f64;
         let mut p = Plot::new(format!("{}: measured (+- sigma) and fitted, end of schedule", q.name())).labels("experiment (row of the data file)", label);
-        p.add(Series::new("measured", ends.iter().map(|r| (x(r), r.measured.value)).collect()).points_only().with_error_bars(ends.iter().map(|r| r.measured.sigma).collect()));
+        p.add(
+            Series::new("measured", ends.iter().map(|r| (x(r), r.measured.value)).collect())
+                .points_only()
+                .with_error_bars(ends.iter().map(|r| r.measured.sigma).collect()),
+        );
         p.add(Series::new("fitted", ends.iter().map(|r| (x(r), r.fitted)).collect()).points_only());
         p.save_png(&dir.join(file))?;
     }
@@ -331,7 +347,11 @@ pub fn write_plots(dir: &Path, experiments: &[Experiment], res: &[Residual]) -> 
             if mine.is_empty() {
                 continue;
             }
-            p.add(Series::new(format!("{} measured", q.name()), mine.iter().map(|r| (r.time, r.measured.value)).collect()).points_only().with_error_bars(mine.iter().map(|r| r.measured.sigma).collect()));
+            p.add(
+                Series::new(format!("{} measured", q.name()), mine.iter().map(|r| (r.time, r.measured.value)).collect())
+                    .points_only()
+                    .with_error_bars(mine.iter().map(|r| r.measured.sigma).collect()),
+            );
             p.add(Series::new(format!("{} fitted", q.name()), mine.iter().map(|r| (r.time, r.fitted)).collect()).with_markers());
         }
         let safe: String = e.id.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '_' }).collect();

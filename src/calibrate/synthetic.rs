@@ -7,8 +7,8 @@
 //! [`BUNDLED_SEED`]; regenerate it with
 //! `sinterdem calibrate cases/calibration/titanium-synthetic.toml --generate-synthetic`.
 
-use super::data::{quote, Experiment, Measured, Observation};
-use super::forward::{run_experiment, PairGeometry};
+use super::data::{Experiment, Measured, Observation, quote};
+use super::forward::{PairGeometry, run_experiment};
 use crate::error::Error;
 use crate::models::diffusion7::titanium::{EXPERIMENTS, TRUNCATED_START};
 use crate::models::diffusion7::{Material, PathFactors, SolverOptions};
@@ -49,11 +49,8 @@ pub fn titanium_experiments(ids: Option<&[&str]>) -> Vec<Experiment> {
         .filter(|e| ids.is_none_or(|l| l.contains(&e.id)))
         .map(|e| {
             let r = (e.rate * 60.0).round();
-            let schedule = format!(
-                "start {TRUNCATED_START} K, heat {r} K/min to {} K, hold {} min, cool {r} K/min to 313 K",
-                e.peak_temperature,
-                e.hold_time / 60.0
-            );
+            let schedule =
+                format!("start {TRUNCATED_START} K, heat {r} K/min to {} K, hold {} min, cool {r} K/min to 313 K", e.peak_temperature, e.hold_time / 60.0);
             let profile = Profile::from_schedule(&schedule).expect("titanium schedules parse");
             Experiment { id: e.id.to_string(), diameter: e.mean_diameter, schedule, profile, end: Observation::default(), series: Vec::new() }
         })
@@ -70,7 +67,13 @@ fn normal(rng: &mut Xoshiro256PlusPlus) -> f64 {
 /// Fills the end observations of `experiments` with the model values of `material` (rtol
 /// [`GENERATOR_RTOL`] unless `solver` is given), sigmas of the noise model, and noise drawn from
 /// seed `noise_seed` (None: noise-free).
-pub fn generate(experiments: &mut [Experiment], material: &Material, factors: PathFactors, solver: Option<SolverOptions>, noise_seed: Option<u64>) -> Result<(), Error> {
+pub fn generate(
+    experiments: &mut [Experiment],
+    material: &Material,
+    factors: PathFactors,
+    solver: Option<SolverOptions>,
+    noise_seed: Option<u64>,
+) -> Result<(), Error> {
     let solver = solver.unwrap_or(SolverOptions { rtol: GENERATOR_RTOL, ..SolverOptions::default() });
     let g = PairGeometry::default();
     let preds: Vec<_> = experiments.par_iter().map(|e| run_experiment(e, material, factors, &solver, &g)).collect();

@@ -172,7 +172,15 @@ pub struct OutputSpec {
 
 impl Default for OutputSpec {
     fn default() -> Self {
-        OutputSpec { snapshots: default_snapshots(), series_every: 1.0, vtu: true, hdf5: true, checkpoint_every: 0.0, conductivity_at: Vec::new(), correction_histogram_at: Vec::new() }
+        OutputSpec {
+            snapshots: default_snapshots(),
+            series_every: 1.0,
+            vtu: true,
+            hdf5: true,
+            checkpoint_every: 0.0,
+            conductivity_at: Vec::new(),
+            correction_histogram_at: Vec::new(),
+        }
     }
 }
 

@@ -46,11 +46,8 @@ pub fn expand_includes(root: &mut toml::Value, base: &Path) -> Result<(), Config
         let path = base.join(file);
         let text = crate::io::read_input(&path).map_err(|e| ConfigError::invalid(format!("{key} = \"{file}\": cannot read {e}")))?;
         let inc_root: toml::Table = text.parse().map_err(|e: toml::de::Error| ConfigError::invalid(format!("{key}: {}: {}", path.display(), e.message())))?;
-        let mats: Vec<toml::Table> = inc_root
-            .get("materials")
-            .and_then(|m| m.as_array())
-            .map(|a| a.iter().filter_map(|v| v.as_table().cloned()).collect())
-            .unwrap_or_default();
+        let mats: Vec<toml::Table> =
+            inc_root.get("materials").and_then(|m| m.as_array()).map(|a| a.iter().filter_map(|v| v.as_table().cloned()).collect()).unwrap_or_default();
         let name = table.get("name").and_then(|n| n.as_str()).map(String::from);
         let found = match &name {
             Some(n) => mats.iter().find(|m| m.get("name").and_then(|x| x.as_str()) == Some(n.as_str())).or(if mats.len() == 1 { mats.first() } else { None }),
@@ -58,9 +55,14 @@ pub fn expand_includes(root: &mut toml::Value, base: &Path) -> Result<(), Config
             None => None,
         };
         let names: Vec<&str> = mats.iter().filter_map(|m| m.get("name").and_then(|x| x.as_str())).collect();
-        let mut merged = found
-            .cloned()
-            .ok_or_else(|| ConfigError::invalid(format!("{key} = \"{file}\": no material{} in {} (it has: {})", name.as_ref().map(|n| format!(" named \"{n}\"")).unwrap_or_default(), path.display(), names.join(", "))))?;
+        let mut merged = found.cloned().ok_or_else(|| {
+            ConfigError::invalid(format!(
+                "{key} = \"{file}\": no material{} in {} (it has: {})",
+                name.as_ref().map(|n| format!(" named \"{n}\"")).unwrap_or_default(),
+                path.display(),
+                names.join(", ")
+            ))
+        })?;
         if merged.contains_key("include") {
             return Err(ConfigError::invalid(format!("{key}: {} includes another file; one level of include only", path.display())));
         }
@@ -76,9 +78,7 @@ pub fn expand_includes(root: &mut toml::Value, base: &Path) -> Result<(), Config
 /// array); a bare word that is not valid TOML is taken as a string. Array elements are addressed
 /// by index (`profiles.0.hold_time=60`).
 pub fn apply_override(root: &mut toml::Value, assignment: &str) -> Result<(), ConfigError> {
-    let (path, raw) = assignment
-        .split_once('=')
-        .ok_or_else(|| ConfigError::invalid(format!("--set {assignment}: expected key.path=value")))?;
+    let (path, raw) = assignment.split_once('=').ok_or_else(|| ConfigError::invalid(format!("--set {assignment}: expected key.path=value")))?;
     let path = path.trim();
     let raw = raw.trim();
     let new: toml::Value = match format!("v = {raw}").parse::<toml::Table>() {
@@ -101,13 +101,9 @@ pub fn apply_override(root: &mut toml::Value, assignment: &str) -> Result<(), Co
                 t.entry(k.to_string()).or_insert_with(|| toml::Value::Table(toml::Table::new()))
             }
             toml::Value::Array(a) => {
-                let idx: usize = k.parse().map_err(|_| {
-                    ConfigError::invalid(format!("--set {assignment}: \"{k}\" must be an array index"))
-                })?;
+                let idx: usize = k.parse().map_err(|_| ConfigError::invalid(format!("--set {assignment}: \"{k}\" must be an array index")))?;
                 let len = a.len();
-                let slot = a.get_mut(idx).ok_or_else(|| {
-                    ConfigError::invalid(format!("--set {assignment}: index {idx} out of bounds (length {len})"))
-                })?;
+                let slot = a.get_mut(idx).ok_or_else(|| ConfigError::invalid(format!("--set {assignment}: index {idx} out of bounds (length {len})")))?;
                 if last {
                     *slot = new;
                     return Ok(());
@@ -115,10 +111,7 @@ pub fn apply_override(root: &mut toml::Value, assignment: &str) -> Result<(), Co
                 slot
             }
             _ => {
-                return Err(ConfigError::invalid(format!(
-                    "--set {assignment}: \"{}\" is not a table",
-                    keys[..i].join(".")
-                )));
+                return Err(ConfigError::invalid(format!("--set {assignment}: \"{}\" is not a table", keys[..i].join("."))));
             }
         };
     }
@@ -131,19 +124,13 @@ pub fn from_value<T: DeserializeOwned>(value: toml::Value, section: &str) -> Res
     T::deserialize(value).map_err(|e| {
         let msg = e.to_string();
         let msg = msg.trim().replace('\n', " ");
-        if section.is_empty() {
-            ConfigError::invalid(msg)
-        } else {
-            ConfigError::invalid(format!("[{section}] {msg}"))
-        }
+        if section.is_empty() { ConfigError::invalid(msg) } else { ConfigError::invalid(format!("[{section}] {msg}")) }
     })
 }
 
 /// Checks `value` of `key` against the range table entry for `key` (see [`ranges::lookup`]).
 pub fn check(key: &str, value: f64) -> Result<f64, ConfigError> {
-    let r = ranges::lookup(key).ok_or_else(|| {
-        ConfigError::invalid(format!("internal: key {key} has no entry in the range table"))
-    })?;
+    let r = ranges::lookup(key).ok_or_else(|| ConfigError::invalid(format!("internal: key {key} has no entry in the range table")))?;
     r.check(key, value)
 }
 

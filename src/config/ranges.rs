@@ -28,25 +28,14 @@ impl Range {
 
     pub fn describe(&self) -> String {
         let fmt = |x: f64| if x.is_infinite() { "inf".to_string() } else { crate::error::fmt_value(x) };
-        format!(
-            "{}{}, {}{}",
-            if self.lo_open { "(" } else { "[" },
-            fmt(self.lo),
-            fmt(self.hi),
-            if self.hi_open { ")" } else { "]" }
-        )
+        format!("{}{}, {}{}", if self.lo_open { "(" } else { "[" }, fmt(self.lo), fmt(self.hi), if self.hi_open { ")" } else { "]" })
     }
 
     pub fn check(&self, key: &str, v: f64) -> Result<f64, ConfigError> {
         if self.contains(v) {
             Ok(v)
         } else {
-            Err(ConfigError::OutOfRange {
-                key: key.to_string(),
-                value: v,
-                range: self.describe(),
-                unit: self.unit.to_string(),
-            })
+            Err(ConfigError::OutOfRange { key: key.to_string(), value: v, range: self.describe(), unit: self.unit.to_string() })
         }
     }
 }
@@ -120,7 +109,15 @@ pub static TABLE: &[Range] = &[
 
 /// Every range table of the crate: this file's [`TABLE`] and the models' own tables
 /// (a model module may keep its keys beside its code and register the table here).
-pub static TABLES: &[&[Range]] = &[TABLE, crate::models::diffusion7::RANGES, crate::packing::RANGES, crate::models::luding::RANGES, crate::models::frenkel::RANGES, crate::explicit::protocol::RANGES, crate::calibrate::RANGES];
+pub static TABLES: &[&[Range]] = &[
+    TABLE,
+    crate::models::diffusion7::RANGES,
+    crate::packing::RANGES,
+    crate::models::luding::RANGES,
+    crate::models::frenkel::RANGES,
+    crate::explicit::protocol::RANGES,
+    crate::calibrate::RANGES,
+];
 
 /// Looks up `key` in [`TABLES`], matching `*` against any one path segment.
 pub fn lookup(key: &str) -> Option<&'static Range> {
@@ -137,6 +134,16 @@ fn pattern_matches(pattern: &str, key: &str) -> bool {
             _ => return false,
         }
     }
+}
+
+/// The range tables as a Markdown table (key, allowed range, unit, meaning), for
+/// `docs/case-file.md` (`sinterdem keys` prints it; a test keeps the document in step).
+pub fn markdown() -> String {
+    let mut s = String::from("| key | allowed | unit | meaning |\n|---|---|---|---|\n");
+    for r in TABLES.iter().flat_map(|t| t.iter()) {
+        s.push_str(&format!("| `{}` | {} | {} | {} |\n", r.key, r.describe(), r.unit, r.meaning));
+    }
+    s
 }
 
 #[cfg(test)]
@@ -160,14 +167,4 @@ mod tests {
             }
         }
     }
-}
-
-/// The range tables as a Markdown table (key, allowed range, unit, meaning), for
-/// `docs/case-file.md` (`sinterdem keys` prints it; a test keeps the document in step).
-pub fn markdown() -> String {
-    let mut s = String::from("| key | allowed | unit | meaning |\n|---|---|---|---|\n");
-    for r in TABLES.iter().flat_map(|t| t.iter()) {
-        s.push_str(&format!("| `{}` | {} | {} | {} |\n", r.key, r.describe(), r.unit, r.meaning));
-    }
-    s
 }

@@ -40,11 +40,7 @@ pub fn touching_pairs(position: &[Vector3<f64>], radius: &[f64], margin: f64) ->
     let index_of = |x: &Vector3<f64>| -> [usize; 3] {
         let mut c = [0usize; 3];
         for a in 0..3 {
-            c[a] = if size[a].is_finite() {
-                (((x[a] - lo[a]) / size[a]) as usize).min(dims[a] - 1)
-            } else {
-                0
-            };
+            c[a] = if size[a].is_finite() { (((x[a] - lo[a]) / size[a]) as usize).min(dims[a] - 1) } else { 0 };
         }
         c
     };
@@ -134,9 +130,7 @@ mod tests {
         let mut s = 0x9E3779B97F4A7C15u64;
         for (n, spread, box_len) in [(200, 0.5, 10.0), (1000, 0.1, 20.0), (50, 0.9, 3.0), (400, 0.0, 1e-3)] {
             let base = if box_len < 1.0 { 5e-5 } else { 0.6 };
-            let pos: Vec<_> = (0..n)
-                .map(|_| Vector3::new(rng(&mut s), rng(&mut s), rng(&mut s) * 0.3) * box_len)
-                .collect();
+            let pos: Vec<_> = (0..n).map(|_| Vector3::new(rng(&mut s), rng(&mut s), rng(&mut s) * 0.3) * box_len).collect();
             let rad: Vec<_> = (0..n).map(|_| base * (1.0 + spread * (2.0 * rng(&mut s) - 1.0))).collect();
             for margin in [0.0, 0.05 * base] {
                 let a = touching_pairs(&pos, &rad, margin);

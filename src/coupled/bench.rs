@@ -1,9 +1,9 @@
 //! `sinterdem bench coupled`.
 
+use super::*;
 use crate::error::{ConfigError, Error};
 use std::path::Path;
 use std::time::Instant;
-use super::*;
 
 /// `sinterdem bench coupled`: the bundled copper compact run whole (wall time and the share of
 /// each stage), then the cost per step of isothermal FCC compacts of about `sizes` particles.
@@ -13,7 +13,9 @@ pub fn bench_coupled(copper_case: Option<&Path>, sizes: &[usize], steps: u64) ->
     let _ = writeln!(out, "# sinterdem bench coupled ({} rayon threads)", rayon::current_num_threads());
     if let Some(case) = copper_case {
         let value = crate::config::load_case(case, &[])?;
-        let sets: Vec<String> = ["output.snapshots=0", "output.vtu=false", "output.hdf5=false", "output.checkpoint_every=0", "output.conductivity_at=[]"].map(String::from).to_vec();
+        let sets: Vec<String> = ["output.snapshots=0", "output.vtu=false", "output.hdf5=false", "output.checkpoint_every=0", "output.conductivity_at=[]"]
+            .map(String::from)
+            .to_vec();
         let base = case.parent().unwrap_or(Path::new(".")).to_path_buf();
         let dir = std::env::temp_dir().join(format!("sinterdem-bench-{}", std::process::id()));
         let params = crate::run::RunParams { base_dir: base, plots: false, ..Default::default() };
@@ -22,11 +24,19 @@ pub fn bench_coupled(copper_case: Option<&Path>, sizes: &[usize], steps: u64) ->
         let tm: Timing = serde_json::from_value(s["timing_seconds"].clone()).unwrap_or_default();
         let total = s["wall_seconds"].as_f64().unwrap_or(0.0);
         let _ = writeln!(out, "{}: {} steps, {} contacts at the end, wall {:.2} s", case.display(), s["steps"], s["contacts"], total);
-        for (name, v) in [("detection", tm.detection), ("heat", tm.heat), ("diffusion", tm.diffusion), ("mechanics", tm.mechanics), ("correction", tm.correction), ("output", tm.output)] {
+        for (name, v) in [
+            ("detection", tm.detection),
+            ("heat", tm.heat),
+            ("diffusion", tm.diffusion),
+            ("mechanics", tm.mechanics),
+            ("correction", tm.correction),
+            ("output", tm.output),
+        ] {
             let _ = writeln!(out, "  {name:<11} {v:>9.3} s  {:>5.1} %", 100.0 * v / total.max(1e-300));
         }
     }
-    let _ = writeln!(out, "{:>9} {:>9} {:>12} {:>12} {:>12} {:>12} {:>12}", "particles", "contacts", "s/step", "detection", "diffusion", "mechanics", "correction");
+    let _ =
+        writeln!(out, "{:>9} {:>9} {:>12} {:>12} {:>12} {:>12} {:>12}", "particles", "contacts", "s/step", "detection", "diffusion", "mechanics", "correction");
     for &n in sizes {
         let cells = ((n as f64 / 4.0).cbrt().round() as u32).max(2);
         let text = format!(

@@ -1,12 +1,12 @@
 //! Checkpoints of a compact run: what `DIR/checkpoint.json` holds, writing it atomically,
 //! reading and validating it, and rebuilding a [`Simulation`] from it bit for bit.
 
+use super::*;
 use crate::error::{ConfigError, Error, IoError};
 use crate::models::diffusion7::Contact7;
 use crate::models::ode::OdeStats;
 use nalgebra::Vector3;
 use std::path::Path;
-use super::*;
 
 /// Output bookkeeping that a checkpoint carries.
 #[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]

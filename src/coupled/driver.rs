@@ -1,17 +1,29 @@
 //! The driver loop of a compact run: steps to the end time (or a stop criterion), writes the series,
 //! the due outputs and the checkpoints, then the summary.
 
+use super::*;
 use crate::error::{Error, IoError};
 use crate::io::{self, Series, SnapshotWriter};
 use crate::mechanics::MechParams;
 use serde_json::json;
 use std::path::Path;
 use std::time::Instant;
-use super::*;
 
 const SERIES_HEADER: &[&str] = &[
-    "time_s", "dt_s", "shrinkage_x", "shrinkage_y", "shrinkage_z", "relative_density", "coordination_mean", "neck_ratio_mean",
-    "contacts", "mean_temperature_K", "min_temperature_K", "max_temperature_K", "subdivided_fraction", "rhs_evaluations",
+    "time_s",
+    "dt_s",
+    "shrinkage_x",
+    "shrinkage_y",
+    "shrinkage_z",
+    "relative_density",
+    "coordination_mean",
+    "neck_ratio_mean",
+    "contacts",
+    "mean_temperature_K",
+    "min_temperature_K",
+    "max_temperature_K",
+    "subdivided_fraction",
+    "rhs_evaluations",
 ];
 
 /// Runs a compact simulation to its end time, writing series, snapshots, checkpoints and the summary.
@@ -22,7 +34,14 @@ pub fn run(sim: Simulation, out: &Path, progress: bool, log: &mut dyn FnMut(&str
 /// Runs from a fresh start (`state = None`) or a checkpoint's output state; `stop_after_step`
 /// ends the run early after that step (as if killed right after its checkpoint, for tests), with
 /// `Ok(Value::Null)`.
-pub fn run_from(mut sim: Simulation, out: &Path, progress: bool, log: &mut dyn FnMut(&str), state: Option<OutputState>, stop_after_step: Option<u64>) -> Result<serde_json::Value, Error> {
+pub fn run_from(
+    mut sim: Simulation,
+    out: &Path,
+    progress: bool,
+    log: &mut dyn FnMut(&str),
+    state: Option<OutputState>,
+    stop_after_step: Option<u64>,
+) -> Result<serde_json::Value, Error> {
     let wall = Instant::now();
     io::ensure_dir(out)?;
     let n = sim.prep.scene.particles.len();
@@ -248,4 +267,3 @@ pub fn run_from(mut sim: Simulation, out: &Path, progress: bool, log: &mut dyn F
         None => Ok(summary),
     }
 }
-

@@ -1,11 +1,11 @@
 //! Outputs and analyses of a compact run: snapshots, effective conductivity at chosen times,
 //! correction histograms and plots.
 
+use super::*;
 use crate::error::{Error, IoError};
 use crate::io::{Snapshot, SnapshotWriter};
 use serde_json::json;
 use std::path::Path;
-use super::*;
 
 /// Output analyses due at given times, and where each list stands (a checkpoint carries it).
 pub(crate) struct Due {

@@ -14,7 +14,6 @@ use rayon::prelude::*;
 use std::path::Path;
 use std::time::Instant;
 
-
 /// Which neck radius feeds the conductance (heat-network.md "Which neck radius ...").
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum NeckSource {
@@ -92,7 +91,10 @@ impl Settings {
         // a step must advance time also near the end: at least 4 ulp of time.end (3.6e5 s: 3e-10 s)
         let dt_min = config::check("time.dt_min", t.dt_min.unwrap_or(1e-12))?.max(4.0 * f64::EPSILON * t.end);
         if dt_min > dt_max {
-            return Err(ConfigError::inconsistent("time.dt_min", format!("{} s is larger than time.dt_max = {} s", crate::error::fmt_value(dt_min), crate::error::fmt_value(dt_max))));
+            return Err(ConfigError::inconsistent(
+                "time.dt_min",
+                format!("{} s is larger than time.dt_max = {} s", crate::error::fmt_value(dt_min), crate::error::fmt_value(dt_max)),
+            ));
         }
         Ok(Settings {
             end: config::check("time.end", t.end)?,
@@ -164,7 +166,15 @@ pub struct MechanicsStage {
 
 impl MechanicsStage {
     pub fn new(n: usize, settings: &MechanicsSettings) -> Self {
-        MechanicsStage { settings: settings.clone(), sys: None, bonds: 0, rotation: vec![Vector3::zeros(); n], newton_iterations: 0, factorizations: 0, max_residual: 0.0 }
+        MechanicsStage {
+            settings: settings.clone(),
+            sys: None,
+            bonds: 0,
+            rotation: vec![Vector3::zeros(); n],
+            newton_iterations: 0,
+            factorizations: 0,
+            max_residual: 0.0,
+        }
     }
 
     /// Builds the bonded system with the plane constraints of the initial packing.
@@ -174,7 +184,13 @@ impl MechanicsStage {
         } else {
             Constraints::none(p.len())
         };
-        let params = MechParams { young_modulus: young, poisson_ratio: poisson, solver: self.settings.solver, reuse_factor: self.settings.reuse_factor, ..Default::default() };
+        let params = MechParams {
+            young_modulus: young,
+            poisson_ratio: poisson,
+            solver: self.settings.solver,
+            reuse_factor: self.settings.reuse_factor,
+            ..Default::default()
+        };
         self.sys = Some(BondedSystem::new(p.len(), params, cons)?);
         Ok(())
     }
@@ -198,7 +214,13 @@ impl MechanicsStage {
         }
         let y4_y7: Vec<[f64; 2]> = contacts.state.iter().map(|c| [c.y_prev[3], c.y_prev[6]]).collect();
         // the load (F5) with the link's own E, so that E cancels from the approach per bond
-        let load: Vec<f64> = contacts.state.iter().zip(approach).zip(&contacts.pairs).map(|((c, &a), &[i, j])| d7::load_increment(a, 0.0, c.r_mean(), sys.link_elastic(i, j)[0])).collect();
+        let load: Vec<f64> = contacts
+            .state
+            .iter()
+            .zip(approach)
+            .zip(&contacts.pairs)
+            .map(|((c, &a), &[i, j])| d7::load_increment(a, 0.0, c.r_mean(), sys.link_elastic(i, j)[0]))
+            .collect();
         let out = sys.step(&StepInput { positions: &p.position, radii: &p.radius, y4_y7: &y4_y7, load: &load, external: None })?;
         for (r, d) in self.rotation.iter_mut().zip(&out.dtheta) {
             *r += d;
@@ -322,8 +344,12 @@ impl Simulation {
         } else {
             hi
         };
-        let far_layer: [Vec<u32>; 3] = std::array::from_fn(|a| (0..n as u32).filter(|&i| touching[i as usize] && p.position[i as usize][a] + p.radius[i as usize] >= hi[a] - r_mean).collect());
-        let near_layer: [Vec<u32>; 3] = std::array::from_fn(|a| (0..n as u32).filter(|&i| touching[i as usize] && p.position[i as usize][a] - p.radius[i as usize] <= lo[a] + r_mean).collect());
+        let far_layer: [Vec<u32>; 3] = std::array::from_fn(|a| {
+            (0..n as u32).filter(|&i| touching[i as usize] && p.position[i as usize][a] + p.radius[i as usize] >= hi[a] - r_mean).collect()
+        });
+        let near_layer: [Vec<u32>; 3] = std::array::from_fn(|a| {
+            (0..n as u32).filter(|&i| touching[i as usize] && p.position[i as usize][a] - p.radius[i as usize] <= lo[a] + r_mean).collect()
+        });
         let mut sim = Simulation {
             mechanics: MechanicsStage::new(n, &settings.mechanics),
             settings,
@@ -481,7 +507,9 @@ impl Simulation {
                     net.set_topology(&self.contacts.pairs)?;
                     heat_info = Some(net.step(t0, dt, &mut self.prep.scene.particles.temperature, &k)?);
                 }
-                if let Err(e) = crate::finite::ensure_finite("heat", self.step + 1, t1, "particle", "temperature", self.prep.scene.particles.temperature.iter().copied()) {
+                if let Err(e) =
+                    crate::finite::ensure_finite("heat", self.step + 1, t1, "particle", "temperature", self.prep.scene.particles.temperature.iter().copied())
+                {
                     self.undo_sweep(temps_old);
                     return Err(e.into());
                 }
@@ -541,7 +569,9 @@ impl Simulation {
                     }
                 }
             }
-            if let Err(e) = crate::finite::ensure_finite_groups("diffusion", self.step + 1, t1, "contact", "7-DOF state", self.contacts.state.iter().map(|c| &c.y)) {
+            if let Err(e) =
+                crate::finite::ensure_finite_groups("diffusion", self.step + 1, t1, "contact", "7-DOF state", self.contacts.state.iter().map(|c| &c.y))
+            {
                 self.undo_sweep(temps_old);
                 return Err(e.into());
             }
@@ -605,10 +635,18 @@ impl Simulation {
                         Some(prof) => prof.temperature(t1),
                         None => {
                             let tt = &self.prep.scene.particles.temperature;
-                            if harmonic { 2.0 * tt[i as usize] * tt[j as usize] / (tt[i as usize] + tt[j as usize]) } else { 0.5 * (tt[i as usize] + tt[j as usize]) }
+                            if harmonic {
+                                2.0 * tt[i as usize] * tt[j as usize] / (tt[i as usize] + tt[j as usize])
+                            } else {
+                                0.5 * (tt[i as usize] + tt[j as usize])
+                            }
                         }
                     };
-                    let pm = PairMaterials { a: &self.d7_materials[self.prep.scene.particles.material[i as usize] as usize], b: &self.d7_materials[self.prep.scene.particles.material[j as usize] as usize], factors };
+                    let pm = PairMaterials {
+                        a: &self.d7_materials[self.prep.scene.particles.material[i as usize] as usize],
+                        b: &self.d7_materials[self.prep.scene.particles.material[j as usize] as usize],
+                        factors,
+                    };
                     let r = d7::rates(&c.y, &pm.params_at(temp_c), temp_c)?;
                     (r[3], r[6])
                 };
@@ -685,15 +723,25 @@ impl Simulation {
         let p = &self.prep.scene.particles;
         let at = format!("step {}, t = {:e} s", self.step, self.t);
         if let Some(i) = (0..p.len()).find(|&i| !(p.position[i].iter().all(|v| v.is_finite()) && p.temperature[i].is_finite())) {
-            return Err(ModelError::new(format!("non-finite state of particle {i} (position {:?}, temperature {} K) after {at}", p.position[i].as_slice(), p.temperature[i])).into());
+            return Err(ModelError::new(format!(
+                "non-finite state of particle {i} (position {:?}, temperature {} K) after {at}",
+                p.position[i].as_slice(),
+                p.temperature[i]
+            ))
+            .into());
         }
         if let Some(k) = self.contacts.state.iter().position(|c| !c.y.iter().all(|v| v.is_finite())) {
             let [i, j] = self.contacts.pairs[k];
-            return Err(ModelError::new(format!("non-finite 7-DOF state of contact {k} (particles {i}, {j}) after {at}: {:?}", self.contacts.state[k].y)).into());
+            return Err(
+                ModelError::new(format!("non-finite 7-DOF state of contact {k} (particles {i}, {j}) after {at}: {:?}", self.contacts.state[k].y)).into()
+            );
         }
         let rho = self.relative_density();
         if !(rho.is_finite() && rho <= 1.0) {
-            return Err(ModelError::new(format!("relative density {rho:.6} after {at}: above 1 (or not finite), the packing has left the model's range (eq. 49)")).into());
+            return Err(ModelError::new(format!(
+                "relative density {rho:.6} after {at}: above 1 (or not finite), the packing has left the model's range (eq. 49)"
+            ))
+            .into());
         }
         for (i, (&t, &m)) in p.temperature.iter().zip(&p.material).enumerate() {
             let mat = &self.d7_materials[m as usize];
@@ -757,7 +805,10 @@ impl Simulation {
         let furnace = src.furnace.is_some();
         let mut heated = vec![false; n];
         for i in 0..n {
-            let source = net.is_fixed(i) || src.fixed.get(i).is_some_and(Option::is_some) || (furnace && src.exposed_area.get(i).is_some_and(|&a| a > 0.0)) || src.power.get(i).is_some_and(|&q| q != 0.0);
+            let source = net.is_fixed(i)
+                || src.fixed.get(i).is_some_and(Option::is_some)
+                || (furnace && src.exposed_area.get(i).is_some_and(|&a| a > 0.0))
+                || src.power.get(i).is_some_and(|&q| q != 0.0);
             if source {
                 let r = find(&mut parent, i as u32);
                 heated[r as usize] = true;

@@ -71,7 +71,10 @@ impl Checkpoint {
         let mut seen = std::collections::HashSet::with_capacity(m);
         for (k, &[i, j]) in self.pairs.iter().enumerate() {
             if !(i < j && (j as usize) < n) {
-                return Err(ConfigError::inconsistent(format!("checkpoint.pairs[{k}]"), format!("[{i}, {j}] is not a pair i < j of particle indices below {n}")));
+                return Err(ConfigError::inconsistent(
+                    format!("checkpoint.pairs[{k}]"),
+                    format!("[{i}, {j}] is not a pair i < j of particle indices below {n}"),
+                ));
             }
             if !seen.insert((i, j)) {
                 return Err(ConfigError::inconsistent(format!("checkpoint.pairs[{k}]"), format!("[{i}, {j}] appears twice")));
@@ -85,7 +88,12 @@ impl Checkpoint {
                 return Err(out_of_range(format!("checkpoint.contacts[{k}].r0"), c.r0[0].min(c.r0[1]), "(0, inf)".into(), "m"));
             }
             if !(c.t_created.is_finite() && c.t_created >= 0.0 && c.t_created <= self.t) {
-                return Err(out_of_range(format!("checkpoint.contacts[{k}].t_created"), c.t_created, format!("[0, {}] (checkpoint.t)", fmt_value(self.t)), "s"));
+                return Err(out_of_range(
+                    format!("checkpoint.contacts[{k}].t_created"),
+                    c.t_created,
+                    format!("[0, {}] (checkpoint.t)", fmt_value(self.t)),
+                    "s",
+                ));
             }
             if c.h_last < 0.0 {
                 return Err(out_of_range(format!("checkpoint.contacts[{k}].h_last"), c.h_last, "[0, inf)".into(), "s"));
@@ -107,10 +115,16 @@ impl Checkpoint {
         }
         let o = &self.output;
         if o.next_cond > s.conductivity_at.len() {
-            return Err(ConfigError::inconsistent("checkpoint.output.next_cond", format!("{} is beyond the {} entries of output.conductivity_at", o.next_cond, s.conductivity_at.len())));
+            return Err(ConfigError::inconsistent(
+                "checkpoint.output.next_cond",
+                format!("{} is beyond the {} entries of output.conductivity_at", o.next_cond, s.conductivity_at.len()),
+            ));
         }
         if o.next_hist > s.histogram_at.len() {
-            return Err(ConfigError::inconsistent("checkpoint.output.next_hist", format!("{} is beyond the {} entries of output.correction_histogram_at", o.next_hist, s.histogram_at.len())));
+            return Err(ConfigError::inconsistent(
+                "checkpoint.output.next_hist",
+                format!("{} is beyond the {} entries of output.correction_histogram_at", o.next_hist, s.histogram_at.len()),
+            ));
         }
         if o.series_lines == 0 {
             return Err(ConfigError::inconsistent("checkpoint.output.series_lines", "must count the header line"));

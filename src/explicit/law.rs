@@ -223,13 +223,7 @@ impl ContactModel for Hertz {
         let fe = k * g.overlap * sd;
         let gamma = self.damping * (g.mass * k).sqrt() * sd.sqrt();
         let fd = gamma * g.overlap_rate;
-        NormalOut {
-            force: fe + fd,
-            damping_force: fd,
-            elastic_energy: 0.4 * k * g.overlap * g.overlap * sd,
-            stiffness: 1.5 * k * sd,
-            damping: gamma,
-        }
+        NormalOut { force: fe + fd, damping_force: fd, elastic_energy: 0.4 * k * g.overlap * g.overlap * sd, stiffness: 1.5 * k * sd, damping: gamma }
     }
     /// Elastic Hertz collision time `t_c = 2.94 (m²/(K² v))^{1/5}` (Johnson 1985, §11.4:
     /// `t_c = 2.94 δ_max/v`, `δ_max = (15 m v²/(16 E* √R))^{2/5}`).

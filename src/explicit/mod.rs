@@ -318,7 +318,8 @@ impl<M: ContactModel> Explicit<M> {
                 return Err(ConfigError::inconsistent(format!("walls.{k}"), "normal must be a finite unit vector and offset finite").into());
             }
             if let WallControl::Stress { mass, damping, pressure } = w.control
-                && !(mass > 0.0 && damping >= 0.0 && pressure.is_finite() && w.area > 0.0) {
+                && !(mass > 0.0 && damping >= 0.0 && pressure.is_finite() && w.area > 0.0)
+            {
                 return Err(ConfigError::inconsistent(format!("walls.{k}"), "stress control needs mass > 0, damping >= 0, finite pressure, area > 0").into());
             }
         }
@@ -455,8 +456,7 @@ impl<M: ContactModel> Explicit<M> {
             (count, of)
         };
         let chunks = n.div_ceil(PARTICLE_CHUNK);
-        let parts: Vec<(Vec<u32>, Vec<u32>)> =
-            if self.parallel() { (0..chunks).into_par_iter().map(body).collect() } else { (0..chunks).map(body).collect() };
+        let parts: Vec<(Vec<u32>, Vec<u32>)> = if self.parallel() { (0..chunks).into_par_iter().map(body).collect() } else { (0..chunks).map(body).collect() };
         let mut start = Vec::with_capacity(n + 1);
         start.push(0u32);
         let mut of = Vec::with_capacity(parts.iter().map(|x| x.1.len()).sum());
@@ -626,7 +626,13 @@ impl<M: ContactModel> Explicit<M> {
                 .map(body)
                 .collect()
         } else {
-            self.slots.chunks_mut(CONTACT_CHUNK).zip(self.out.chunks_mut(CONTACT_CHUNK)).zip(self.touching.chunks_mut(CONTACT_CHUNK)).enumerate().map(body).collect()
+            self.slots
+                .chunks_mut(CONTACT_CHUNK)
+                .zip(self.out.chunks_mut(CONTACT_CHUNK))
+                .zip(self.touching.chunks_mut(CONTACT_CHUNK))
+                .enumerate()
+                .map(body)
+                .collect()
         };
         sums.iter().fold((0.0, 0.0), |(a, b), (e, d)| (a + e, b + d))
     }

@@ -33,7 +33,7 @@
 use super::law::ContactModel;
 use super::sinter::{FrenkelLaw, LudingLaw, LudingSlot};
 use super::{Explicit, Settings, Wall, WallControl, time_step};
-use crate::config::ranges::{c, p, Range};
+use crate::config::ranges::{Range, c, p};
 use crate::config::{check, from_value};
 use crate::error::{ConfigError, Error, IoError, ModelError};
 use crate::heat::conductance::Conductance;
@@ -51,7 +51,6 @@ use serde_json::json;
 use std::path::Path;
 
 type V3 = Vector3<f64>;
-
 
 /// Range table of the `explicit_sinter` case keys (registered in `config::ranges::TABLES`).
 pub static RANGES: &[Range] = &[
@@ -395,7 +394,7 @@ pub fn check_explicit_case(case: &toml::Value) -> Result<(), Error> {
 /// and history rows the protocol's simulated time implies at the sample's explicit step.
 fn check_plan(c: &ExplicitSinterCase) -> Result<(), Error> {
     use crate::config::plausible::{BYTES_PER_PARTICLE_GENERATE, MAX_STEPS, check_memory};
-    check_memory("sample.particles", c.sample.particles as f64, BYTES_PER_PARTICLE_GENERATE)?;
+    check_memory("sample.particles", c.sample.particles, BYTES_PER_PARTICLE_GENERATE)?;
     let pressure = c.walls.pressures[0];
     // the step from a small sample of the same size distribution (building a million-particle
     // sample is the run's work, not the check's)
@@ -413,13 +412,21 @@ fn check_plan(c: &ExplicitSinterCase) -> Result<(), Error> {
     if !(steps <= MAX_STEPS) {
         return Err(ConfigError::inconsistent(
             "protocol",
-            format!("{} s of simulated time at the explicit step {} s imply about {steps:.0e} steps (at most {MAX_STEPS:e})", crate::error::fmt_value(total), crate::error::fmt_value(dt)),
+            format!(
+                "{} s of simulated time at the explicit step {} s imply about {steps:.0e} steps (at most {MAX_STEPS:e})",
+                crate::error::fmt_value(total),
+                crate::error::fmt_value(dt)
+            ),
         )
         .into());
     }
     let rows = per_pressure / c.output_interval();
     if !(rows <= 1e7) {
-        return Err(ConfigError::inconsistent("protocol.output_interval", format!("{} s gives about {rows:.0e} history rows per pressure (at most 1e7)", crate::error::fmt_value(c.output_interval()))).into());
+        return Err(ConfigError::inconsistent(
+            "protocol.output_interval",
+            format!("{} s gives about {rows:.0e} history rows per pressure (at most 1e7)", crate::error::fmt_value(c.output_interval())),
+        )
+        .into());
     }
     Ok(())
 }
@@ -498,15 +505,43 @@ pub struct Row {
 }
 
 const HEADER: [&str; 16] = [
-    "time_s", "temperature_K", "density", "coordination", "sigma_xx_Pa", "sigma_yy_Pa", "sigma_zz_Pa", "lx_m", "ly_m", "lz_m",
-    "force_min_N", "force_mean_N", "force_max_N", "state_mean", "kinetic_J", "strain_zz",
+    "time_s",
+    "temperature_K",
+    "density",
+    "coordination",
+    "sigma_xx_Pa",
+    "sigma_yy_Pa",
+    "sigma_zz_Pa",
+    "lx_m",
+    "ly_m",
+    "lz_m",
+    "force_min_N",
+    "force_mean_N",
+    "force_max_N",
+    "state_mean",
+    "kinetic_J",
+    "strain_zz",
 ];
 
 impl Row {
     fn values(&self) -> Vec<f64> {
         vec![
-            self.time, self.temperature, self.density, self.coordination, self.stress[0], self.stress[1], self.stress[2], self.box_size[0],
-            self.box_size[1], self.box_size[2], self.force_min, self.force_mean, self.force_max, self.state_mean, self.kinetic, self.strain,
+            self.time,
+            self.temperature,
+            self.density,
+            self.coordination,
+            self.stress[0],
+            self.stress[1],
+            self.stress[2],
+            self.box_size[0],
+            self.box_size[1],
+            self.box_size[2],
+            self.force_min,
+            self.force_mean,
+            self.force_max,
+            self.state_mean,
+            self.kinetic,
+            self.strain,
         ]
     }
 }
@@ -556,7 +591,11 @@ fn random_loose_sample(case: &ExplicitSinterCase) -> Result<(Particles, f64), Er
             }
         }
         if !ok {
-            return Err(ConfigError::inconsistent("sample.initial_fraction", format!("{}: could not place {n} spheres without overlap; lower it", s.initial_fraction)).into());
+            return Err(ConfigError::inconsistent(
+                "sample.initial_fraction",
+                format!("{}: could not place {n} spheres without overlap; lower it", s.initial_fraction),
+            )
+            .into());
         }
         placed.push(a);
     }
@@ -928,7 +967,9 @@ fn run_law<M: SinterLaw>(case: &ExplicitSinterCase, law: M, progress: bool) -> R
             } else {
                 // the stress never rose above its start (or no compression test): no resistance
                 if case.compression.enabled {
-                    warnings.push(format!("p = {pressure} Pa, t_sinter = {ts} s: the compression stress never rose above its initial value; stiffness reported as 0"));
+                    warnings.push(format!(
+                        "p = {pressure} Pa, t_sinter = {ts} s: the compression stress never rose above its initial value; stiffness reported as 0"
+                    ));
                 }
                 0.0
             };
@@ -1062,7 +1103,12 @@ pub fn write_outputs(case: &ExplicitSinterCase, run: &ExplicitSinterRun, out_dir
         pl
     };
     let plots = [
-        ("density.png", mk("Density during the sample history", "time t [s]", "solid fraction nu [1]", &|b: &Branch| b.history.iter().map(|r| (r.time, r.density)).collect())),
+        (
+            "density.png",
+            mk("Density during the sample history", "time t [s]", "solid fraction nu [1]", &|b: &Branch| {
+                b.history.iter().map(|r| (r.time, r.density)).collect()
+            }),
+        ),
         (
             "coordination.png",
             mk("Coordination number", "time t [s]", "contacts per particle C [1]", &|b: &Branch| b.history.iter().map(|r| (r.time, r.coordination)).collect()),
@@ -1073,10 +1119,7 @@ pub fn write_outputs(case: &ExplicitSinterCase, run: &ExplicitSinterRun, out_dir
                 b.history.iter().map(|r| (r.time, r.stress[2] / b.pressure)).collect()
             }),
         ),
-        (
-            "temperature.png",
-            mk("Mean temperature", "time t [s]", "T [K]", &|b: &Branch| b.history.iter().map(|r| (r.time, r.temperature)).collect()),
-        ),
+        ("temperature.png", mk("Mean temperature", "time t [s]", "T [K]", &|b: &Branch| b.history.iter().map(|r| (r.time, r.temperature)).collect())),
         (
             "state.png",
             mk(
@@ -1098,14 +1141,8 @@ pub fn write_outputs(case: &ExplicitSinterCase, run: &ExplicitSinterRun, out_dir
                 b.history.iter().map(|r| (r.time, r.force_min)).collect()
             }),
         ),
-        (
-            "force_pdf_sintered.png",
-            mk("Normal-force pdf after sintering", "f / <|f|> [1]", "P [1]", &|b: &Branch| force_pdf(&b.forces_sintered)),
-        ),
-        (
-            "force_pdf_cooled.png",
-            mk("Normal-force pdf after cool-down and relaxation", "f / <|f|> [1]", "P [1]", &|b: &Branch| force_pdf(&b.forces_cooled)),
-        ),
+        ("force_pdf_sintered.png", mk("Normal-force pdf after sintering", "f / <|f|> [1]", "P [1]", &|b: &Branch| force_pdf(&b.forces_sintered))),
+        ("force_pdf_cooled.png", mk("Normal-force pdf after cool-down and relaxation", "f / <|f|> [1]", "P [1]", &|b: &Branch| force_pdf(&b.forces_cooled))),
         (
             "compression_stress.png",
             mk("Compression test: vertical stress", "strain eps_zz [1]", "sigma_zz [Pa]", &|b: &Branch| {

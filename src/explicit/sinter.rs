@@ -59,13 +59,7 @@ impl ContactModel for LudingLaw {
     fn normal(&self, g: &PairGeom, _: &mut LudingSlot) -> NormalOut {
         let k = self.params.k2;
         let fd = self.params.gamma_n * g.overlap_rate;
-        NormalOut {
-            force: k * g.overlap + fd,
-            damping_force: fd,
-            elastic_energy: 0.5 * k * g.overlap * g.overlap,
-            stiffness: k,
-            damping: self.params.gamma_n,
-        }
+        NormalOut { force: k * g.overlap + fd, damping_force: fd, elastic_energy: 0.5 * k * g.overlap * g.overlap, stiffness: k, damping: self.params.gamma_n }
     }
 
     /// Half-period on the stiffest (k2) line, `t_c = π/√(k2/m − η_0²)` (eq. 6).
@@ -82,12 +76,7 @@ impl ContactModel for LudingLaw {
         let temp = p.contact_temperature.of(c.temperature_i, c.temperature_j);
         let mut s = state.0.unwrap_or_else(|| LudingState::new(p, temp));
         s.xi = *xi;
-        let kin = ContactKinematics {
-            normal: c.normal,
-            overlap: c.geom.overlap,
-            overlap_rate: c.geom.overlap_rate,
-            surface_velocity: c.surface_velocity,
-        };
+        let kin = ContactKinematics { normal: c.normal, overlap: c.geom.overlap, overlap_rate: c.geom.overlap_rate, surface_velocity: c.surface_velocity };
         let f = luding::contact_force(p, &mut s, &kin, temp, self.t0, t.dt);
         *xi = s.xi;
         state.0 = Some(s);
@@ -119,13 +108,7 @@ impl ContactModel for FrenkelLaw {
     fn normal(&self, g: &PairGeom, _: &mut FrenkelState) -> NormalOut {
         let k = self.params.k2_max;
         let fd = self.params.damping * g.overlap_rate;
-        NormalOut {
-            force: k * g.overlap + fd,
-            damping_force: fd,
-            elastic_energy: 0.5 * k * g.overlap * g.overlap,
-            stiffness: k,
-            damping: self.params.damping,
-        }
+        NormalOut { force: k * g.overlap + fd, damping_force: fd, elastic_energy: 0.5 * k * g.overlap * g.overlap, stiffness: k, damping: self.params.damping }
     }
 
     /// Half-period on the stiffest (k2_max) line.

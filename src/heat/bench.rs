@@ -38,7 +38,10 @@ pub fn random_packing(n: usize, seed: u64) -> Particles {
 pub fn bench_heat(sizes: &[usize], repeat: usize) -> Result<(), Error> {
     let mat = crate::material::preset("copper").unwrap();
     println!("# one implicit heat step (backward Euler, Δt = 1000 × explicit limit), {} rayon threads", rayon::current_num_threads());
-    println!("{:>9} {:>9} {:>11} {:>11} {:>11} {:>11} {:>11} {:>11} {:>10}", "particles", "contacts", "detect_s", "necks_s", "symbolic_s", "assemble_s", "factor_s", "solve_s", "residual");
+    println!(
+        "{:>9} {:>9} {:>11} {:>11} {:>11} {:>11} {:>11} {:>11} {:>10}",
+        "particles", "contacts", "detect_s", "necks_s", "symbolic_s", "assemble_s", "factor_s", "solve_s", "residual"
+    );
     for &n in sizes {
         let p = random_packing(n, 42 + n as u64);
         let mut rows = Vec::new();
@@ -70,7 +73,16 @@ pub fn bench_heat(sizes: &[usize], repeat: usize) -> Result<(), Error> {
             let t_sym = net.set_topology(&pipes.pairs)?;
             let mut temps: Vec<f64> = (0..n).map(|i| 300.0 + 100.0 * (q.position[i].x * 1e3).sin()).collect();
             let info = net.step(0.0, dt, &mut temps, &pipes.conductance)?;
-            rows.push((pipes.pairs.len(), t_detect, t_necks, t_sym, info.assemble_seconds, info.solve.factor_seconds, info.solve.solve_seconds, info.solve.residual));
+            rows.push((
+                pipes.pairs.len(),
+                t_detect,
+                t_necks,
+                t_sym,
+                info.assemble_seconds,
+                info.solve.factor_seconds,
+                info.solve.solve_seconds,
+                info.solve.residual,
+            ));
         }
         rows.sort_by(|a, b| a.5.total_cmp(&b.5));
         let r = rows[rows.len() / 2];

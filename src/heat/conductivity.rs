@@ -149,7 +149,17 @@ pub fn faces(p: &Particles, pipes: &Pipes, axis: usize, depth: f64, delta_t: f64
         }
     }
     let (t_hot, t_cold) = (delta_t, 0.0);
-    let mut temps: Vec<f64> = (0..n).map(|i| if hot[i] { t_hot } else if cold[i] { t_cold } else { 0.5 * delta_t }).collect();
+    let mut temps: Vec<f64> = (0..n)
+        .map(|i| {
+            if hot[i] {
+                t_hot
+            } else if cold[i] {
+                t_cold
+            } else {
+                0.5 * delta_t
+            }
+        })
+        .collect();
     let unknown: Vec<bool> = (0..n).map(|i| !hot[i] && !cold[i] && anchored[comp[i] as usize]).collect();
     let floating = (0..n).filter(|&i| !anchored[comp[i] as usize]).count();
     steady(n, &pipes.pairs, &pipes.conductance, &unknown, &mut temps, &vec![0.0; n])?;
@@ -171,7 +181,11 @@ pub fn faces(p: &Particles, pipes: &Pipes, axis: usize, depth: f64, delta_t: f64
         }
     }
     if (q_hot - q_cold).abs() > 1e-8 * q_hot.abs().max(1e-300) {
-        return Err(SolveError::new("effective conductivity", format!("axis {axis}: heat out of the hot layer {q_hot:e} W differs from heat into the cold layer {q_cold:e} W")).into());
+        return Err(SolveError::new(
+            "effective conductivity",
+            format!("axis {axis}: heat out of the hot layer {q_hot:e} W differs from heat into the cold layer {q_cold:e} W"),
+        )
+        .into());
     }
     let mean = |sel: &[bool]| {
         let (s, c) = (0..n).filter(|&i| sel[i]).fold((0.0, 0usize), |(s, c), i| (s + p.position[i][axis], c + 1));
@@ -302,7 +316,10 @@ pub fn run_case(value: toml::Value, base: &std::path::Path) -> Result<serde_json
             t
         }
         "periodic" => {
-            let bbox = prep.scene.periodic_box.ok_or_else(|| ConfigError::inconsistent("conductivity.boundary", "\"periodic\" needs a periodic box (particles.source = \"lattice\")"))?;
+            let bbox = prep
+                .scene
+                .periodic_box
+                .ok_or_else(|| ConfigError::inconsistent("conductivity.boundary", "\"periodic\" needs a periodic box (particles.source = \"lattice\")"))?;
             let (pipes, branch) = periodic_pipes(p, bbox, &prep.scene.materials, &prep.conductance)?;
             out.insert("periodic_contacts".into(), pipes.pairs.len().into());
             periodic(p, &pipes, &branch, bbox)?

@@ -59,11 +59,7 @@ pub fn fe_fit_factor(a_over_r: f64) -> f64 {
     if x >= 1.0 {
         return FE_FIT_CYLINDER_LIMIT;
     }
-    let d = std::f64::consts::FRAC_PI_4
-        + FE_FIT_P1 * x
-        + FE_FIT_P2 * x * x.ln()
-        + FE_FIT_P3 * x * x
-        + FE_FIT_P4 * x * (1.0 - (1.0 - x * x).sqrt());
+    let d = std::f64::consts::FRAC_PI_4 + FE_FIT_P1 * x + FE_FIT_P2 * x * x.ln() + FE_FIT_P3 * x * x + FE_FIT_P4 * x * (1.0 - (1.0 - x * x).sqrt());
     1.0 / d
 }
 
@@ -75,9 +71,7 @@ mod tests {
 
     /// (a/r, K_i/(κπa)) rows of the converged FE table.
     fn table() -> Vec<(f64, f64)> {
-        let mut lines = TABLE
-            .lines()
-            .filter(|l| !l.starts_with('#') && !l.trim().is_empty());
+        let mut lines = TABLE.lines().filter(|l| !l.starts_with('#') && !l.trim().is_empty());
         let header: Vec<&str> = lines.next().expect("header").split(',').collect();
         let col = |name: &str| header.iter().position(|h| *h == name).expect(name);
         let (ix, ik) = (col("a_over_r"), col("K_over_Kcyl_converged"));
@@ -95,12 +89,7 @@ mod tests {
         assert!(rows.len() >= 16);
         for (x, f) in rows {
             let dev = fe_fit_factor(x) / f - 1.0;
-            assert!(
-                dev.abs() < 0.005,
-                "a/r = {x}: fit {} vs FE {f} ({:.3} %)",
-                fe_fit_factor(x),
-                100.0 * dev
-            );
+            assert!(dev.abs() < 0.005, "a/r = {x}: fit {} vs FE {f} ({:.3} %)", fe_fit_factor(x), 100.0 * dev);
             // the fit is in fact much closer than the 0.5 % requirement
             assert!(dev.abs() < 0.001, "a/r = {x}: {:.3} %", 100.0 * dev);
         }

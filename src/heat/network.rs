@@ -19,7 +19,7 @@
 //! schemes); their difference is the discrete energy-balance residual (round-off).
 
 use crate::error::SolveError;
-use crate::linsolve::{SpdFactor, SpdPattern, SolveInfo, set_parallelism_for};
+use crate::linsolve::{SolveInfo, SpdFactor, SpdPattern, set_parallelism_for};
 use crate::profile::Profile;
 use crate::units::STEFAN_BOLTZMANN;
 use serde::{Deserialize, Serialize};
@@ -164,8 +164,7 @@ impl HeatNetwork {
     }
 
     fn has_radiation(&self) -> bool {
-        self.sources.furnace.as_ref().is_some_and(|f| f.emissivity > 0.0)
-            && self.sources.exposed_area.iter().any(|&a| a > 0.0)
+        self.sources.furnace.as_ref().is_some_and(|f| f.emissivity > 0.0) && self.sources.exposed_area.iter().any(|&a| a > 0.0)
     }
 
     /// Sets the pipes `(i, j)`; the sparsity pattern and symbolic factorisation are rebuilt only
@@ -345,9 +344,7 @@ impl HeatNetwork {
         let mut converged = false;
         for it in 1..=max_iter {
             let mut b = rhs_c.clone();
-            for l in 0..nf {
-                vals[l] = diag0[l];
-            }
+            vals[..nf].copy_from_slice(&diag0[..nf]);
             if radiation {
                 for (l, &i) in self.free.iter().enumerate() {
                     let a = self.sources.exposed_area[i as usize];

@@ -56,7 +56,9 @@ pub fn prepare(value: toml::Value, base: &Path) -> Result<Prepared, Error> {
     if let Some(k) = c.kind.as_deref().filter(|k| *k != "heat") {
         return Err(ConfigError::invalid(format!("kind = \"{k}\" is not a heat case")).into());
     }
-    for (present, key) in [(c.contacts.is_some(), "contacts"), (c.model.is_some(), "model"), (c.solver.is_some(), "solver"), (c.mechanics.is_some(), "mechanics")] {
+    for (present, key) in
+        [(c.contacts.is_some(), "contacts"), (c.model.is_some(), "model"), (c.solver.is_some(), "solver"), (c.mechanics.is_some(), "mechanics")]
+    {
         if present {
             return Err(ConfigError::inconsistent(key, "this section belongs to kind = \"compact\" cases; a heat case has a static packing").into());
         }
@@ -77,7 +79,9 @@ pub fn prepare(value: toml::Value, base: &Path) -> Result<Prepared, Error> {
         (!o.correction_histogram_at.is_empty(), "output.correction_histogram_at"),
     ];
     if let Some((_, key)) = compact_only.iter().find(|(present, _)| *present) {
-        return Err(ConfigError::inconsistent(*key, "this key is read by kind = \"compact\" runs only (a heat run has no step control or sintering analyses)").into());
+        return Err(
+            ConfigError::inconsistent(*key, "this key is read by kind = \"compact\" runs only (a heat run has no step control or sintering analyses)").into()
+        );
     }
     Ok(prep)
 }
@@ -276,7 +280,14 @@ pub fn resume(dir: &Path, progress: bool, log: &mut dyn FnMut(&str)) -> Result<s
 
 /// Runs from the start or from a checkpoint; `stop_after_step` ends the run right after the
 /// checkpoint of that step (as if killed there; for tests) with `Ok(Value::Null)`.
-pub fn run_from(mut prep: Prepared, out: &Path, progress: bool, log: &mut dyn FnMut(&str), ck: Option<HeatCheckpoint>, stop_after_step: Option<usize>) -> Result<serde_json::Value, Error> {
+pub fn run_from(
+    mut prep: Prepared,
+    out: &Path,
+    progress: bool,
+    log: &mut dyn FnMut(&str),
+    ck: Option<HeatCheckpoint>,
+    stop_after_step: Option<usize>,
+) -> Result<serde_json::Value, Error> {
     let wall = Instant::now();
     io::ensure_dir(out)?;
     let case = &prep.case;
@@ -302,7 +313,17 @@ pub fn run_from(mut prep: Prepared, out: &Path, progress: bool, log: &mut dyn Fn
         // neighbour search is done once: the packing is static in a heat run
         log("static packing: neighbour search done once, mechanics and diffusion are not part of a heat run");
     }
-    const HEADER: [&str; 9] = ["time_s", "dt_s", "mean_temperature_K", "min_temperature_K", "max_temperature_K", "heat_in_J", "stored_heat_J", "heat_in_cumulative_J", "radiation_iterations"];
+    const HEADER: [&str; 9] = [
+        "time_s",
+        "dt_s",
+        "mean_temperature_K",
+        "min_temperature_K",
+        "max_temperature_K",
+        "heat_in_J",
+        "stored_heat_J",
+        "heat_in_cumulative_J",
+        "radiation_iterations",
+    ];
     let resumed = ck.is_some();
     let (mut series, mut snaps) = match &ck {
         Some(c) => {
@@ -325,9 +346,7 @@ pub fn run_from(mut prep: Prepared, out: &Path, progress: bool, log: &mut dyn Fn
     let st0 = ck.as_ref().map(|c| c.state.clone()).unwrap_or_default();
     let mut next_snap = st0.next_snap;
     let mut series_lines = if resumed { st0.series_lines } else { 1 };
-    let stored_of = |temps: &[f64], net: &HeatNetwork, cap: &[f64]| -> f64 {
-        (0..temps.len()).filter(|&i| !net.is_fixed(i)).map(|i| cap[i] * temps[i]).sum()
-    };
+    let stored_of = |temps: &[f64], net: &HeatNetwork, cap: &[f64]| -> f64 { (0..temps.len()).filter(|&i| !net.is_fixed(i)).map(|i| cap[i] * temps[i]).sum() };
     let stored0 = if resumed { st0.stored0 } else { stored_of(&p.temperature, &net, &p.capacity) };
     let parameters = io::Parameters {
         case_toml: toml::to_string(case).unwrap_or_else(|e| format!("# the case could not be written as TOML: {e}")),
@@ -356,7 +375,8 @@ pub fn run_from(mut prep: Prepared, out: &Path, progress: bool, log: &mut dyn Fn
     let bar = io::progress::Progress::new(end, progress);
     let (mut t, mut steps) = (st0.t, st0.steps);
     let (mut heat_in, mut stored, mut stored_plain, mut scale) = (st0.heat_in, st0.stored, st0.stored_plain, st0.scale);
-    let (mut t_assemble, mut t_factor, mut t_solve, mut factorizations, mut max_resid) = (st0.t_assemble, st0.t_factor, st0.t_solve, st0.factorizations, st0.max_resid);
+    let (mut t_assemble, mut t_factor, mut t_solve, mut factorizations, mut max_resid) =
+        (st0.t_assemble, st0.t_factor, st0.t_solve, st0.factorizations, st0.max_resid);
     let mut max_iters = st0.max_iters;
     // local error estimate (docs/heat-model.md): difference between the step's result and an
     // explicit extrapolation from earlier steps of the same size, scaled by the scheme's error
@@ -457,7 +477,14 @@ pub fn run_from(mut prep: Prepared, out: &Path, progress: bool, log: &mut dyn Fn
                 vtu_entries: snaps.vtu_entries(),
                 wall_before: wall_before + wall.elapsed().as_secs_f64(),
             };
-            let hc = HeatCheckpoint { format: HEAT_CHECKPOINT_FORMAT.into(), case_toml: text, base_dir: base, state, temperature: p.temperature.clone(), bdf2: net.history().cloned() };
+            let hc = HeatCheckpoint {
+                format: HEAT_CHECKPOINT_FORMAT.into(),
+                case_toml: text,
+                base_dir: base,
+                state,
+                temperature: p.temperature.clone(),
+                bdf2: net.history().cloned(),
+            };
             let path = out.join("checkpoint.json");
             let json = serde_json::to_string(&hc).map_err(|e| IoError::new(&path, e))?;
             crate::study::store::write_atomic(&path, &json)?;

@@ -5,7 +5,7 @@
 //! thread count. The same blocks give the matrix–vector product of the residual and of the PCG,
 //! and the lower-triangle entries handed to the sparse Cholesky.
 
-use super::bond::{element_blocks, BondGeometry};
+use super::bond::{BondGeometry, element_blocks};
 use super::constraints::TopologyReport;
 use nalgebra::{Matrix6, Vector6};
 use rayon::prelude::*;
@@ -58,8 +58,7 @@ impl BlockMatrix {
     /// Assembles the element matrices of all bonds: `geom[b]`, link stiffness `k[b]`, rotation
     /// scale `r_scale` [m].
     pub fn assemble(n: usize, pairs: &[[u32; 2]], inc: &Incidence, geom: &[BondGeometry], k: &[[f64; 6]], r_scale: f64) -> Self {
-        let blocks: Vec<(Matrix6<f64>, Matrix6<f64>, Matrix6<f64>)> =
-            geom.par_iter().zip(k.par_iter()).map(|(g, kk)| element_blocks(g, kk, r_scale)).collect();
+        let blocks: Vec<(Matrix6<f64>, Matrix6<f64>, Matrix6<f64>)> = geom.par_iter().zip(k.par_iter()).map(|(g, kk)| element_blocks(g, kk, r_scale)).collect();
         let diag: Vec<Matrix6<f64>> = (0..n)
             .into_par_iter()
             .map(|i| {

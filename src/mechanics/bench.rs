@@ -94,12 +94,41 @@ pub fn bench_mechanics(sizes: &[usize]) -> Result<String, Error> {
 pub fn bench_mechanics_with(sizes: &[usize], cholesky_max: usize) -> Result<String, Error> {
     let mut out = String::new();
     let _ = writeln!(out, "# one bonded quasi-static step (6 DOF/particle, scaled rotations, rtol 1e-10), {} rayon threads", rayon::current_num_threads());
-    let _ = writeln!(out, "# times in s (wall; cpu = process CPU time); chol = numeric factorisation of a second step (symbolic reused); *_reuse / *_stale = a third step after 1e-3 relative geometry change");
-    let _ = writeln!(out, "# reuse = stale Cholesky factor as modified-Newton operator; reuse_cg = stale factor as CG preconditioner; amg_stale = AMG hierarchy of the first step reused (fine smoother refreshed)");
+    let _ = writeln!(
+        out,
+        "# times in s (wall; cpu = process CPU time); chol = numeric factorisation of a second step (symbolic reused); *_reuse / *_stale = a third step after 1e-3 relative geometry change"
+    );
+    let _ = writeln!(
+        out,
+        "# reuse = stale Cholesky factor as modified-Newton operator; reuse_cg = stale factor as CG preconditioner; amg_stale = AMG hierarchy of the first step reused (fine smoother refreshed)"
+    );
     let _ = writeln!(
         out,
         "{:>7} {:>7} {:>7} {:>5} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} | {:>5} {:>8} {:>8} {:>7} | {:>8} {:>5} {:>8} {:>8} {:>8} {:>7} {:>8} {:>5}",
-        "nodes", "bonds", "eqs", "rattl", "assemble", "symbolic", "chol", "solve", "stepchol", "reuse", "reuse_cg", "cg_it", "pcg_it", "step_pcg", "cpu_pcg", "res_pcg", "amg_set", "amg_it", "amg_sol", "step_amg", "cpu_amg", "res_amg", "amg_stal", "st_it"
+        "nodes",
+        "bonds",
+        "eqs",
+        "rattl",
+        "assemble",
+        "symbolic",
+        "chol",
+        "solve",
+        "stepchol",
+        "reuse",
+        "reuse_cg",
+        "cg_it",
+        "pcg_it",
+        "step_pcg",
+        "cpu_pcg",
+        "res_pcg",
+        "amg_set",
+        "amg_it",
+        "amg_sol",
+        "step_amg",
+        "cpu_amg",
+        "res_amg",
+        "amg_stal",
+        "st_it"
     );
     let mut notes = String::new();
     for &n in sizes {
@@ -171,7 +200,13 @@ pub fn bench_mechanics_with(sizes: &[usize], cholesky_max: usize) -> Result<Stri
             );
             format!(
                 "{:>8.4} {:>8.4} {:>8.4} {:>8.4} {:>8.4} {:>8.4} {:>8}",
-                i1.symbolic_seconds, i2.factor_seconds, i2.solve_seconds, i2.total_seconds, third.info.total_seconds, fourth.info.total_seconds, fourth.info.pcg_iterations
+                i1.symbolic_seconds,
+                i2.factor_seconds,
+                i2.solve_seconds,
+                i2.total_seconds,
+                third.info.total_seconds,
+                fourth.info.total_seconds,
+                fourth.info.pcg_iterations
             )
         } else {
             format!("{:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8}", "-", "-", "-", "-", "-", "-", "-")

@@ -146,11 +146,7 @@ pub fn element_matrix(g: &BondGeometry, k: &[f64; 6], r_scale: f64) -> ElementMa
 /// The four 6×6 blocks `(K_AA, K_AB, K_BB)` of [`element_matrix`] (`K_BA = K_ABᵀ`).
 pub fn element_blocks(g: &BondGeometry, k: &[f64; 6], r_scale: f64) -> (Matrix6<f64>, Matrix6<f64>, Matrix6<f64>) {
     let ke = element_matrix(g, k, r_scale);
-    (
-        ke.fixed_view::<6, 6>(0, 0).into_owned(),
-        ke.fixed_view::<6, 6>(0, 6).into_owned(),
-        ke.fixed_view::<6, 6>(6, 6).into_owned(),
-    )
+    (ke.fixed_view::<6, 6>(0, 0).into_owned(), ke.fixed_view::<6, 6>(0, 6).into_owned(), ke.fixed_view::<6, 6>(6, 6).into_owned())
 }
 
 /// Link forces and moments in the local frame, `P_link = K_link·y_link` (eq. 32), from the scaled

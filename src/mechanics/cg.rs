@@ -42,9 +42,9 @@ impl BlockJacobi {
                         d[(k, k)] = 1.0;
                     }
                 }
-                d.cholesky().map(|c| c.inverse()).ok_or_else(|| {
-                    SolveError::new("block-Jacobi preconditioner", format!("diagonal block of particle {i} is not positive definite"))
-                })
+                d.cholesky()
+                    .map(|c| c.inverse())
+                    .ok_or_else(|| SolveError::new("block-Jacobi preconditioner", format!("diagonal block of particle {i} is not positive definite")))
             })
             .collect();
         Ok(BlockJacobi { inv: inv? })
@@ -98,10 +98,17 @@ pub fn pcg<F>(apply_a: F, prec: &BlockJacobi, b: &[f64], x: &mut [f64], rtol: f6
 where
     F: Fn(&[f64], &mut [f64]),
 {
-    pcg_with(apply_a, |r, z| {
-        prec.apply(r, z);
-        Ok(())
-    }, b, x, rtol, max_iter)
+    pcg_with(
+        apply_a,
+        |r, z| {
+            prec.apply(r, z);
+            Ok(())
+        },
+        b,
+        x,
+        rtol,
+        max_iter,
+    )
 }
 
 /// [`pcg`] with any symmetric positive definite preconditioner `apply_m(r, z)`: `z = M⁻¹ r`. A

@@ -16,7 +16,7 @@
 use crate::error::SolveError;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::perm::PermRef;
-use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymmetricOrdering};
+use faer::sparse::linalg::cholesky::{LltRef, SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky};
 use faer::sparse::{Argsort, Pair, SparseColMat, SymbolicSparseColMat};
 use faer::{Conj, MatMut, Side};
 use nalgebra::Vector3;
@@ -63,7 +63,13 @@ pub fn nested_dissection(pos: &[Vector3<f64>], nodes: Vec<u32>, adj_start: &[u32
                     hi = hi.sup(&pos[i as usize]);
                 }
                 let ext = hi - lo;
-                let axis = if ext.x >= ext.y && ext.x >= ext.z { 0 } else if ext.y >= ext.z { 1 } else { 2 };
+                let axis = if ext.x >= ext.y && ext.x >= ext.z {
+                    0
+                } else if ext.y >= ext.z {
+                    1
+                } else {
+                    2
+                };
                 let mid = v.len() / 2;
                 v.select_nth_unstable_by(mid, |&a, &b| pos[a as usize][axis].total_cmp(&pos[b as usize][axis]).then(a.cmp(&b)));
                 let right = v.split_off(mid);
@@ -151,8 +157,7 @@ impl BondCholesky {
         if let Some(k) = values.iter().position(|v| !v.is_finite()) {
             return Err(SolveError::new("Cholesky", format!("matrix entry {k} is {}", values[k])));
         }
-        let mat = SparseColMat::new_from_argsort(self.symbolic.clone(), &self.argsort, values)
-            .map_err(|e| SolveError::new("Cholesky", format!("{e:?}")))?;
+        let mat = SparseColMat::new_from_argsort(self.symbolic.clone(), &self.argsort, values).map_err(|e| SolveError::new("Cholesky", format!("{e:?}")))?;
         if self.l_values.len() != self.chol.len_val() {
             self.l_values = vec![0.0; self.chol.len_val()];
         }

@@ -196,11 +196,8 @@ pub fn analyse(n: usize, pairs: &[[u32; 2]], pos: &[Vector3<f64>], cons: &Constr
         let h = m.iter().map(|&i| (pos[i as usize] - c).norm()).fold(0.0, f64::max).max(f64::MIN_POSITIVE);
         let rank = rigid_rank(m, &fixed, pos, &c, h);
         if rank < 6 {
-            let nearest = m
-                .iter()
-                .copied()
-                .min_by(|&a, &b| (pos[a as usize] - c).norm_squared().total_cmp(&(pos[b as usize] - c).norm_squared()))
-                .unwrap_or(m[0]);
+            let nearest =
+                m.iter().copied().min_by(|&a, &b| (pos[a as usize] - c).norm_squared().total_cmp(&(pos[b as usize] - c).norm_squared())).unwrap_or(m[0]);
             if !cons.pin_floating {
                 return Err(SolveError::new(
                     "mechanics constraints",

@@ -28,13 +28,13 @@ pub mod cholesky;
 pub mod constraints;
 pub mod solve;
 
-pub use bond::{element_matrix, frame, h_matrix, kinematics, link_stiffness, skew, BondGeometry};
-pub use constraints::{dof, Constraints, TopologyReport};
-pub use solve::{LinearSolver, MechInfo, MechParams, SolverUsed, AMG_ABOVE_EQUATIONS, AMG_ABOVE_EQUATIONS_FRESH};
+pub use bond::{BondGeometry, element_matrix, frame, h_matrix, kinematics, link_stiffness, skew};
+pub use constraints::{Constraints, TopologyReport, dof};
+pub use solve::{AMG_ABOVE_EQUATIONS, AMG_ABOVE_EQUATIONS_FRESH, LinearSolver, MechInfo, MechParams, SolverUsed};
 
 use crate::error::{ConfigError, Error, ModelError, SolveError};
-use cholesky::BondCholesky;
 pub use assembly::{BlockMatrix, Incidence};
+use cholesky::BondCholesky;
 use nalgebra::Vector3;
 use rayon::prelude::*;
 use std::time::Instant;
@@ -112,11 +112,7 @@ impl BondedSystem {
     pub fn new(n_particles: usize, params: MechParams, constraints: Constraints) -> Result<Self, Error> {
         params.validate()?;
         if constraints.fixed.len() != n_particles {
-            return Err(ConfigError::invalid(format!(
-                "mechanics: constraints for {} particles, system has {n_particles}",
-                constraints.fixed.len()
-            ))
-            .into());
+            return Err(ConfigError::invalid(format!("mechanics: constraints for {} particles, system has {n_particles}", constraints.fixed.len())).into());
         }
         Ok(BondedSystem {
             n: n_particles,
@@ -564,14 +560,7 @@ impl BondedSystem {
             info.amg_levels = h.info.equations.clone();
             info.amg = Some(h.info.clone());
             let mut work = h.work();
-            let pi = cg::pcg_with(
-                |v, out| fine.matvec(v, out),
-                |rr, z| h.apply(fine, rr, z, &mut work),
-                &r,
-                &mut dx,
-                inner,
-                self.params.pcg_max_iter,
-            );
+            let pi = cg::pcg_with(|v, out| fine.matvec(v, out), |rr, z| h.apply(fine, rr, z, &mut work), &r, &mut dx, inner, self.params.pcg_max_iter);
             info.solve_seconds += t1.elapsed().as_secs_f64();
             let pi = match pi {
                 Ok(pi) => pi,

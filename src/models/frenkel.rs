@@ -14,15 +14,14 @@
 //! [`free_sintering_pair`] integrates a free two-particle pair (velocity-Verlet in the overlap) for
 //! the closed-form checks of the tests.
 
-use crate::config::ranges::{c, o, p, Range};
+use crate::config::ranges::{Range, c, o, p};
 use crate::config::{check, from_value};
 use crate::error::{ConfigError, ModelError};
-use crate::models::luding::{tangential_spring, TangentialForce};
+use crate::models::luding::{TangentialForce, tangential_spring};
 use crate::units::{BOLTZMANN, GAS_CONSTANT};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
-
 
 /// Range table of the `[frenkel]` keys (registered in `config::ranges::TABLES`).
 pub static RANGES: &[Range] = &[
@@ -334,10 +333,7 @@ impl FrenkelParams {
             }
         };
         if active && !(sinter_adhesion > 0.0) {
-            return Err(ConfigError::inconsistent(
-                "frenkel.sinter_adhesion",
-                "s_a must be > 0 when a sinter rate is active (the rates divide by s_a)",
-            ));
+            return Err(ConfigError::inconsistent("frenkel.sinter_adhesion", "s_a must be > 0 when a sinter rate is active (the rates divide by s_a)"));
         }
         let contact_temperature = s.contact_temperature.unwrap_or(if s.sinter_type == SinterType::TemperatureFrenkel {
             MeanTemperature::Harmonic
@@ -409,8 +405,7 @@ impl FrenkelParams {
     pub fn gb_parameter(&self, temperature: f64) -> f64 {
         match &self.rate {
             Rate::BouvardMcmeeking { atomic_volume, gb_thickness, gb_diffusion_prefactor, gb_activation_energy, .. } => {
-                atomic_volume * gb_thickness * gb_diffusion_prefactor * (-gb_activation_energy / (GAS_CONSTANT * temperature)).exp()
-                    / (BOLTZMANN * temperature)
+                atomic_volume * gb_thickness * gb_diffusion_prefactor * (-gb_activation_energy / (GAS_CONSTANT * temperature)).exp() / (BOLTZMANN * temperature)
             }
             _ => 0.0,
         }
@@ -568,15 +563,7 @@ pub struct FrenkelForce {
 pub fn contact_force(p: &FrenkelParams, s: &mut FrenkelState, k: &FrenkelKinematics, temperature: f64, dt: f64) -> FrenkelForce {
     let normal = normal_force(p, s, k.reduced_radius, k.overlap, k.overlap_rate);
     let tangential = if k.overlap > 0.0 && p.friction > 0.0 && p.tangential_stiffness > 0.0 {
-        tangential_spring(
-            &mut s.xi,
-            &k.normal,
-            &k.surface_velocity,
-            p.tangential_stiffness,
-            p.tangential_damping,
-            p.friction * normal.total.abs(),
-            dt,
-        )
+        tangential_spring(&mut s.xi, &k.normal, &k.surface_velocity, p.tangential_stiffness, p.tangential_damping, p.friction * normal.total.abs(), dt)
     } else {
         TangentialForce { force: Vector3::zeros(), limit: 0.0, sliding: false }
     };

@@ -19,14 +19,13 @@
 //! tangential force returned acts on i (−f_t on j), with torques `−r_i n × f_t` on i and
 //! `−r_j n × f_t` on j. SI units throughout; temperatures in kelvin.
 
-use crate::config::ranges::{c, o, p, Range};
+use crate::config::ranges::{Range, c, o, p};
 use crate::config::{check, from_value};
 use crate::error::{ConfigError, ModelError};
 use crate::models::frenkel::MeanTemperature;
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
-
 
 /// Range table of the `[luding]` keys (registered in `config::ranges::TABLES`).
 pub static RANGES: &[Range] = &[
@@ -225,11 +224,7 @@ impl LudingParams {
     /// k2(δ_max) (eq. 7) [N/m]: k1 + (k2 − k1)·δ_max/δ_max^fluid below δ_max^fluid, k2 above.
     /// Uses the cold k1 (spec §1 "Which k1 where").
     pub fn k2_of(&self, delta_max: f64) -> f64 {
-        if delta_max >= self.delta_max_fluid {
-            self.k2
-        } else {
-            self.k1 + (self.k2 - self.k1) * delta_max.max(0.0) / self.delta_max_fluid
-        }
+        if delta_max >= self.delta_max_fluid { self.k2 } else { self.k1 + (self.k2 - self.k1) * delta_max.max(0.0) / self.delta_max_fluid }
     }
 
     /// kc(T,t,δ_max) = [k1(T,t)/k1]·[k2(δ_max)/k2]·kc (eq. 13) [N/m].
@@ -448,15 +443,7 @@ pub fn normal_force(p: &LudingParams, s: &mut LudingState, delta: f64, delta_dot
 }
 
 /// Relative velocity of the contact surfaces `v_ij = v_i − v_j + r_i n×ω_i + r_j n×ω_j` (eq. 18) [m/s].
-pub fn surface_velocity(
-    n: &Vector3<f64>,
-    v_i: &Vector3<f64>,
-    v_j: &Vector3<f64>,
-    w_i: &Vector3<f64>,
-    w_j: &Vector3<f64>,
-    r_i: f64,
-    r_j: f64,
-) -> Vector3<f64> {
+pub fn surface_velocity(n: &Vector3<f64>, v_i: &Vector3<f64>, v_j: &Vector3<f64>, w_i: &Vector3<f64>, w_j: &Vector3<f64>, r_i: f64, r_j: f64) -> Vector3<f64> {
     v_i - v_j + r_i * n.cross(w_i) + r_j * n.cross(w_j)
 }
 
@@ -476,15 +463,7 @@ pub struct TangentialForce {
 /// Projects ξ into the plane normal to the unit vector `n` (16), takes `v_t` of `v_ij` (17), the
 /// trial force `f_t° = −k_t ξ − γ_t v_t` (19); sticking (|f_t°| ≤ f_C): f_t = f_t°, ξ ← ξ + v_t·Δt (20);
 /// sliding: f_t = f_C·t̂, t̂ = f_t°/|f_t°|, ξ ← −(f_C t̂ + γ_t v_t)/k_t (21–22).
-pub fn tangential_spring(
-    xi: &mut Vector3<f64>,
-    n: &Vector3<f64>,
-    v_ij: &Vector3<f64>,
-    k_t: f64,
-    gamma_t: f64,
-    f_c: f64,
-    dt: f64,
-) -> TangentialForce {
+pub fn tangential_spring(xi: &mut Vector3<f64>, n: &Vector3<f64>, v_ij: &Vector3<f64>, k_t: f64, gamma_t: f64, f_c: f64, dt: f64) -> TangentialForce {
     let f_c = f_c.max(0.0);
     *xi -= n * n.dot(xi);
     let v_t = v_ij - n * n.dot(v_ij);
@@ -504,14 +483,7 @@ pub fn tangential_spring(
 /// Step 3: Luding's tangential force (eqs. 14–24) for the unit normal `n`, the surface velocity
 /// `v_ij` of eq. 18 [m/s] and this step's normal force `f_n` [N] (total, damping included):
 /// `f_C = μ(T,t)·(f_n − f_min)` floored at 0, `k_t = α·k2(δ_max)`, then [`tangential_spring`].
-pub fn tangential_force(
-    p: &LudingParams,
-    s: &mut LudingState,
-    n: &Vector3<f64>,
-    v_ij: &Vector3<f64>,
-    f_n: f64,
-    dt: f64,
-) -> TangentialForce {
+pub fn tangential_force(p: &LudingParams, s: &mut LudingState, n: &Vector3<f64>, v_ij: &Vector3<f64>, f_n: f64, dt: f64) -> TangentialForce {
     let f_min = p.f_min(s.k1_t, s.delta_max);
     let f_c = p.friction_of(s.k1_t) * (f_n - f_min);
     let out = tangential_spring(&mut s.xi, n, v_ij, p.kt_of(s.delta_max), p.gamma_t, f_c, dt);
@@ -549,14 +521,7 @@ pub struct LudingForce {
 /// One contact step: [`update_stiffness`] at the contact temperature `temperature` [K] with
 /// relaxation time `t0` [s] over `dt` [s], then [`normal_force`] and [`tangential_force`].
 /// Total force on i: `normal·n + tangential`; on j its negative.
-pub fn contact_force(
-    p: &LudingParams,
-    s: &mut LudingState,
-    k: &ContactKinematics,
-    temperature: f64,
-    t0: f64,
-    dt: f64,
-) -> LudingForce {
+pub fn contact_force(p: &LudingParams, s: &mut LudingState, k: &ContactKinematics, temperature: f64, t0: f64, dt: f64) -> LudingForce {
     update_stiffness(p, s, temperature, t0, dt);
     if !(k.overlap > 0.0) {
         return LudingForce { normal: 0.0, normal_parts: NormalForce::default(), tangential: Vector3::zeros(), sliding: false };

@@ -202,11 +202,7 @@ where
         }
         Err(_) => return h0 * 1e-3,
     };
-    let h1 = if d1 <= 1e-15 && d2 <= 1e-15 {
-        (h0 * 1e-3).max(1e-6 * h0)
-    } else {
-        (0.01 / d1.max(d2)).powf(1.0 / (order + 1.0))
-    };
+    let h1 = if d1 <= 1e-15 && d2 <= 1e-15 { (h0 * 1e-3).max(1e-6 * h0) } else { (0.01 / d1.max(d2)).powf(1.0 / (order + 1.0)) };
     (100.0 * h0).min(h1).min(span).min(ctl.h_max)
 }
 
@@ -251,18 +247,14 @@ where
     while t < t1 {
         substeps += 1;
         if substeps > ctl.max_substeps {
-            return Err(ModelError::new(format!(
-                "integrator gave up: more than {} substeps (stiff or singular state)",
-                ctl.max_substeps
-            ))
-            .with_context(format!("t = {t} s, h = {hh} s, y = {y:?}")));
+            return Err(ModelError::new(format!("integrator gave up: more than {} substeps (stiff or singular state)", ctl.max_substeps))
+                .with_context(format!("t = {t} s, h = {hh} s, y = {y:?}")));
         }
         let remaining = t1 - t;
         let truncated = hh >= remaining;
         let step = if truncated { remaining } else { hh };
         if t + step == t {
-            return Err(ModelError::new("integrator gave up: step no longer advances time")
-                .with_context(format!("t = {t} s, h = {step} s, y = {y:?}")));
+            return Err(ModelError::new("integrator gave up: step no longer advances time").with_context(format!("t = {t} s, h = {step} s, y = {y:?}")));
         }
         let trial = match ctl.method {
             Method::Dopri5 => dopri_step(f, t, &y, &k1, step, stats),
@@ -389,7 +381,15 @@ where
 
 /// Forward-difference Jacobian ∂f/∂y and ∂f/∂t at (t, y) (backward where the forward point is
 /// inadmissible).
-fn fd_jacobian<const N: usize, F>(f: &mut F, t: f64, y: &[f64; N], f0: &[f64; N], ctl: &Control<N>, h: f64, st: &mut OdeStats) -> Option<([[f64; N]; N], [f64; N])>
+fn fd_jacobian<const N: usize, F>(
+    f: &mut F,
+    t: f64,
+    y: &[f64; N],
+    f0: &[f64; N],
+    ctl: &Control<N>,
+    h: f64,
+    st: &mut OdeStats,
+) -> Option<([[f64; N]; N], [f64; N])>
 where
     F: FnMut(f64, &[f64; N]) -> Result<[f64; N], ModelError>,
 {

@@ -110,9 +110,9 @@ fn parse_csv(text: &str, name: &str) -> Result<ImportedPacking, Error> {
                 };
                 let mut req = [0usize; 4];
                 for (a, c) in ["x", "y", "z", "r"].iter().enumerate() {
-                    req[a] = find(c).or_else(|| if *c == "r" { find("radius") } else { None }).ok_or_else(|| {
-                        line_err(name, line, format!("header must name columns x,y,z,r (optional material, temperature); got \"{l}\""))
-                    })?;
+                    req[a] = find(c)
+                        .or_else(|| if *c == "r" { find("radius") } else { None })
+                        .ok_or_else(|| line_err(name, line, format!("header must name columns x,y,z,r (optional material, temperature); got \"{l}\"")))?;
                 }
                 let mat = find("material");
                 let temp = find("temperature").or_else(|| find("t"));
@@ -132,7 +132,8 @@ fn parse_csv(text: &str, name: &str) -> Result<ImportedPacking, Error> {
                 let r = num(name, line, "r", fields[req[3]])?;
                 push_sphere(&mut out, name, line, x, r)?;
                 if let (Some(c), Some(v)) = (mat, out.materials.as_mut()) {
-                    let m: u16 = fields[*c].parse().map_err(|_| line_err(name, line, format!("material \"{}\" is not an integer id in 0..=65535", fields[*c])))?;
+                    let m: u16 =
+                        fields[*c].parse().map_err(|_| line_err(name, line, format!("material \"{}\" is not an integer id in 0..=65535", fields[*c])))?;
                     v.push(m);
                 }
                 if let (Some(c), Some(v)) = (temp, out.temperatures.as_mut()) {

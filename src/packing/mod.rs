@@ -58,7 +58,14 @@ pub static RANGES: &[Range] = &[
     rg("packing.seed", 0.0, 1.8e19, false, "1", "random seed (integer)"),
     rg("packing.target_solid_fraction", 0.05, 0.72, false, "1", "solid fraction the walls compress to (eq. 49 with the wall box)"),
     rg("packing.box.*", 0.0, 10.0, true, "m", "box edge; only the shape is kept, scaled to the volume of the target"),
-    rg("packing.lamina_width", 1e-9, 1.0, false, "m", "lamina width q_s of the density report (eq. 48); default the mean radius; at least 1/100 of the mean radius"),
+    rg(
+        "packing.lamina_width",
+        1e-9,
+        1.0,
+        false,
+        "m",
+        "lamina width q_s of the density report (eq. 48); default the mean radius; at least 1/100 of the mean radius",
+    ),
     rg("packing.size.mean_diameter", 2e-9, 1.0, false, "m", "mean particle diameter"),
     rg("packing.size.spread", 0.0, 0.9, false, "1", "uniform: relative half-width, d = mean (1 ± spread)"),
     rg("packing.size.std_diameter", 0.0, 1.0, false, "m", "normal: standard deviation of the diameter"),
@@ -222,7 +229,12 @@ pub fn parse_generate_case(case: &toml::Value) -> Result<GenerateCase, Error> {
     };
     let size = match s.distribution.as_str() {
         "uniform" => {
-            unused(&[("std_diameter", s.std_diameter.is_some()), ("truncate", s.truncate.is_some()), ("diameters", s.diameters.is_some()), ("cumulative", s.cumulative.is_some())])?;
+            unused(&[
+                ("std_diameter", s.std_diameter.is_some()),
+                ("truncate", s.truncate.is_some()),
+                ("diameters", s.diameters.is_some()),
+                ("cumulative", s.cumulative.is_some()),
+            ])?;
             SizeDistribution::Uniform { mean: need(s.mean_diameter, "mean_diameter")?, spread: need(s.spread.or(Some(0.0)), "spread")? }
         }
         "normal" => {
@@ -234,7 +246,12 @@ pub fn parse_generate_case(case: &toml::Value) -> Result<GenerateCase, Error> {
             }
         }
         "tabulated" => {
-            unused(&[("mean_diameter", s.mean_diameter.is_some()), ("spread", s.spread.is_some()), ("std_diameter", s.std_diameter.is_some()), ("truncate", s.truncate.is_some())])?;
+            unused(&[
+                ("mean_diameter", s.mean_diameter.is_some()),
+                ("spread", s.spread.is_some()),
+                ("std_diameter", s.std_diameter.is_some()),
+                ("truncate", s.truncate.is_some()),
+            ])?;
             let d = s.diameters.clone().ok_or_else(|| ConfigError::inconsistent("packing.size.diameters", "required by distribution = \"tabulated\""))?;
             let c = s.cumulative.clone().ok_or_else(|| ConfigError::inconsistent("packing.size.cumulative", "required by distribution = \"tabulated\""))?;
             for (k, v) in d.iter().enumerate() {
@@ -461,11 +478,7 @@ pub fn generate(case: &GenerateCase, progress: bool) -> Result<(Packing, Generat
         let (ix, iy, iz) = (c % nx, (c / nx) % ny, c / (nx * ny));
         let r = radii[k];
         let jit = |rng: &mut Rng, s: f64| (2.0 * rng.uniform() - 1.0) * (0.5 * s - r).max(0.0) * 0.9;
-        let x = V3::new(
-            (ix as f64 + 0.5) * ax + jit(&mut rng, ax),
-            (iy as f64 + 0.5) * ay + jit(&mut rng, ay),
-            (iz as f64 + 0.5) * az + jit(&mut rng, az),
-        );
+        let x = V3::new((ix as f64 + 0.5) * ax + jit(&mut rng, ax), (iy as f64 + 0.5) * ay + jit(&mut rng, ay), (iz as f64 + 0.5) * az + jit(&mut rng, az));
         let v = V3::new(rng.normal(), rng.normal(), rng.normal()) * 0.01;
         cloud.push((x, v, morton(ix, iy, iz)));
     }
@@ -482,7 +495,10 @@ pub fn generate(case: &GenerateCase, progress: bool) -> Result<(Packing, Generat
     }
     let law = LinearSpringDashpot { stiffness: 1.0, damping: Damping::restitution_ratio(proto.restitution) };
     let (dt, tc) = time_step(&law, &p, proto.dt_fraction, 0.0, true)?;
-    pr.say(format!("{n} particles, mean radius {r_unit:.4e} m, target box {:.3?} r, cloud height {h_cloud:.2} r, dt = {dt:.4} (t_c = {tc:.4}, scaled units)", target));
+    pr.say(format!(
+        "{n} particles, mean radius {r_unit:.4e} m, target box {:.3?} r, cloud height {h_cloud:.2} r, dt = {dt:.4} (t_c = {tc:.4}, scaled units)",
+        target
+    ));
     let mut settings = Settings::new(dt, 1.0);
     settings.friction = proto.friction;
     settings.wall_friction = proto.wall_friction;
@@ -515,7 +531,10 @@ pub fn generate(case: &GenerateCase, progress: bool) -> Result<(Packing, Generat
         }
     }
     let zmax = p.position.iter().zip(&p.radius).map(|(x, r)| x[2] + r).fold(0.0, f64::max);
-    pr.say(format!("settled after {steps_settle} steps ({} neighbour-list builds so far), top at {zmax:.2} r (target height {:.2} r)", sim.counters.rebuilds, target[2]));
+    pr.say(format!(
+        "settled after {steps_settle} steps ({} neighbour-list builds so far), top at {zmax:.2} r (target height {:.2} r)",
+        sim.counters.rebuilds, target[2]
+    ));
     // 3. triaxial compaction
     sim.settings.gravity = V3::zeros();
     sim.walls[5].offset = -zmax;
@@ -680,14 +699,22 @@ pub fn generate(case: &GenerateCase, progress: bool) -> Result<(Packing, Generat
             pr.say(format!("overlaps below {ov_tol:.1e} r: draining the kinetic energy ({:.2e} per particle) with viscous damping", ke / n as f64));
         }
         if steps_relax.is_multiple_of(2000) {
-            pr.say(format!("relax: kinetic energy/particle {:.2e}, largest overlap {ov:.2e} r, pressure/p_c {:.3e}, backing off {backing_off}", ke / n as f64, pm / p_c));
+            pr.say(format!(
+                "relax: kinetic energy/particle {:.2e}, largest overlap {ov:.2e} r, pressure/p_c {:.3e}, backing off {backing_off}",
+                ke / n as f64,
+                pm / p_c
+            ));
         }
         if sim.counters.steps > budget {
             break false;
         }
     };
     let steps_total = sim.counters.steps;
-    pr.say(format!("relaxed after {steps_relax} steps (kinetic energy {:.3e}, thresholds met: {met}; {} neighbour-list builds in all)", sim.energy.kinetic / n as f64, sim.counters.rebuilds));
+    pr.say(format!(
+        "relaxed after {steps_relax} steps (kinetic energy {:.3e}, thresholds met: {met}; {} neighbour-list builds in all)",
+        sim.energy.kinetic / n as f64,
+        sim.counters.rebuilds
+    ));
     // report (scaled → SI)
     let lbox = box_of(&sim.walls);
     let lo = V3::new(sim.walls[0].offset, sim.walls[2].offset, sim.walls[4].offset);
@@ -698,7 +725,19 @@ pub fn generate(case: &GenerateCase, progress: bool) -> Result<(Packing, Generat
         rad_si[k] = p.radius[m] * r_unit;
     }
     let box_si = lbox.map(|l| l * r_unit);
-    let summary = summarise(case, &pos_si, &rad_si, box_si, r_unit, sim.energy.kinetic / n as f64, mu, [steps_settle, steps_compact, steps_relax], steps_total, t0.elapsed().as_secs_f64(), met);
+    let summary = summarise(
+        case,
+        &pos_si,
+        &rad_si,
+        box_si,
+        r_unit,
+        sim.energy.kinetic / n as f64,
+        mu,
+        [steps_settle, steps_compact, steps_relax],
+        steps_total,
+        t0.elapsed().as_secs_f64(),
+        met,
+    );
     Ok((Packing { positions: pos_si, radii: rad_si, box_size: box_si }, summary))
 }
 
@@ -718,7 +757,19 @@ pub fn coordination(pos: &[V3], rad: &[f64], gap: f64) -> (Vec<u32>, usize) {
 }
 
 #[allow(clippy::too_many_arguments)]
-fn summarise(case: &GenerateCase, pos: &[V3], rad: &[f64], box_si: [f64; 3], r_unit: f64, ke: f64, mu: f64, stage: [u64; 3], steps: u64, wall: f64, met: bool) -> GenerateSummary {
+fn summarise(
+    case: &GenerateCase,
+    pos: &[V3],
+    rad: &[f64],
+    box_si: [f64; 3],
+    r_unit: f64,
+    ke: f64,
+    mu: f64,
+    stage: [u64; 3],
+    steps: u64,
+    wall: f64,
+    met: bool,
+) -> GenerateSummary {
     let n = pos.len();
     let vp: f64 = rad.iter().map(|&r| crate::units::sphere_volume(r)).sum();
     let vbox = box_si.iter().product::<f64>();
@@ -842,10 +893,19 @@ pub fn generate_case(case: &toml::Value, out_dir: &Path, progress: bool) -> Resu
     let (packing, summary) = generate(&c, progress)?;
     // a non-finite figure is a model error, not a summary with null in it
     let s = &summary;
-    let figures = [("solid_fraction", s.solid_fraction), ("coordination_mean", s.coordination_mean), ("max_overlap_rel", s.max_overlap_rel), ("kinetic_energy_rel", s.kinetic_energy_rel), ("mean_radius", s.mean_radius), ("size_ks_distance", s.size_ks_distance)];
+    let figures = [
+        ("solid_fraction", s.solid_fraction),
+        ("coordination_mean", s.coordination_mean),
+        ("max_overlap_rel", s.max_overlap_rel),
+        ("kinetic_energy_rel", s.kinetic_energy_rel),
+        ("mean_radius", s.mean_radius),
+        ("size_ks_distance", s.size_ks_distance),
+    ];
     let more = s.box_size.iter().chain(&s.laminae_max_deviation).chain(&s.laminae_mean).map(|&v| ("box_size/laminae", v));
     if let Some((k, v)) = figures.into_iter().chain(more).find(|(_, v)| !v.is_finite()) {
-        return Err(crate::error::ModelError::new(format!("packing generation produced a non-finite {k} ({v})")).with_context(format!("{} particles, {} steps", s.particles, s.steps)).into());
+        return Err(crate::error::ModelError::new(format!("packing generation produced a non-finite {k} ({v})"))
+            .with_context(format!("{} particles, {} steps", s.particles, s.steps))
+            .into());
     }
     crate::finite::ensure_finite_groups("packing generation", summary.steps, 0.0, "particle", "position", packing.positions.iter().map(|x| x.as_ref()))?;
     write_outputs(&c, &packing, &summary, out_dir)?;

@@ -59,18 +59,19 @@ pub fn laminae(pos: &[Vector3<f64>], rad: &[f64], lo: &Vector3<f64>, hi: &Vector
 /// `stem.vtu` (points with `radius_m`, `coordination` and, if `temperature` is not empty,
 /// `temperature_K`) and `stem_contacts.vtu` (the given contact pairs as lines with their `gap_m`).
 #[allow(clippy::too_many_arguments)]
-pub fn write_vtu(dir: &Path, stem: &str, pos: &[Vector3<f64>], rad: &[f64], temperature: &[f64], coordination: &[u32], contacts: &[[u32; 2]]) -> Result<(), Error> {
+pub fn write_vtu(
+    dir: &Path,
+    stem: &str,
+    pos: &[Vector3<f64>],
+    rad: &[f64],
+    temperature: &[f64],
+    coordination: &[u32],
+    contacts: &[[u32; 2]],
+) -> Result<(), Error> {
     // the writer derives `coordination` from the contacts; the caller's count must agree
     debug_assert!(crate::io::vtu::coordination(pos.len(), contacts).iter().zip(coordination).all(|(&a, &b)| a as u32 == b));
     let gap: Vec<f64> = contacts.iter().map(|c| (pos[c[0] as usize] - pos[c[1] as usize]).norm() - rad[c[0] as usize] - rad[c[1] as usize]).collect();
-    let snap = crate::io::Snapshot {
-        position: pos,
-        radius: rad,
-        temperature,
-        contacts,
-        contact_data: vec![("gap_m", &gap)],
-        ..Default::default()
-    };
+    let snap = crate::io::Snapshot { position: pos, radius: rad, temperature, contacts, contact_data: vec![("gap_m", &gap)], ..Default::default() };
     let (p, c) = crate::io::vtu::write_snapshot(dir, 0, &snap)?;
     for (from, to) in [(p, dir.join(format!("{stem}.vtu"))), (c, dir.join(format!("{stem}_contacts.vtu")))] {
         std::fs::rename(&from, &to).map_err(|e| IoError::new(&to, e))?;

@@ -3,7 +3,7 @@
 //! the integration itself, the rest of the run API (parsing, series.csv, summary.json, log) and
 //! the engine around it (planning, hashing, result records, gathering, study.csv, plots).
 
-use super::{run_study, store, StudyOptions};
+use super::{StudyOptions, run_study, store};
 use crate::error::{Error, IoError};
 use std::fmt::Write as _;
 use std::path::Path;
@@ -35,6 +35,10 @@ pub fn bench_study(runs: usize, jobs: Option<usize>, out: &Path) -> Result<Strin
     let _ = writeln!(s, "wall                      {:.3} s ({:.0} runs/s)", info.wall_seconds, n / info.wall_seconds);
     let _ = writeln!(s, "integration per run       {:.1} µs", 1e6 * integ / n);
     let _ = writeln!(s, "run API around it per run {:.1} µs (parse, series.csv, summary.json, log.txt)", 1e6 * (api - integ) / n);
-    let _ = writeln!(s, "engine overhead per run   {:.1} µs (wall × jobs − Σ run API, over runs: plan, hash, records, gather, csv, plots)", 1e6 * (info.wall_seconds * jobs_used - api) / n);
+    let _ = writeln!(
+        s,
+        "engine overhead per run   {:.1} µs (wall × jobs − Σ run API, over runs: plan, hash, records, gather, csv, plots)",
+        1e6 * (info.wall_seconds * jobs_used - api) / n
+    );
     Ok(s)
 }

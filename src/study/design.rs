@@ -26,11 +26,7 @@ pub fn count(v: &Values) -> usize {
 
 /// Maps u ∈ [0, 1] onto [lo, hi], linearly or in ln x.
 pub fn scale(u: f64, lo: f64, hi: f64, log: bool) -> f64 {
-    if log {
-        (lo.ln() + u * (hi.ln() - lo.ln())).exp()
-    } else {
-        lo + u * (hi - lo)
-    }
+    if log { (lo.ln() + u * (hi.ln() - lo.ln())).exp() } else { lo + u * (hi - lo) }
 }
 
 fn expand(v: &Values) -> Vec<toml::Value> {
@@ -40,7 +36,13 @@ fn expand(v: &Values) -> Vec<toml::Value> {
             .map(|i| {
                 let u = if *num == 1 { 0.0 } else { i as f64 / (*num - 1) as f64 };
                 // the ends exactly as written
-                let x = if i == 0 { *lo } else if i + 1 == *num { *hi } else { scale(u, *lo, *hi, *log) };
+                let x = if i == 0 {
+                    *lo
+                } else if i + 1 == *num {
+                    *hi
+                } else {
+                    scale(u, *lo, *hi, *log)
+                };
                 toml::Value::Float(x)
             })
             .collect(),
@@ -76,7 +78,16 @@ pub fn points(params: &[Parameter], kind: DesignKind) -> Vec<Point> {
             let lists: Vec<Vec<toml::Value>> = params.iter().map(|p| expand(&p.values)).collect();
             let mut out: Vec<Point> = vec![vec![]];
             for (i, l) in lists.iter().enumerate() {
-                out = out.into_iter().flat_map(|pt| l.iter().map(move |v| { let mut q = pt.clone(); q.push(named(i, v.clone())); q })).collect();
+                out = out
+                    .into_iter()
+                    .flat_map(|pt| {
+                        l.iter().map(move |v| {
+                            let mut q = pt.clone();
+                            q.push(named(i, v.clone()));
+                            q
+                        })
+                    })
+                    .collect();
             }
             out
         }

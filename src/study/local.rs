@@ -25,7 +25,10 @@ pub fn run(dir: &Path, plan: &[PlannedRun], todo: &[usize], jobs: usize, threads
     let on = progress && std::io::stderr().is_terminal() && std::env::var_os("CI").is_none();
     let bar = on.then(|| {
         let b = ProgressBar::with_draw_target(Some(todo.len() as u64), ProgressDrawTarget::stderr());
-        b.set_style(ProgressStyle::with_template("{bar:40.cyan/blue} {pos}/{len} runs {msg} [elapsed {elapsed_precise}, ETA {eta_precise}]").unwrap_or_else(|_| ProgressStyle::default_bar()));
+        b.set_style(
+            ProgressStyle::with_template("{bar:40.cyan/blue} {pos}/{len} runs {msg} [elapsed {elapsed_precise}, ETA {eta_precise}]")
+                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
         b
     });
     let next = AtomicUsize::new(0);

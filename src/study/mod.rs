@@ -8,11 +8,11 @@
 //! 3. the runs without a result record are executed ([`local`] or [`slurm`]);
 //! 4. [`report`] gathers `study.csv`, `study.json` and the plots.
 
+pub mod bench;
 pub mod design;
 pub mod local;
 pub mod report;
 pub mod slurm;
-pub mod bench;
 pub mod spec;
 pub mod store;
 
@@ -50,7 +50,16 @@ pub struct StudyOptions {
 
 impl Default for StudyOptions {
     fn default() -> Self {
-        StudyOptions { engine: Engine::Local, jobs: None, out: None, wait: false, retry_failed: false, overrides: vec![], progress: false, slurm: Default::default() }
+        StudyOptions {
+            engine: Engine::Local,
+            jobs: None,
+            out: None,
+            wait: false,
+            retry_failed: false,
+            overrides: vec![],
+            progress: false,
+            slurm: Default::default(),
+        }
     }
 }
 

@@ -7,7 +7,7 @@ use super::spec::{Study, Values};
 use super::store::{self, PlannedRun, RunRecord};
 use crate::error::{Error, IoError};
 use crate::plot::{Plot, Series};
-use serde_json::{json, Value};
+use serde_json::{Value, json};
 use std::path::Path;
 
 /// One gathered row.
@@ -30,11 +30,7 @@ pub struct Counts {
 
 /// Quotes a CSV field when it holds a comma, quote or line break (RFC 4180).
 pub fn csv_field(s: &str) -> String {
-    if s.contains([',', '"', '\n', '\r']) {
-        format!("\"{}\"", s.replace('"', "\"\""))
-    } else {
-        s.to_string()
-    }
+    if s.contains([',', '"', '\n', '\r']) { format!("\"{}\"", s.replace('"', "\"\"")) } else { s.to_string() }
 }
 
 fn number_text(v: &Value) -> String {

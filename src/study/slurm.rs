@@ -6,9 +6,9 @@
 //! limit or lost with its node) up to `slurm.max_resubmit` times, and gathers. No accounting
 //! daemon (`sacct`) is needed: the result records are the truth.
 
+use super::StudyOptions;
 use super::spec::Study;
 use super::store::{self, PlannedRun};
-use super::StudyOptions;
 use crate::error::{ConfigError, Error, IoError, SolveError};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -109,7 +109,11 @@ fn submit(study: &Study, dir: &Path, todo: &[usize], chunk: usize, retry_failed:
     script.push_str(&format!("#SBATCH --job-name=sinterdem-study\n#SBATCH --array=0-{}\n", chunks.len() - 1));
     script.push_str(&format!("#SBATCH --output={}/task-{n}-%a.out\n", sdir.display()));
     script.push_str(&format!("#SBATCH --cpus-per-task={cpus}\n"));
-    for (flag, v) in [("partition", o.partition.as_ref().or(s.partition.as_ref())), ("time", o.time.as_ref().or(s.time.as_ref())), ("account", o.account.as_ref().or(s.account.as_ref()))] {
+    for (flag, v) in [
+        ("partition", o.partition.as_ref().or(s.partition.as_ref())),
+        ("time", o.time.as_ref().or(s.time.as_ref())),
+        ("account", o.account.as_ref().or(s.account.as_ref())),
+    ] {
         if let Some(v) = v.filter(|v| !v.is_empty()) {
             if v.contains(['\n', ' ']) {
                 return Err(ConfigError::invalid(format!("slurm.{flag} = \"{v}\": must be one word")).into());
@@ -156,12 +160,20 @@ fn submit(study: &Study, dir: &Path, todo: &[usize], chunk: usize, retry_failed:
 pub fn run(study: &Study, dir: &Path, plan: &[PlannedRun], todo: &[usize], opts: &StudyOptions, log: &mut dyn FnMut(&str)) -> Result<(usize, bool), Error> {
     for cmd in ["sbatch", "squeue"] {
         if which(cmd).is_none() {
-            return Err(SolveError::new("slurm", format!("`{cmd}` is not on PATH: the SLURM client commands are needed for --engine slurm (Debian: slurm-client), or use --engine local")).into());
+            return Err(SolveError::new(
+                "slurm",
+                format!("`{cmd}` is not on PATH: the SLURM client commands are needed for --engine slurm (Debian: slurm-client), or use --engine local"),
+            )
+            .into());
         }
     }
     let dir = dir.canonicalize().map_err(|e| IoError::new(dir, e))?;
     let dir = dir.as_path();
-    let chunk = opts.slurm.chunk.or(study.slurm.chunk).unwrap_or_else(|| ((TASK_SECONDS / estimate_run_seconds(dir, plan)).ceil() as usize).clamp(1, todo.len().max(1)));
+    let chunk = opts
+        .slurm
+        .chunk
+        .or(study.slurm.chunk)
+        .unwrap_or_else(|| ((TASK_SECONDS / estimate_run_seconds(dir, plan)).ceil() as usize).clamp(1, todo.len().max(1)));
     let mut batches = read_batches(dir);
     let ids: Vec<String> = batches.iter().map(|b| b.job_id.clone()).collect();
     let mut active = active_jobs(&ids)?;
@@ -192,16 +204,29 @@ pub fn run(study: &Study, dir: &Path, plan: &[PlannedRun], todo: &[usize], opts:
         }
         let left: Vec<usize> = plan.iter().filter(|r| store::pending(dir, r, false)).map(|r| r.index).collect();
         if left.is_empty() {
-            log(&format!("slurm: all runs have results after {:.1} s ({} submission{})", start.elapsed().as_secs_f64(), batches.len(), if batches.len() == 1 { "" } else { "s" }));
+            log(&format!(
+                "slurm: all runs have results after {:.1} s ({} submission{})",
+                start.elapsed().as_secs_f64(),
+                batches.len(),
+                if batches.len() == 1 { "" } else { "s" }
+            ));
             return Ok((submitted, true));
         }
         if resubmits >= study.slurm.max_resubmit {
-            log(&format!("slurm: {} runs still have no result after {resubmits} resubmissions (slurm.max_resubmit): gathering what there is; see DIR/slurm/task-*.out", left.len()));
+            log(&format!(
+                "slurm: {} runs still have no result after {resubmits} resubmissions (slurm.max_resubmit): gathering what there is; see DIR/slurm/task-*.out",
+                left.len()
+            ));
             return Ok((submitted, true));
         }
         resubmits += 1;
         let b = submit(study, dir, &left, chunk, false, opts, batches.len())?;
-        log(&format!("slurm: {} runs had no result (task cancelled, timed out or lost): resubmitted as job {} ({} tasks)", left.len(), b.job_id, b.chunks.len()));
+        log(&format!(
+            "slurm: {} runs had no result (task cancelled, timed out or lost): resubmitted as job {} ({} tasks)",
+            left.len(),
+            b.job_id,
+            b.chunks.len()
+        ));
         submitted += left.len();
         batches.push(b);
     }

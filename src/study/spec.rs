@@ -3,7 +3,7 @@
 //! checked against [`RANGES`], whose error names the key, value, allowed range and unit.
 
 use crate::config::from_value;
-use crate::config::ranges::{c, p, Range};
+use crate::config::ranges::{Range, c, p};
 use crate::error::{ConfigError, Error, IoError};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -278,7 +278,8 @@ pub fn load(path: &Path) -> Result<Study, Error> {
     };
     let kind = f.design.kind.clone().unwrap_or_else(|| "grid".into());
     let samples = |def: Option<f64>| -> Result<usize, ConfigError> {
-        Ok(check_int("design.samples", "design.samples", def.ok_or_else(|| ConfigError::invalid(format!("design.kind = \"{kind}\" needs design.samples")))?)? as usize)
+        Ok(check_int("design.samples", "design.samples", def.ok_or_else(|| ConfigError::invalid(format!("design.kind = \"{kind}\" needs design.samples")))?)?
+            as usize)
     };
     let seed = check_int("design.seed", "design.seed", f.design.seed.unwrap_or(1.0))?;
     let design = match kind.as_str() {
@@ -303,10 +304,20 @@ pub fn load(path: &Path) -> Result<Study, Error> {
                 Values::List(v.clone())
             }
             (None, Some([lo, hi]), None, None) if !sampled => {
-                let num = check_int("parameters.*.num", &at("num"), pf.num.ok_or_else(|| ConfigError::invalid(format!("{} is missing: a range needs num", at("num"))))?)? as usize;
+                let num = check_int(
+                    "parameters.*.num",
+                    &at("num"),
+                    pf.num.ok_or_else(|| ConfigError::invalid(format!("{} is missing: a range needs num", at("num"))))?,
+                )? as usize;
                 for v in [lo, hi] {
                     if !v.is_finite() || (pf.log && v <= 0.0) {
-                        return Err(ConfigError::OutOfRange { key: at("range"), value: v, range: if pf.log { "(0, inf) with log = true".into() } else { "finite".into() }, unit: "key's unit".into() }.into());
+                        return Err(ConfigError::OutOfRange {
+                            key: at("range"),
+                            value: v,
+                            range: if pf.log { "(0, inf) with log = true".into() } else { "finite".into() },
+                            unit: "key's unit".into(),
+                        }
+                        .into());
                     }
                 }
                 Values::Range { lo, hi, num, log: pf.log }
@@ -322,18 +333,39 @@ pub fn load(path: &Path) -> Result<Study, Error> {
                 }
                 Values::Bounds { lo, hi, log: pf.log }
             }
-            _ if sampled => return Err(ConfigError::invalid(format!("{}: design.kind = \"{kind}\" needs min and max (and optional log) for every parameter", at("min"))).into()),
-            _ => return Err(ConfigError::invalid(format!("{}: give either values = [..] or range = [start, stop] with num (min/max are for lhs and sobol designs)", at("values"))).into()),
+            _ if sampled => {
+                return Err(
+                    ConfigError::invalid(format!("{}: design.kind = \"{kind}\" needs min and max (and optional log) for every parameter", at("min"))).into()
+                );
+            }
+            _ => {
+                return Err(ConfigError::invalid(format!(
+                    "{}: give either values = [..] or range = [start, stop] with num (min/max are for lhs and sobol designs)",
+                    at("values")
+                ))
+                .into());
+            }
         };
         parameters.push(Parameter { key: pf.key.clone(), name: pf.name.clone().unwrap_or_else(|| pf.key.clone()), values });
     }
     if let DesignKind::Sobol { samples, .. } = design {
         // sobol_burley's sequence: at most 2^16 points in at most 256 dimensions
         if samples > 65536 {
-            return Err(ConfigError::OutOfRange { key: "design.samples".into(), value: samples as f64, range: "[1, 65536] for kind = \"sobol\"".into(), unit: "1".into() }.into());
+            return Err(ConfigError::OutOfRange {
+                key: "design.samples".into(),
+                value: samples as f64,
+                range: "[1, 65536] for kind = \"sobol\"".into(),
+                unit: "1".into(),
+            }
+            .into());
         }
         if parameters.len() > sobol_burley::NUM_DIMENSIONS as usize {
-            return Err(ConfigError::invalid(format!("design.kind = \"sobol\": at most {} parameters, got {}", sobol_burley::NUM_DIMENSIONS, parameters.len())).into());
+            return Err(ConfigError::invalid(format!(
+                "design.kind = \"sobol\": at most {} parameters, got {}",
+                sobol_burley::NUM_DIMENSIONS,
+                parameters.len()
+            ))
+            .into());
         }
     }
     if sampled && parameters.is_empty() {

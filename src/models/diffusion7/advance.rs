@@ -9,7 +9,7 @@ use super::contact::Contact7;
 use super::kinetics::rates_with;
 use super::material::{ContactParams, Material, PathFactors};
 use crate::error::ModelError;
-use crate::models::ode::{integrate, Control, Method, OdeStats};
+use crate::models::ode::{Control, Method, OdeStats, integrate};
 use crate::profile::Profile;
 use serde::{Deserialize, Serialize};
 
@@ -84,7 +84,11 @@ impl TemperaturePath<'_> {
         match *self {
             TemperaturePath::Constant(v) => v,
             TemperaturePath::Linear { t0, temp0, t1, temp1 } => {
-                if t1 == t0 { temp1 } else { temp0 + (temp1 - temp0) * (t - t0) / (t1 - t0) }
+                if t1 == t0 {
+                    temp1
+                } else {
+                    temp0 + (temp1 - temp0) * (t - t0) / (t1 - t0)
+                }
             }
             TemperaturePath::Profile(p) => p.temperature(t),
         }

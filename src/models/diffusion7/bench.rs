@@ -3,7 +3,7 @@
 //! ΔL/L0 against the tightest Dormand–Prince run (rtol 1e-10), against wall time and right-hand-side
 //! count. Writes `work_precision.csv` and PNG diagrams; returns the printed table.
 
-use super::pair::{parse_pair_case, run_pair, PairSpec};
+use super::pair::{PairSpec, parse_pair_case, run_pair};
 use super::titanium::{Experiment, TRUNCATED_START};
 use crate::error::{ConfigError, Error, IoError};
 use crate::models::ode::Method;
@@ -108,14 +108,26 @@ pub fn work_precision(spec: &PairSpec, methods: &[Method], tolerances: &[f64], m
 /// Formats rows as a text table.
 pub fn table(rows: &[BenchRow]) -> String {
     let mut s = String::new();
-    let _ = writeln!(s, "{:<26} {:<13} {:>7} {:>7} {:>5} {:>8} {:>10} {:>10} {:>10}", "case", "method", "rtol", "steps", "rej", "rhs", "wall [ms]", "err y1/R", "err dL/L0");
+    let _ = writeln!(
+        s,
+        "{:<26} {:<13} {:>7} {:>7} {:>5} {:>8} {:>10} {:>10} {:>10}",
+        "case", "method", "rtol", "steps", "rej", "rhs", "wall [ms]", "err y1/R", "err dL/L0"
+    );
     for r in rows {
         match &r.failure {
             None => {
                 let _ = writeln!(
                     s,
                     "{:<26} {:<13} {:>7.0e} {:>7} {:>5} {:>8} {:>10.3} {:>10.2e} {:>10.2e}",
-                    r.case, r.method.name(), r.rtol, r.steps, r.rejected, r.rhs, r.wall_seconds * 1e3, r.err_neck, r.err_shrinkage
+                    r.case,
+                    r.method.name(),
+                    r.rtol,
+                    r.steps,
+                    r.rejected,
+                    r.rhs,
+                    r.wall_seconds * 1e3,
+                    r.err_neck,
+                    r.err_shrinkage
                 );
             }
             Some(e) => {
@@ -163,7 +175,15 @@ pub fn bench_pair(out_dir: &Path) -> Result<String, Error> {
         let _ = writeln!(
             csv,
             "{},{},{:e},{},{},{},{:e},{:e},{:e},{}",
-            r.case, r.method.name(), r.rtol, r.steps, r.rejected, r.rhs, r.wall_seconds, r.err_neck, r.err_shrinkage,
+            r.case,
+            r.method.name(),
+            r.rtol,
+            r.steps,
+            r.rejected,
+            r.rhs,
+            r.wall_seconds,
+            r.err_neck,
+            r.err_shrinkage,
             r.failure.as_deref().unwrap_or("").replace(',', ";")
         );
     }

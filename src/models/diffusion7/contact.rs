@@ -2,7 +2,7 @@
 //! sintering force (§8, (F1)–(F5)) and the correction of y4, y7 after the mechanical step
 //! (§9, (C1)–(C4)). Pure functions for the coupled simulator.
 
-use super::geometry::{sides, Side};
+use super::geometry::{Side, sides};
 use crate::error::ModelError;
 use std::f64::consts::PI;
 
@@ -102,13 +102,14 @@ pub fn initial_state(r_a: f64, r_b: f64, d_ab: f64, eps: f64, eta: f64) -> Resul
         let c_b = d_b - (r_b * r_b - h0 * h0).sqrt();
         let y = [a0, r_a, c_a, d_a, r_b, c_b, d_b];
         if let Ok((sa, sb)) = sides(&y)
-            && sa.derivs().is_ok() && sb.derivs().is_ok() {
+            && sa.derivs().is_ok()
+            && sb.derivs().is_ok()
+        {
             return Ok(y);
         }
         eta *= 0.5;
     }
-    Err(ModelError::new("initial state: no admissible cone found by halving eta (neck too large for the smaller sphere?)")
-        .with_context(ctx()))
+    Err(ModelError::new("initial state: no admissible cone found by halving eta (neck too large for the smaller sphere?)").with_context(ctx()))
 }
 
 /// A sentence on where a state stands relative to the model's domain (for error messages): neck
@@ -126,7 +127,8 @@ pub fn diagnose(y: &[f64; 7]) -> String {
         }
     }
     if let Some(th) = tangency(y)
-        && th[0].max(th[1]) > 0.9 {
+        && th[0].max(th[1]) > 0.9
+    {
         s.push_str(&format!("; cone near tangency (theta = {:.3}, {:.3})", th[0], th[1]));
     }
     s

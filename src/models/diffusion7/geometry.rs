@@ -123,9 +123,7 @@ impl Side {
         let da_d = 2.0 * PI * r - PI * w * p / h;
         // (G9)
         let x = p * (2.0 * h * (h - a) + c * c) + h * c * (h + a);
-        let m = 4.0 * h.powi(4) - 4.0 * h.powi(3) * a + 3.0 * h * h * c * c - 4.0 * h * p * a * c
-            + h * a * c * c
-            + p * c.powi(3);
+        let m = 4.0 * h.powi(4) - 4.0 * h.powi(3) * a + 3.0 * h * h * c * c - 4.0 * h * p * a * c + h * a * c * c + p * c.powi(3);
         let ratio_c = 3.0 * m / (s * (a + 2.0 * h) * (x + 2.0 * h * r * s));
         Ok(SideDerivs { dv: [dv_a, dv_r, dv_c, dv_d], da: [da_a, da_r, da_c, da_d], ratio_c })
     }
@@ -141,12 +139,7 @@ pub fn sides(y: &[f64; 7]) -> Result<(Side, Side), (usize, Violation)> {
 
 /// Turns a violation into a `ModelError` naming side and condition.
 pub fn violation_error(side: usize, v: Violation, y: &[f64; 7]) -> ModelError {
-    ModelError::new(format!(
-        "inadmissible 7-DOF state on side {}: {}",
-        if side == 0 { "A" } else { "B" },
-        v.describe()
-    ))
-    .with_context(format!("y = {y:?} m"))
+    ModelError::new(format!("inadmissible 7-DOF state on side {}: {}", if side == 0 { "A" } else { "B" }, v.describe())).with_context(format!("y = {y:?} m"))
 }
 
 /// (G10) total solid volume V [m³] and free surface A_s [m²] and GB area A_gb [m²] of a state.

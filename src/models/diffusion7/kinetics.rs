@@ -1,7 +1,7 @@
 //! Chemical potentials (M2), (M3), the twelve volume fluxes (M4), (M5), the region balances (M7)
 //! and the ODE (M8) of the 7-DOF model; conservation and dissipation (M10).
 
-use super::geometry::{sides, violation_error, Side, SideDerivs};
+use super::geometry::{Side, SideDerivs, sides, violation_error};
 use super::material::{Coeffs, ContactParams};
 use crate::error::ModelError;
 use std::f64::consts::PI;
@@ -38,9 +38,7 @@ pub fn evaluate(y: &[f64; 7], k: &Coeffs) -> Result<Evaluation, ModelError> {
     let dv = [da.dv[0] + db.dv[0], da.dv[1], da.dv[2], da.dv[3], db.dv[1], db.dv[2], db.dv[3]];
     // (M3)
     let mu1 = om * (k.gamma_s[0] * da.da[0] + k.gamma_s[1] * db.da[0] + k.gamma_gb * 2.0 * PI * a) / dv[0];
-    let side_mu = |g: f64, d: &SideDerivs| {
-        [om * g * d.da[1] / d.dv[1], om * g * d.ratio_c, om * g * d.da[3] / d.dv[3]]
-    };
+    let side_mu = |g: f64, d: &SideDerivs| [om * g * d.da[1] / d.dv[1], om * g * d.ratio_c, om * g * d.da[3] / d.dv[3]];
     let ma = side_mu(k.gamma_s[0], &da);
     let mb = side_mu(k.gamma_s[1], &db);
     let mu = [mu1, ma[0], ma[1], ma[2], mb[0], mb[1], mb[2]];
@@ -62,15 +60,7 @@ pub fn evaluate(y: &[f64; 7], k: &Coeffs) -> Result<Evaluation, ModelError> {
     let jb = fl(1, &sb, &mb);
     // (M7)
     let q1 = ja[0] + jb[0] + ja[1] + jb[1] + ja[2] + jb[2] + ja[3] + jb[3];
-    let q = [
-        q1,
-        -(ja[4] + ja[5]),
-        (ja[4] + ja[5]) - (ja[2] + ja[3]),
-        -(ja[0] + ja[1]),
-        -(jb[4] + jb[5]),
-        (jb[4] + jb[5]) - (jb[2] + jb[3]),
-        -(jb[0] + jb[1]),
-    ];
+    let q = [q1, -(ja[4] + ja[5]), (ja[4] + ja[5]) - (ja[2] + ja[3]), -(ja[0] + ja[1]), -(jb[4] + jb[5]), (jb[4] + jb[5]) - (jb[2] + jb[3]), -(jb[0] + jb[1])];
     let mut dydt = [0.0; 7];
     let mut dg = 0.0;
     for i in 0..7 {

@@ -8,7 +8,7 @@
 
 use crate::config::{check, from_value};
 use crate::error::{ConfigError, ModelError};
-use crate::units::{arrhenius, BOLTZMANN};
+use crate::units::{BOLTZMANN, arrhenius};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
@@ -93,18 +93,14 @@ impl Material {
 
     /// A bundled material by name (`"copper"`, `"titanium"`).
     pub fn builtin(name: &str) -> Result<Material, ConfigError> {
-        let table: toml::Table = BUILTIN_MATERIALS
-            .parse()
-            .map_err(|e: toml::de::Error| ConfigError::invalid(format!("internal: bundled materials: {e}")))?;
+        let table: toml::Table = BUILTIN_MATERIALS.parse().map_err(|e: toml::de::Error| ConfigError::invalid(format!("internal: bundled materials: {e}")))?;
         let list = table.get("materials").and_then(|m| m.as_array()).cloned().unwrap_or_default();
         for v in list {
             if v.get("name").and_then(|n| n.as_str()) == Some(name) {
                 return Material::from_value(v);
             }
         }
-        Err(ConfigError::invalid(format!(
-            "material \"{name}\" is neither defined in the case's [[materials]] nor bundled (bundled: copper, titanium)"
-        )))
+        Err(ConfigError::invalid(format!("material \"{name}\" is neither defined in the case's [[materials]] nor bundled (bundled: copper, titanium)")))
     }
 
     /// Bundled copper (§12, Table 2 of [IV22]).
@@ -130,10 +126,7 @@ impl Material {
         if self.calibrated_min_temperature > self.calibrated_max_temperature {
             return Err(ConfigError::inconsistent(
                 format!("materials.{n}.calibrated_min_temperature"),
-                format!(
-                    "{} K is above calibrated_max_temperature {} K",
-                    self.calibrated_min_temperature, self.calibrated_max_temperature
-                ),
+                format!("{} K is above calibrated_max_temperature {} K", self.calibrated_min_temperature, self.calibrated_max_temperature),
             ));
         }
         if let Some(tm) = self.melting_temperature {
@@ -273,12 +266,7 @@ impl ContactParams {
             gb: Arrhenius { d0: ph.d0_gb, q: ph.q_gb },
         };
         let (a, b) = (&ma.phases[pa], &mb.phases[pb]);
-        ContactParams {
-            omega: 0.5 * (a.atomic_volume + b.atomic_volume),
-            gamma_gb: 0.5 * (a.gamma_gb + b.gamma_gb),
-            sides: [side(a), side(b)],
-            factors,
-        }
+        ContactParams { omega: 0.5 * (a.atomic_volume + b.atomic_volume), gamma_gb: 0.5 * (a.gamma_gb + b.gamma_gb), sides: [side(a), side(b)], factors }
     }
 
     /// Same material on both sides, one phase.

@@ -22,8 +22,8 @@ pub mod pair;
 pub mod ranges;
 pub mod titanium;
 
-pub use advance::{advance, PairMaterials, SolverOptions, TemperaturePath};
-pub use contact::{correct_y4_y7, initial_state, load_increment, sintering_force, Contact7, Correction};
-pub use kinetics::{evaluate, invariants, rates, rates_with, Evaluation};
+pub use advance::{PairMaterials, SolverOptions, TemperaturePath, advance};
+pub use contact::{Contact7, Correction, correct_y4_y7, initial_state, load_increment, sintering_force};
+pub use kinetics::{Evaluation, evaluate, invariants, rates, rates_with};
 pub use material::{ContactParams, Material, PathFactors, Phase};
 pub use ranges::RANGES;

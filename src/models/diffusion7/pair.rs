@@ -3,8 +3,8 @@
 //! measurements before simulating a compact. Entry points for the CLI: [`run_pair_case`] and
 //! [`check_pair_case`]. Schema: `docs/diffusion7.md`.
 
-use super::advance::{advance, calibrated_range_warning, PairMaterials, SolverOptions, TemperaturePath};
-use super::contact::{sintering_force, Contact7};
+use super::advance::{PairMaterials, SolverOptions, TemperaturePath, advance, calibrated_range_warning};
+use super::contact::{Contact7, sintering_force};
 use super::kinetics::invariants;
 use super::material::{Material, PathFactors};
 use crate::config::{check, check_opt, from_value};
@@ -137,10 +137,7 @@ pub struct PairSpec {
 /// to `end` (no cooling branch when `cool` is None). Returns a piecewise-linear profile.
 pub fn ramp_profile(start: f64, peak: f64, heat: f64, hold: f64, cool: Option<f64>, end: f64) -> Result<Profile, ConfigError> {
     if start > peak {
-        return Err(ConfigError::inconsistent(
-            "temperature.start_temperature",
-            format!("{start} K is above peak_temperature {peak} K"),
-        ));
+        return Err(ConfigError::inconsistent("temperature.start_temperature", format!("{start} K is above peak_temperature {peak} K")));
     }
     let mut rows = vec![[0.0, start]];
     let t1 = (peak - start) / heat;
@@ -153,10 +150,7 @@ pub fn ramp_profile(start: f64, peak: f64, heat: f64, hold: f64, cool: Option<f6
     }
     if let Some(c) = cool {
         if end > peak {
-            return Err(ConfigError::inconsistent(
-                "temperature.end_temperature",
-                format!("{end} K is above peak_temperature {peak} K"),
-            ));
+            return Err(ConfigError::inconsistent("temperature.end_temperature", format!("{end} K is above peak_temperature {peak} K")));
         }
         if end < peak {
             rows.push([t2 + (peak - end) / c, end]);
@@ -188,9 +182,7 @@ fn build_temperature(t: &TemperatureSection) -> Result<PairTemperature, ConfigEr
     if let Some(tab) = &t.table {
         return Ok(PairTemperature::Profile(Profile::from_table(tab).map_err(|e| prefix(e, "temperature"))?));
     }
-    let need = |k: &str, v: Option<f64>| {
-        v.ok_or_else(|| ConfigError::inconsistent(format!("temperature.{k}"), "required by the ramp form"))
-    };
+    let need = |k: &str, v: Option<f64>| v.ok_or_else(|| ConfigError::inconsistent(format!("temperature.{k}"), "required by the ramp form"));
     let start = check("temperature.start_temperature", need("start_temperature", t.start_temperature)?)?;
     let peak = check("temperature.peak_temperature", need("peak_temperature", t.peak_temperature)?)?;
     let heat = check("temperature.heating_rate", need("heating_rate", t.heating_rate)?)?;
@@ -205,9 +197,7 @@ fn build_temperature(t: &TemperatureSection) -> Result<PairTemperature, ConfigEr
 
 fn prefix(e: ConfigError, p: &str) -> ConfigError {
     match e {
-        ConfigError::OutOfRange { key, value, range, unit } => {
-            ConfigError::OutOfRange { key: format!("{p}.{key}"), value, range, unit }
-        }
+        ConfigError::OutOfRange { key, value, range, unit } => ConfigError::OutOfRange { key: format!("{p}.{key}"), value, range, unit },
         ConfigError::Invalid(m) => ConfigError::Invalid(format!("{p}: {m}")),
         other => other,
     }
@@ -351,7 +341,8 @@ pub fn run_pair(spec: &PairSpec, record: bool, progress: bool) -> Result<PairRun
     let mut warnings = Vec::new();
     for m in [&spec.material_a, &spec.material_b] {
         if let Some(w) = calibrated_range_warning(m, tlo, thi)
-            && !warnings.contains(&w) {
+            && !warnings.contains(&w)
+        {
             warnings.push(w);
         }
     }
@@ -396,16 +387,16 @@ pub fn run_pair_case(case: &toml::Value, out_dir: &Path, progress: bool) -> Resu
 /// go to `warn`.
 pub fn run_pair_spec(spec: &PairSpec, out_dir: &Path, progress: bool, warn: &mut dyn FnMut(&str)) -> Result<PairSummary, Error> {
     std::fs::create_dir_all(out_dir).map_err(|e| IoError::new(out_dir, e))?;
-    let run = run_pair(&spec, true, progress)?;
+    let run = run_pair(spec, true, progress)?;
     for w in &run.warnings {
         warn(w);
     }
-    write_series(&spec, &run, &out_dir.join("series.csv"))?;
-    let summary = summarize(&spec, &run);
+    write_series(spec, &run, &out_dir.join("series.csv"))?;
+    let summary = summarize(spec, &run);
     let json = serde_json::to_string_pretty(&summary).map_err(|e| IoError::new(out_dir.join("summary.json"), e))?;
     std::fs::write(out_dir.join("summary.json"), json + "\n").map_err(|e| IoError::new(out_dir.join("summary.json"), e))?;
     if spec.plot {
-        plot_run(&spec, &run).save_png(&out_dir.join("neck_shrinkage.png"))?;
+        plot_run(spec, &run).save_png(&out_dir.join("neck_shrinkage.png"))?;
     }
     Ok(summary)
 }

@@ -2,7 +2,6 @@
 
 use crate::config::ranges::{INF, Range, c, o, p};
 
-
 /// Keys of `kind = "pair"` cases and of 7-DOF material phases.
 pub static RANGES: &[Range] = &[
     // pair geometry and run

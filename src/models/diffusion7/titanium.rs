@@ -3,7 +3,7 @@
 //! (`t = 0` when the furnace passes 793 K), or starts at 313 K for the full curve. Each experiment
 //! uses its own mean particle diameter. Bundled as `cases/titanium/E1B.toml` … `E28B.toml`.
 
-use super::pair::{parse_pair_case, run_pair, summarize, PairSpec};
+use super::pair::{PairSpec, parse_pair_case, run_pair, summarize};
 use crate::error::{Error, IoError};
 use crate::plot::{Plot, Series};
 use std::io::Write;
@@ -116,9 +116,7 @@ impl Experiment {
     /// As [`Experiment::spec`], with an optional common particle diameter [m] replacing the
     /// experiment's own (the DEM of [IV22] used 64 µm for all).
     pub fn spec_with(&self, start_temperature: f64, diameter: Option<f64>) -> Result<PairSpec, Error> {
-        let mut v: toml::Value = toml::Value::Table(
-            self.case_toml().parse::<toml::Table>().map_err(|e| crate::error::ConfigError::invalid(e.to_string()))?,
-        );
+        let mut v: toml::Value = toml::Value::Table(self.case_toml().parse::<toml::Table>().map_err(|e| crate::error::ConfigError::invalid(e.to_string()))?);
         crate::config::apply_override(&mut v, &format!("temperature.start_temperature={start_temperature}"))?;
         if let Some(d) = diameter {
             crate::config::apply_override(&mut v, &format!("pair.radius={:e}", d / 2.0))?;
@@ -170,19 +168,26 @@ pub fn run_all_titanium(out_dir: &Path, start_temperature: f64, common_diameter:
         writeln!(
             w,
             "{},{:e},{},{},{},{},{:.8},{:.8e},{},{},{:.6},{:.2e}",
-            e.id, common_diameter.unwrap_or(e.mean_diameter), e.peak_temperature, (e.rate * 60.0).round(), e.hold_time, start_temperature,
-            r.neck_ratio, r.shrinkage, r.steps, r.rhs_evaluations, r.wall_seconds, r.volume_drift_rel
+            e.id,
+            common_diameter.unwrap_or(e.mean_diameter),
+            e.peak_temperature,
+            (e.rate * 60.0).round(),
+            e.hold_time,
+            start_temperature,
+            r.neck_ratio,
+            r.shrinkage,
+            r.steps,
+            r.rhs_evaluations,
+            r.wall_seconds,
+            r.volume_drift_rel
         )
         .map_err(io)?;
     }
     w.flush().map_err(io)?;
     let mut p = Plot::new("titanium pairs: final shrinkage").labels("hold time [min]", "dL/L0 [1]");
     for (t, r) in [(1203.0, R20), (1203.0, R50), (1373.0, R20), (1373.0, R50), (1573.0, R20), (1573.0, R50)] {
-        let pts = out
-            .iter()
-            .filter(|x| x.experiment.peak_temperature == t && x.experiment.rate == r)
-            .map(|x| (x.experiment.hold_time / 60.0, x.shrinkage))
-            .collect();
+        let pts =
+            out.iter().filter(|x| x.experiment.peak_temperature == t && x.experiment.rate == r).map(|x| (x.experiment.hold_time / 60.0, x.shrinkage)).collect();
         p.add(Series::new(format!("{t} K, {} K/min", (r * 60.0).round()), pts).with_markers());
     }
     p.save_png(&out_dir.join("titanium_shrinkage.png"))?;
