@@ -28,7 +28,17 @@ pub fn load_case(path: &Path, overrides: &[String]) -> Result<toml::Value, Error
 /// Parses case text (`name` appears in the error).
 pub fn parse_case_str(text: &str, name: &str) -> Result<toml::Value, ConfigError> {
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
-    text.parse::<toml::Table>().map(toml::Value::Table).map_err(|e| ConfigError::invalid(format!("{name}: {}", e.message())))
+    text.parse::<toml::Table>().map(toml::Value::Table).map_err(|e| ConfigError::invalid(format!("{name}{}: {}", position(text, e.span()), e.message())))
+}
+
+/// `:LINE:COLUMN` (1-based) of the start of `span` in `text`, or "" without a span.
+pub fn position(text: &str, span: Option<std::ops::Range<usize>>) -> String {
+    let Some(span) = span else { return String::new() };
+    let at = span.start.min(text.len());
+    let before = &text[..text.floor_char_boundary(at)];
+    let line = before.matches('\n').count() + 1;
+    let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    format!(":{line}:{col}")
 }
 
 /// Expands `include = "file.toml"` in `[[materials]]` entries (docs/case-file.md, "Materials from
@@ -137,4 +147,15 @@ pub fn check(key: &str, value: f64) -> Result<f64, ConfigError> {
 /// Checks an optional value (None passes).
 pub fn check_opt(key: &str, value: Option<f64>) -> Result<Option<f64>, ConfigError> {
     value.map(|v| check(key, v)).transpose()
+}
+
+#[cfg(test)]
+mod position_tests {
+    #[test]
+    fn syntax_errors_name_line_and_column() {
+        let e = super::parse_case_str("a = 1\nb = 2\nb = 3\n", "case.toml").unwrap_err().to_string();
+        assert!(e.contains("case.toml:3:1") && e.contains("duplicate key"), "{e}");
+        let e = super::parse_case_str("a = 1\n[x\n", "c.toml").unwrap_err().to_string();
+        assert!(e.contains("c.toml:2:"), "{e}");
+    }
 }
