@@ -205,7 +205,7 @@ fn write_plots(study: &Study, dir: &Path, rows: &[Row]) -> Result<(), Error> {
                 continue;
             }
             let mut p = Plot::new(format!("{}: {name} against {pname}", study.title)).labels(pname.clone(), name.clone()).log_x(*log);
-            p.add(Series::new(format!("{} runs", pts.len()), pts).with_markers());
+            p.add(Series::new(format!("{} runs", pts.len()), pts).points_only());
             let file = format!("{}_vs_{}.png", sanitize(name), sanitize(pname));
             p.save_png(&pdir.join(file))?;
         }
