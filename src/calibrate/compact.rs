@@ -147,7 +147,7 @@ pub fn validate(
         };
         csv.push_str(&format!(
             "{},{},{},{},{},{},{},{},{},{},{},{}\n",
-            crate::study::report::csv_field(&e.id),
+            crate::io::csv_text(&e.id),
             cell(meas.map(|m| m.value)),
             cell(meas.map(|m| m.sigma)),
             cell(pair),
@@ -158,7 +158,7 @@ pub fn validate(
             cell(f("relative_density")),
             cell(f("neck_ratio")),
             status,
-            crate::study::report::csv_field(&err)
+            crate::io::csv_text(&err)
         ));
         log(&format!(
             "  {}: measured shrinkage {}, pair {}, compact {} (x/y/z {}/{}/{})",

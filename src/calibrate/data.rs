@@ -226,11 +226,6 @@ pub fn check_counts(experiments: &[Experiment], data_file: &str) -> Result<(), C
     Ok(())
 }
 
-/// Quotes a CSV field if needed (RFC 4180).
-pub fn quote(s: &str) -> String {
-    if s.contains([',', '"', '\n']) { format!("\"{}\"", s.replace('"', "\"\"")) } else { s.to_string() }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

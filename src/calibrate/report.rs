@@ -12,7 +12,7 @@
 //! ν = values − parameters; σ_θ = √C_ii, r_ij = C_ij/(σ_i σ_j). A log parameter's `sigma` is the
 //! linearised `value·ln10·σ_θ`, its `sigma_log10` is σ_θ.
 
-use super::data::{Experiment, quote};
+use super::data::Experiment;
 use super::forward::{Forward, Prediction};
 use super::loss::{Quantity, Residual};
 use crate::error::{Error, IoError, ModelError};
@@ -295,7 +295,7 @@ pub fn write_residuals(path: &Path, experiments: &[Experiment], res: &[Residual]
         writeln!(
             w,
             "{},{:.6},{},{},{:.10e},{:.6e},{:.10e},{:.6e}",
-            quote(&experiments[r.experiment].id),
+            crate::io::csv_text(&experiments[r.experiment].id),
             r.time,
             r.end as u8,
             r.quantity.name(),

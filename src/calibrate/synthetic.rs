@@ -7,7 +7,7 @@
 //! [`BUNDLED_SEED`]; regenerate it with
 //! `sinterdem calibrate cases/calibration/titanium-synthetic.toml --generate-synthetic`.
 
-use super::data::{Experiment, Measured, Observation, quote};
+use super::data::{Experiment, Measured, Observation};
 use super::forward::{PairGeometry, run_experiment};
 use crate::error::Error;
 use crate::models::diffusion7::titanium::{EXPERIMENTS, TRUNCATED_START};
@@ -102,7 +102,7 @@ pub fn csv_text(experiments: &[Experiment], comment: &str) -> String {
     for e in experiments {
         let (n, ns) = f(e.end.neck_ratio);
         let (sh, ss) = f(e.end.shrinkage);
-        s.push_str(&format!("{},{:.4e},{},{n},{ns},{sh},{ss}\n", quote(&e.id), e.diameter, quote(&e.schedule)));
+        s.push_str(&format!("{},{:.4e},{},{n},{ns},{sh},{ss}\n", crate::io::csv_text(&e.id), e.diameter, crate::io::csv_text(&e.schedule)));
     }
     s
 }

@@ -132,10 +132,8 @@ impl Simulation {
 /// Writes `dir/checkpoint.json` atomically (temporary file, then rename).
 pub(crate) fn write_checkpoint(dir: &Path, ck: &Checkpoint) -> Result<(), IoError> {
     let path = dir.join("checkpoint.json");
-    let tmp = dir.join("checkpoint.json.tmp");
     let text = serde_json::to_string(ck).map_err(|e| IoError::new(&path, e))?;
-    std::fs::write(&tmp, text).map_err(|e| IoError::new(&tmp, e))?;
-    std::fs::rename(&tmp, &path).map_err(|e| IoError::new(&path, e))
+    crate::io::write_atomic(&path, &text)
 }
 
 /// Reads `dir/checkpoint.json`.

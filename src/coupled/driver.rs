@@ -95,7 +95,7 @@ pub fn run_from(
     let mut failure: Option<Error> = None;
     let write_row = |sim: &Simulation, series: &mut Series, dt: f64| -> Result<(), IoError> {
         let sh = sim.shrinkage();
-        let (mean, t_lo, t_hi) = sim.temperature_stats();
+        let (mean, t_lo, t_hi) = sim.temperature_stats(&sim.isolated_particles());
         let frac = sim.contacts.substeps.iter().filter(|&&s| s > 1).count() as f64 / sim.contacts.len().max(1) as f64;
         series.row(&[
             sim.t,
@@ -184,8 +184,8 @@ pub fn run_from(
     let sh = sim.shrinkage();
     let stored_total: f64 = sim.prep.scene.particles.capacity.iter().zip(&sim.prep.scene.particles.temperature).map(|(c, t)| c * t).sum();
     let balance = if sim.heat.is_some() { crate::heat::run::energy_balance_rel(sim.heat_stored, sim.heat_in, sim.heat_scale, stored_total) } else { 0.0 };
-    let t_stats = sim.temperature_stats();
     let isolated = sim.isolated_particles();
+    let t_stats = sim.temperature_stats(&isolated);
     let dl: Vec<f64> = sim.contacts.dl_bar.clone();
     let dl_mean = dl.iter().sum::<f64>() / dl.len().max(1) as f64;
     let dl_std = (dl.iter().map(|v| (v - dl_mean) * (v - dl_mean)).sum::<f64>() / dl.len().max(1) as f64).sqrt();

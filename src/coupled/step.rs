@@ -788,20 +788,8 @@ impl Simulation {
         let Some(net) = self.heat.as_ref() else { return vec![] };
         let src = &self.prep.sources;
         let n = self.prep.scene.particles.len();
-        let mut parent: Vec<u32> = (0..n as u32).collect();
-        fn find(p: &mut [u32], mut x: u32) -> u32 {
-            while p[x as usize] != x {
-                p[x as usize] = p[p[x as usize] as usize];
-                x = p[x as usize];
-            }
-            x
-        }
-        for &[i, j] in &self.contacts.pairs {
-            let (a, b) = (find(&mut parent, i), find(&mut parent, j));
-            if a != b {
-                parent[a.max(b) as usize] = a.min(b);
-            }
-        }
+        // the components of the contact network (every contact conducts)
+        let root = crate::heat::conductivity::components(n, &self.contacts.pairs, &vec![1.0; self.contacts.len()]);
         let furnace = src.furnace.is_some();
         let mut heated = vec![false; n];
         for i in 0..n {
@@ -810,21 +798,19 @@ impl Simulation {
                 || (furnace && src.exposed_area.get(i).is_some_and(|&a| a > 0.0))
                 || src.power.get(i).is_some_and(|&q| q != 0.0);
             if source {
-                let r = find(&mut parent, i as u32);
-                heated[r as usize] = true;
+                heated[root[i] as usize] = true;
             }
         }
-        (0..n as u32).filter(|&i| !heated[find(&mut parent, i) as usize]).collect()
+        (0..n as u32).filter(|&i| !heated[root[i as usize] as usize]).collect()
     }
 
-    /// Mean, min and max particle temperature [K] over the particles with a conductive path
-    /// (all particles when none is isolated or every one is).
-    pub fn temperature_stats(&self) -> (f64, f64, f64) {
+    /// Mean, min and max particle temperature [K] over the particles not in `iso` (the
+    /// [`Simulation::isolated_particles`]; all particles when every one is isolated).
+    pub fn temperature_stats(&self, iso: &[u32]) -> (f64, f64, f64) {
         let t = &self.prep.scene.particles.temperature;
-        let iso = self.isolated_particles();
         let mut skip = vec![false; t.len()];
         if iso.len() < t.len() {
-            for &i in &iso {
+            for &i in iso {
                 skip[i as usize] = true;
             }
         }

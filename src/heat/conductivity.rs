@@ -38,7 +38,9 @@ pub struct AxisResult {
     pub cold_particles: usize,
 }
 
-fn components(n: usize, pipes: &[[u32; 2]], k: &[f64]) -> Vec<u32> {
+/// Connected components of the pipe network over pipes of positive conductance: the root (smallest
+/// member index) of each node.
+pub(crate) fn components(n: usize, pipes: &[[u32; 2]], k: &[f64]) -> Vec<u32> {
     // union-find over pipes with positive conductance
     let mut parent: Vec<u32> = (0..n as u32).collect();
     fn find(p: &mut [u32], mut x: u32) -> u32 {

@@ -487,7 +487,7 @@ pub fn run_from(
             };
             let path = out.join("checkpoint.json");
             let json = serde_json::to_string(&hc).map_err(|e| IoError::new(&path, e))?;
-            crate::study::store::write_atomic(&path, &json)?;
+            io::write_atomic(&path, &json)?;
             if stop_after_step.is_some_and(|k| steps >= k) {
                 bar.finish();
                 return Ok(serde_json::Value::Null);

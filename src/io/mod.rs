@@ -36,6 +36,21 @@ pub fn read_input(path: &Path) -> Result<String, IoError> {
     })
 }
 
+/// Writes `path` atomically: a temporary file beside it (named with the process id, so that
+/// processes sharing a directory do not collide), then a rename. A reader never sees half a file.
+pub fn write_atomic(path: &Path, text: &str) -> Result<(), IoError> {
+    let mut name = path.file_name().map(|n| n.to_os_string()).unwrap_or_default();
+    name.push(format!(".tmp{}", std::process::id()));
+    let tmp = path.with_file_name(name);
+    std::fs::write(&tmp, text).map_err(|e| IoError::new(&tmp, e))?;
+    std::fs::rename(&tmp, path).map_err(|e| IoError::new(path, e))
+}
+
+/// A text CSV field, quoted when it holds a comma, quote or line break (RFC 4180).
+pub fn csv_text(s: &str) -> String {
+    if s.contains([',', '"', '\n', '\r']) { format!("\"{}\"", s.replace('"', "\"\"")) } else { s.to_string() }
+}
+
 /// Writes pretty JSON.
 pub fn write_json(path: &Path, value: &serde_json::Value) -> Result<(), IoError> {
     let text = serde_json::to_string_pretty(value).map_err(|e| IoError::new(path, e))?;
@@ -209,5 +224,16 @@ impl SnapshotWriter {
 
     pub fn hdf5_enabled(&self) -> bool {
         self.h5.is_some()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn csv_text_quotes_commas_quotes_and_line_breaks() {
+        assert_eq!(super::csv_text("a,b"), "\"a,b\"");
+        assert_eq!(super::csv_text("say \"x\""), "\"say \"\"x\"\"\"");
+        assert_eq!(super::csv_text("two\nlines"), "\"two\nlines\"");
+        assert_eq!(super::csv_text("plain"), "plain");
     }
 }

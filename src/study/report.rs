@@ -28,11 +28,6 @@ pub struct Counts {
     pub missing: usize,
 }
 
-/// Quotes a CSV field when it holds a comma, quote or line break (RFC 4180).
-pub fn csv_field(s: &str) -> String {
-    if s.contains([',', '"', '\n', '\r']) { format!("\"{}\"", s.replace('"', "\"\"")) } else { s.to_string() }
-}
-
 fn number_text(v: &Value) -> String {
     match v {
         Value::Null => String::new(),
@@ -141,7 +136,7 @@ pub fn write(study: &Study, dir: &Path, rows: &[Row]) -> Result<Counts, Error> {
         header.extend(r.outputs.iter().map(|o| o.0.clone()));
     }
     header.extend(["status", "error", "wall_seconds"].map(String::from));
-    let mut csv = header.iter().map(|h| csv_field(h)).collect::<Vec<_>>().join(",") + "\n";
+    let mut csv = header.iter().map(|h| crate::io::csv_text(h)).collect::<Vec<_>>().join(",") + "\n";
     let mut runs_json = Vec::new();
     for r in rows {
         let mut cells = vec![r.run.index.to_string()];
@@ -157,7 +152,7 @@ pub fn write(study: &Study, dir: &Path, rows: &[Row]) -> Result<Counts, Error> {
         cells.push(status.clone());
         cells.push(error.clone());
         cells.push(wall);
-        csv.push_str(&(cells.iter().map(|c| csv_field(c)).collect::<Vec<_>>().join(",") + "\n"));
+        csv.push_str(&(cells.iter().map(|c| crate::io::csv_text(c)).collect::<Vec<_>>().join(",") + "\n"));
         runs_json.push(json!({
             "run": r.run.index,
             "case": r.run.case_path,
@@ -229,12 +224,5 @@ mod tests {
         assert_eq!(interpolate(&rows, 1, 20.0), Some(7.0));
         assert_eq!(interpolate(&rows, 1, 0.0), Some(1.0));
         assert_eq!(interpolate(&rows, 1, 20.5), None);
-    }
-
-    #[test]
-    fn csv_fields_with_commas_and_quotes_are_quoted() {
-        assert_eq!(csv_field("a,b"), "\"a,b\"");
-        assert_eq!(csv_field("say \"x\""), "\"say \"\"x\"\"\"");
-        assert_eq!(csv_field("plain"), "plain");
     }
 }

@@ -96,12 +96,7 @@ pub fn run_dir(dir: &Path, index: usize) -> PathBuf {
     dir.join("runs").join(format!("{index:04}"))
 }
 
-/// Writes `path` atomically (temporary file in the same directory, then rename).
-pub fn write_atomic(path: &Path, text: &str) -> Result<(), IoError> {
-    let tmp = path.with_extension(format!("tmp{}", std::process::id()));
-    std::fs::write(&tmp, text).map_err(|e| IoError::new(&tmp, e))?;
-    std::fs::rename(&tmp, path).map_err(|e| IoError::new(path, e))
-}
+pub use crate::io::write_atomic;
 
 /// Writes the plan to `DIR/plan.json`.
 pub fn write_plan(dir: &Path, plan: &[PlannedRun]) -> Result<(), IoError> {
