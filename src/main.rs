@@ -243,6 +243,22 @@ enum Bench {
         #[arg(long, default_value_t = 3)]
         steps: u64,
     },
+    /// Run time against error of the coupled loop: the copper compact and a corner of the E14B
+    /// packing over a ladder of settings against a tight reference (CSV + PNG, docs/coupled.md).
+    Precision {
+        /// Copper compact case ("none" to skip).
+        #[arg(long, default_value = "cases/copper-compact.toml")]
+        copper: String,
+        /// E14B titanium compact case whose packing's corner is run ("none" to skip).
+        #[arg(long, default_value = "cases/titanium-compact-e14b.toml")]
+        e14b: String,
+        /// Edge of the E14B corner [m]: particles with x, y below it and z below twice it.
+        #[arg(long, default_value_t = 4e-4)]
+        corner_edge: f64,
+        /// Output directory.
+        #[arg(long, default_value = "out/bench-precision")]
+        out: PathBuf,
+    },
     /// The bonded 6-DOF solve: assembly, symbolic, factorisation, solve and PCG on bonded packings.
     Mechanics {
         /// Particle counts (repeatable).
@@ -415,6 +431,14 @@ fn real_main(cli: Cli) -> Result<(), Error> {
             Bench::Coupled { case, particles, steps } => {
                 let c = (case != "none").then(|| PathBuf::from(&case));
                 println!("{}", sinterdem::coupled::bench_coupled(c.as_deref(), &particles, steps)?);
+                Ok(())
+            }
+            Bench::Precision { copper, e14b, corner_edge, out } => {
+                let path = |c: &str| (c != "none").then(|| PathBuf::from(c));
+                let (c, e) = (path(&copper), path(&e14b));
+                let report =
+                    sinterdem::coupled::precision::bench_precision(c.as_deref(), e.as_deref(), corner_edge, &out, &mut |m| eprintln!("bench precision: {m}"))?;
+                println!("{report}");
                 Ok(())
             }
             Bench::Generate { particles, out } => {

@@ -226,6 +226,7 @@ pub fn run_from(
             "newton_iterations": sim.mechanics.newton_iterations,
             "factorizations": sim.mechanics.factorizations,
             "max_final_residual": sim.mechanics.max_residual,
+            "profile": sim.mechanics.profile,
             "rtol": MechParams::default().rtol,
         },
         "skipped": sim.skipped,

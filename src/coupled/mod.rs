@@ -14,6 +14,7 @@ mod bench;
 mod checkpoint;
 mod driver;
 mod output;
+pub mod precision;
 mod step;
 mod validate;
 

@@ -162,6 +162,26 @@ pub struct MechanicsStage {
     pub newton_iterations: u64,
     pub factorizations: u64,
     pub max_residual: f64,
+    /// Where the mechanics time goes (this process only; not checkpointed).
+    pub profile: MechProfile,
+}
+
+/// Counters and wall times of the mechanics stage, summed over steps (summary `mechanics.profile`).
+#[derive(Debug, Clone, Copy, Default, serde::Serialize)]
+pub struct MechProfile {
+    /// Topology analyses (bond set changed) [1].
+    pub topology_changes: u64,
+    /// CG iterations (stale-factor or AMG preconditioned) [1].
+    pub cg_iterations: u64,
+    /// Wall times [s]: topology analysis, symbolic factorisation, assembly, numeric factorisation,
+    /// solves (triangular or CG).
+    pub analysis_s: f64,
+    pub symbolic_s: f64,
+    pub assemble_s: f64,
+    pub factor_s: f64,
+    pub solve_s: f64,
+    /// Whole mechanics steps [s].
+    pub total_s: f64,
 }
 
 impl MechanicsStage {
@@ -174,6 +194,7 @@ impl MechanicsStage {
             newton_iterations: 0,
             factorizations: 0,
             max_residual: 0.0,
+            profile: MechProfile::default(),
         }
     }
 
@@ -199,8 +220,7 @@ impl MechanicsStage {
     /// that a resumed run repeats the uninterrupted one bit for bit).
     pub fn drop_factor(&mut self) -> Result<(), Error> {
         if let Some(sys) = self.sys.as_mut() {
-            let pairs = sys.pairs().to_vec();
-            sys.set_topology(&pairs)?;
+            sys.drop_factor();
         }
         Ok(())
     }
@@ -227,6 +247,15 @@ impl MechanicsStage {
         }
         self.newton_iterations += out.info.newton_iterations as u64;
         self.factorizations += out.info.factorizations as u64;
+        let (pr, i) = (&mut self.profile, &out.info);
+        pr.topology_changes += i.topology_rebuilt as u64;
+        pr.cg_iterations += i.pcg_iterations as u64;
+        pr.analysis_s += i.analysis_seconds;
+        pr.symbolic_s += i.symbolic_seconds;
+        pr.assemble_s += i.assemble_seconds;
+        pr.factor_s += i.factor_seconds;
+        pr.solve_s += i.solve_seconds;
+        pr.total_s += i.total_seconds;
         self.max_residual = self.max_residual.max(out.info.residuals.last().copied().unwrap_or(0.0));
         Ok((out.du, out.xi))
     }

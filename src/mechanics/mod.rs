@@ -100,6 +100,13 @@ pub struct BondedSystem {
     inc: Incidence,
     report: Option<TopologyReport>,
     chol: Option<BondCholesky>,
+    /// Equation map (`eq` of the topology report) the factor was built for; it differs from the
+    /// current one after a topology change that kept the factor as a preconditioner.
+    chol_eq: Vec<u32>,
+    /// The factor belongs to the current topology.
+    chol_current: bool,
+    /// The last stale-factor CG was slow: factorise afresh at the next step.
+    refresh: bool,
     amg: Option<amg::Amg>,
     /// CG iterations of the first solve after the last AMG build (the stale-reuse yardstick).
     amg_fresh_iterations: usize,
@@ -122,6 +129,9 @@ impl BondedSystem {
             inc: Incidence::new(n_particles, &[]),
             report: None,
             chol: None,
+            chol_eq: Vec::new(),
+            chol_current: false,
+            refresh: false,
             amg: None,
             amg_fresh_iterations: 0,
             elastic: None,
@@ -199,9 +209,25 @@ impl BondedSystem {
         self.pairs = pairs.to_vec();
         self.inc = Incidence::new(self.n, pairs);
         self.report = None;
-        self.chol = None;
+        // with `stale_factor_cg`, the last factor survives as the preconditioner of CG on the new
+        // stiffness (a few new bonds are a low-rank change); otherwise it is dropped
+        let keep = self.params.reuse_factor && self.params.stale_factor_cg && self.chol.as_ref().is_some_and(|c| c.is_factored());
+        if !keep {
+            self.chol = None;
+        }
+        self.chol_current = false;
         self.amg = None;
         Ok(())
+    }
+
+    /// Forgets the topology analysis, the factor and the AMG hierarchy: the next step analyses and
+    /// factorises afresh, as a system built anew with these bonds would (checkpoints rely on it).
+    pub fn drop_factor(&mut self) {
+        self.report = None;
+        self.chol = None;
+        self.chol_current = false;
+        self.refresh = false;
+        self.amg = None;
     }
 
     /// Replaces the constraints (same length); the next step redoes the topology analysis.
@@ -377,7 +403,24 @@ impl BondedSystem {
         let Some(rep) = self.report.as_ref() else { unreachable!() };
         let op = amg::FineOp { blocks, pairs: &self.pairs, inc: &self.inc, fixed: &rep.fixed };
         crate::linsolve::set_parallelism_for(rep.n_eq);
-        if self.chol.is_none() {
+        let stale_usable = self.params.reuse_factor && !self.refresh && self.chol.as_ref().is_some_and(|c| c.is_factored());
+        if stale_usable && (self.params.stale_factor_cg || !self.chol_current) {
+            // CG on the current stiffness, preconditioned by the last factor (possibly of an
+            // older topology: DOF that were not in it get their block-Jacobi inverse)
+            let Some(chol) = self.chol.as_mut() else { unreachable!() };
+            if let Some(iterations) = stale_factor_cg(chol, &self.chol_eq, &op, &rep.eq, blocks, b, b_norm, self.params.rtol, x, info)? {
+                if iterations > STALE_CG_REFRESH {
+                    self.refresh = true;
+                }
+                return Ok(());
+            }
+            // too stale: a fresh factor, Newton from where CG stopped (or from zero)
+            if !x.iter().all(|v| v.is_finite()) {
+                x.iter_mut().for_each(|v| *v = 0.0);
+            }
+            self.refresh = true;
+        }
+        if self.chol.is_none() || !self.chol_current {
             let t0 = Instant::now();
             let mut entries = Vec::new();
             blocks.for_each_lower(&self.pairs, rep, |r, c, _| entries.push((r, c)));
@@ -388,6 +431,8 @@ impl BondedSystem {
             let c = BondCholesky::new(rep.n_eq, &entries, perm)?;
             info.symbolic_seconds = t0.elapsed().as_secs_f64();
             self.chol = Some(c);
+            self.chol_eq = rep.eq.clone();
+            self.chol_current = true;
         }
         let t0 = Instant::now();
         let mut values = Vec::new();
@@ -395,55 +440,11 @@ impl BondedSystem {
         info.assemble_seconds += t0.elapsed().as_secs_f64();
         let Some(chol) = self.chol.as_mut() else { unreachable!() };
         let mut fresh = false;
-        if !self.params.reuse_factor || !chol.is_factored() {
+        if !self.params.reuse_factor || !chol.is_factored() || self.refresh {
             info.factor_seconds += chol.factorize(&values)?;
             info.factorizations += 1;
             fresh = true;
-        }
-        if !fresh && self.params.stale_factor_cg {
-            // stale factor as the preconditioner of CG on the current stiffness
-            let eq = &rep.eq;
-            let mut red = vec![0.0; rep.n_eq];
-            let mut solve_s = 0.0;
-            let max_it = 30;
-            let res = {
-                let mut prec = |r: &[f64], z: &mut [f64]| -> Result<(), SolveError> {
-                    for (d, &e) in eq.iter().enumerate() {
-                        if e != u32::MAX {
-                            red[e as usize] = r[d];
-                        }
-                    }
-                    solve_s += chol.solve_in_place(&mut red)?;
-                    for (d, &e) in eq.iter().enumerate() {
-                        z[d] = if e != u32::MAX { red[e as usize] } else { 0.0 };
-                    }
-                    Ok(())
-                };
-                cg::pcg_with(|v, out| op.matvec(v, out), &mut prec, b, x, 0.5 * self.params.rtol, max_it)
-            };
-            info.solve_seconds += solve_s;
-            let mut r = vec![0.0; b.len()];
-            match res {
-                Ok(pi) => {
-                    info.pcg_iterations += pi.iterations;
-                    info.newton_iterations += 1;
-                    let rel = op.residual(b, b_norm, x, &mut r);
-                    info.residuals.push(rel);
-                    if rel <= self.params.rtol {
-                        return Ok(());
-                    }
-                }
-                Err(_) => {
-                    info.pcg_iterations += max_it;
-                }
-            }
-            // too stale: a fresh factor and Newton from where CG stopped (or from zero)
-            if !x.iter().all(|v| v.is_finite()) {
-                x.iter_mut().for_each(|v| *v = 0.0);
-            }
-            info.factor_seconds += chol.factorize(&values)?;
-            info.factorizations += 1;
-            fresh = true;
+            self.refresh = false;
         }
         let mut r = b.to_vec();
         if x.iter().any(|&v| v != 0.0) {
@@ -599,6 +600,98 @@ impl BondedSystem {
         }
         Err(solve::not_converged(info, self.params.rtol, "AMG-PCG").into())
     }
+}
+
+/// CG iterations at most with a stale factor before a fresh factorisation takes over [1].
+const STALE_CG_MAX_ITER: usize = 40;
+/// A stale-factor CG that needed more iterations than this triggers a fresh factorisation at the
+/// next step [1] (one factorisation costs about as much as 20 iterations at 10³ particles).
+const STALE_CG_REFRESH: usize = 12;
+
+/// CG on the current stiffness `op` preconditioned by the factor `chol` of an earlier stiffness
+/// with equation map `chol_eq` (DOF of the current map `eq` that it lacks get the inverse of
+/// their particle's diagonal block). `Some(iterations)` when the true scaled residual reaches
+/// `rtol`, `None` when CG does not converge within [`STALE_CG_MAX_ITER`] iterations. The
+/// preconditioner is block diagonal over the two DOF sets, each block SPD, so CG applies.
+#[allow(clippy::too_many_arguments)]
+fn stale_factor_cg(
+    chol: &mut BondCholesky,
+    chol_eq: &[u32],
+    op: &amg::FineOp,
+    eq: &[u32],
+    blocks: &BlockMatrix,
+    b: &[f64],
+    b_norm: f64,
+    rtol: f64,
+    x: &mut [f64],
+    info: &mut MechInfo,
+) -> Result<Option<usize>, Error> {
+    let n_old = chol_eq.iter().filter(|&&e| e != u32::MAX).count();
+    // particles with DOF that the factor does not know: their block-Jacobi inverse on those DOF
+    let mut extra: Vec<(usize, u8, nalgebra::Matrix6<f64>)> = Vec::new();
+    for i in 0..eq.len() / 6 {
+        let new_only = (0..6).fold(0u8, |m, k| if eq[6 * i + k] != u32::MAX && chol_eq[6 * i + k] == u32::MAX { m | (1 << k) } else { m });
+        if new_only == 0 {
+            continue;
+        }
+        let mut d = blocks.diag[i];
+        for k in 0..6 {
+            if new_only & (1 << k) == 0 {
+                d.row_mut(k).fill(0.0);
+                d.column_mut(k).fill(0.0);
+                d[(k, k)] = 1.0;
+            }
+        }
+        match d.cholesky() {
+            Some(c) => extra.push((i, new_only, c.inverse())),
+            None => return Ok(None),
+        }
+    }
+    let mut red = vec![0.0; n_old];
+    let mut solve_s = 0.0;
+    let mut failed = None;
+    let res = {
+        let mut prec = |r: &[f64], z: &mut [f64]| -> Result<(), SolveError> {
+            for (d, &e) in chol_eq.iter().enumerate() {
+                if e != u32::MAX {
+                    red[e as usize] = r[d];
+                }
+            }
+            solve_s += chol.solve_in_place(&mut red)?;
+            for d in 0..z.len() {
+                z[d] = if eq[d] != u32::MAX && chol_eq[d] != u32::MAX { red[chol_eq[d] as usize] } else { 0.0 };
+            }
+            for (i, m, inv) in &extra {
+                let v = inv * nalgebra::Vector6::from_column_slice(&r[6 * i..6 * i + 6]);
+                for k in 0..6 {
+                    if m & (1 << k) != 0 {
+                        z[6 * i + k] = v[k];
+                    }
+                }
+            }
+            Ok(())
+        };
+        cg::pcg_with(|v, out| op.matvec(v, out), &mut prec, b, x, 0.5 * rtol, STALE_CG_MAX_ITER)
+    };
+    info.solve_seconds += solve_s;
+    match res {
+        Ok(pi) => {
+            info.pcg_iterations += pi.iterations;
+            info.newton_iterations += 1;
+            let mut r = vec![0.0; b.len()];
+            let rel = op.residual(b, b_norm, x, &mut r);
+            info.residuals.push(rel);
+            if rel <= rtol {
+                return Ok(Some(pi.iterations));
+            }
+        }
+        Err(e) => {
+            info.pcg_iterations += STALE_CG_MAX_ITER;
+            failed = Some(e);
+        }
+    }
+    let _ = failed;
+    Ok(None)
 }
 
 fn not_finite(info: &MechInfo) -> SolveError {
