@@ -1,5 +1,5 @@
 //! Error types: one top-level [`Error`] wrapping the four families of the
-//! architecture map (`ConfigError`, `ModelError`, `SolveError`, `IoError`).
+//! docs/design.md (`ConfigError`, `ModelError`, `SolveError`, `IoError`).
 //! Library code never panics on user input; it returns one of these.
 
 use thiserror::Error;

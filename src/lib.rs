@@ -1,7 +1,7 @@
 //! # sinterdem
 //!
 //! A coupled thermo-mechanical simulator of powder sintering. One time step of a packing run
-//! (see `docs/architecture.md` of the design notes):
+//! (see docs/design.md and docs/coupled.md):
 //! 1. topology: new contacts by cell-list search,
 //! 2. heat: implicit pipe network, `(C/Δt + L) T^{n+1} = C/Δt T^n + b` ([`heat`]),
 //! 3. diffusion: the 7-DOF contact ODE at each contact's temperature,

@@ -1,4 +1,4 @@
-//! Sparse symmetric positive-definite solves with faer's Cholesky (stack.md §1, §5).
+//! Sparse symmetric positive-definite solves with faer's Cholesky (docs/decisions.md "Foundation").
 //!
 //! [`SpdPattern`] holds the lower-triangle sparsity pattern of a matrix and its symbolic
 //! factorisation (AMD ordering, elimination tree, supernodes), computed once per topology; each
@@ -143,7 +143,7 @@ impl SpdFactor {
     }
 }
 
-/// Chooses faer's parallelism for a system of `n` unknowns: sequential below 1e5 (stack.md §3:
+/// Chooses faer's parallelism for a system of `n` unknowns: sequential below 1e5 (measured when faer was chosen:
 /// two threads are neutral or slower there), rayon above.
 pub fn set_parallelism_for(n: usize) {
     let par = if n >= 100_000 && rayon::current_num_threads() > 1 { faer::Par::rayon(rayon::current_num_threads()) } else { faer::Par::Seq };

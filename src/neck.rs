@@ -1,4 +1,4 @@
-//! Pure two-sphere neck geometry (heat-network.md "Volume-conserving cylindrical neck";
+//! Pure two-sphere neck geometry (docs/heat-model.md (H9)–(H15), "Volume-conserving cylindrical neck";
 //! Rojek et al. 2022 eqs. 11–33).
 //!
 //! Two spheres of radii `r_i ≤ r_j` overlapping by `h = r_i + r_j − d` are replaced by the two
@@ -126,12 +126,12 @@ mod tests {
 
     #[test]
     fn published_unequal_pair() {
-        // heat-network.md test values (Rojek et al. 2022): r_i = 1 mm, r_j = 3 mm, h = 0.2 mm.
+        // test values of docs/heat-model.md (Rojek et al. 2022): r_i = 1 mm, r_j = 3 mm, h = 0.2 mm.
         let n = solve(1e-3, 3e-3, 0.2e-3).unwrap();
         assert!(close(n.a, 0.7414663e-3, 1e-7), "{}", n.a);
         assert!(close(n.a_coble, 0.7745967e-3, 1e-7), "{}", n.a_coble);
         assert!(close(n.first_iterate, 0.7450387e-3, 1e-7), "{}", n.first_iterate);
-        // the spec gives these to 6 decimals in mm: half a unit of the last digit is 5e-10 m
+        // docs/heat-model.md gives these to 6 decimals in mm: half a unit of the last digit is 5e-10 m
         assert!((n.h_ci - 0.329010e-3).abs() <= 5e-10);
         assert!((n.h_cj - 0.093072e-3).abs() <= 5e-10);
         assert!((n.h_n - 0.222082e-3).abs() <= 5e-10);

@@ -1,4 +1,4 @@
-//! The particle store, struct of arrays, indexed by dense `u32` ids (architecture map, "Data and
+//! The particle store, struct of arrays, indexed by dense `u32` ids (docs/design.md, "Data and
 //! dispatch"). Positions are current positions [m]; the heat network reads radii, capacities and
 //! temperatures; the explicit driver and the mechanics own velocities and rotations.
 
@@ -31,7 +31,7 @@ pub struct Particles {
     pub mass: Vec<f64>,
     /// Moment of inertia of a solid sphere, (2/5) m r² [kg·m²].
     pub inertia: Vec<f64>,
-    /// Heat capacity C_i = m_i c [J/K] (heat-network.md eq. 1).
+    /// Heat capacity C_i = m_i c [J/K] (docs/heat-model.md (H1)).
     pub capacity: Vec<f64>,
     /// Temperature [K].
     pub temperature: Vec<f64>,

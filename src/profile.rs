@@ -7,7 +7,7 @@
 //! - a table of `[t, T]` pairs,
 //! - a constant.
 //!
-//! The breakpoints are the profile's kinks: integrators split their substeps there (seven-dof-model.md §5.6).
+//! The breakpoints are the profile's kinks: integrators split their substeps there (docs/diffusion7.md §3).
 
 use crate::error::ConfigError;
 use crate::units::ZERO_CELSIUS;

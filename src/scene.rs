@@ -46,7 +46,7 @@ impl Lattice {
         }
     }
 
-    /// Largest overlap h/r for which second neighbours do not touch (heat-network.md, last paragraph).
+    /// Largest overlap h/r for which second neighbours do not touch (docs/heat-model.md, "Effective conductivity").
     pub fn max_overlap_for_nearest_neighbours(self) -> f64 {
         match self {
             Lattice::BodyCentred => 2.0 - 3f64.sqrt(),

@@ -9,7 +9,7 @@ pub const STEFAN_BOLTZMANN: f64 = 5.670374419e-8;
 /// 0 °C in kelvin.
 pub const ZERO_CELSIUS: f64 = 273.15;
 
-/// Arrhenius law `D = D0·exp(−Q/(R·T))` (seven-dof-model.md M9): `d0` [m²/s], `q` [J/mol], `t` [K].
+/// Arrhenius law `D = D0·exp(−Q/(R·T))` (docs/diffusion7.md (M9)): `d0` [m²/s], `q` [J/mol], `t` [K].
 #[inline]
 pub fn arrhenius(d0: f64, q: f64, t: f64) -> f64 {
     d0 * (-q / (GAS_CONSTANT * t)).exp()
@@ -26,7 +26,7 @@ mod tests {
     use super::*;
     #[test]
     fn arrhenius_matches_definition() {
-        // Copper surface diffusion at 1293 K (seven-dof-model.md §14): D_s ≈ 7.9e-9 m²/s.
+        // Copper surface diffusion at 1293 K (docs/diffusion7.md §9): D_s ≈ 7.9e-9 m²/s.
         let d = arrhenius(7.0e6, 370e3, 1293.0);
         assert!((d / 7.9e-9 - 1.0).abs() < 0.02, "{d}");
         assert_eq!(arrhenius(2.0, 0.0, 300.0), 2.0);

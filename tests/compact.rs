@@ -88,7 +88,7 @@ fn pair_through_the_scheduler_equals_the_free_pair() {
     let out = dir.join("out");
     let s = coupled::run(sim, &out, false, &mut |m| log.push(m.to_string())).unwrap();
     assert!(log.iter().any(|l| l.contains("mechanics is skipped")), "{log:?}");
-    // the free pair, one integration over [0, 1000 s]; reference (seven-dof-model.md §15) at 1000 s:
+    // the free pair, one integration over [0, 1000 s]; reference (docs/diffusion7.md §11) at 1000 s:
     // y1/R = 0.30939, ΔL/L0 = 1.571e-2
     let neck = s["neck_ratio"].as_f64().unwrap();
     assert!((neck / 0.30939 - 1.0).abs() < 2e-5, "{neck}");

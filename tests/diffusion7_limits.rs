@@ -1,4 +1,4 @@
-//! Limiting behaviour of the 7-DOF model (seven-dof-model.md §11): no shrinkage without GB or lattice
+//! Limiting behaviour of the 7-DOF model (docs/diffusion7.md §8): no shrinkage without GB or lattice
 //! sources, Herring's scaling law, the classical neck-growth exponents, the GB-only stall.
 
 use sinterdem::models::diffusion7::SolverOptions;
@@ -33,7 +33,7 @@ fn spec(m: Material, r: f64, end: f64, eps: f64, rtol: f64) -> PairSpec {
 }
 
 /// Per-decade exponents κ = Δ ln t / Δ ln q between t = 10^k and 10^(k+1) for the decades whose
-/// ends both have 0.02 ≤ y1/R ≤ y_max (spec §11: "over the first four decades of t, y1/R ≈ 0.02–0.1"),
+/// ends both have 0.02 ≤ y1/R ≤ y_max (docs/diffusion7.md §8: over the first decades, y1/R ≈ 0.02–0.1),
 /// for q = y1/R (κ_y) and q = ΔL/L0 (κ_L).
 fn exponents(run: &PairRun, r: f64, y_max: f64) -> (Vec<f64>, Vec<f64>) {
     let l0 = run.contact.l0;
@@ -63,8 +63,8 @@ fn exponents(run: &PairRun, r: f64, y_max: f64) -> (Vec<f64>, Vec<f64>) {
 
 const R: f64 = 10e-6;
 
-/// §11 item 4: with D_gb = D_b = 0, y4 and y7 stay exactly constant; and the surface-only exponent
-/// κ_y (spec: 7.08–7.21, Kuczynski's 7).
+/// §8: with D_gb = D_b = 0, y4 and y7 stay exactly constant; and the surface-only exponent
+/// κ_y (docs/diffusion7.md §8: 7.08–7.21, Kuczynski's 7).
 #[test]
 fn surface_only_gives_no_shrinkage_and_seventh_power() {
     let run = run_pair(&spec(material(1e-9, 0.0, 0.0), R, 1e2, 0.01, 1e-8), true, false).unwrap();
@@ -80,9 +80,9 @@ fn surface_only_gives_no_shrinkage_and_seventh_power() {
     }
 }
 
-/// Lattice only (D_b = 1e-13): spec κ_y 5.03–5.16, κ_L 2.51–2.55 (Kingery–Berg 5 and 5/2). The
-/// spec does not define its windows; per-decade windows reach 0.1 below/above its range at the
-/// ends of y1/R ≈ 0.02–0.12, so the bands are the spec's ± 0.1 (decisions-diffusion7.md).
+/// Lattice only (D_b = 1e-13): docs/diffusion7.md §8 κ_y 5.03–5.16, κ_L 2.51–2.55 (Kingery–Berg 5 and 5/2). The
+/// reference does not define its windows; per-decade windows reach 0.1 below/above its range at the
+/// ends of y1/R ≈ 0.02–0.12, so the bands are its ranges ± 0.1 (docs/decisions-diffusion7.md D7).
 #[test]
 fn lattice_only_gives_fifth_power_and_two_fifths_shrinkage() {
     let run = run_pair(&spec(material(0.0, 0.0, 1e-13), R, 1e1, 0.01, 1e-8), true, false).unwrap();
@@ -97,7 +97,7 @@ fn lattice_only_gives_fifth_power_and_two_fifths_shrinkage() {
     }
 }
 
-/// GB + slow surface (D_s = D_gb/100 = 1e-11): spec κ_y 6.18–6.32, κ_L 2.94–3.08 (Coble 6 and 3);
+/// GB + slow surface (D_s = D_gb/100 = 1e-11): docs/diffusion7.md §8 κ_y 6.18–6.32, κ_L 2.94–3.08 (Coble 6 and 3);
 /// bands ± 0.12 as for lattice diffusion.
 #[test]
 fn gb_with_slow_surface_gives_sixth_power_and_one_third_shrinkage() {
@@ -113,7 +113,7 @@ fn gb_with_slow_surface_gives_sixth_power_and_one_third_shrinkage() {
     }
 }
 
-/// §11 item 6: doubling every length multiplies time by 2⁴ (surface) or 2³ (lattice).
+/// §8: doubling every length multiplies time by 2⁴ (surface) or 2³ (lattice).
 #[test]
 fn herring_scaling_law() {
     for (m, factor) in [(material(1e-9, 0.0, 0.0), 16.0), (material(0.0, 0.0, 1e-13), 8.0), (material(1e-11, 1e-9, 0.0), 16.0)] {
@@ -126,7 +126,7 @@ fn herring_scaling_law() {
 }
 
 /// GB only (D_s = D_b = 0) from y1/R = 0.003: the neck stalls below 0.0041 for 1e-6 s ≤ t ≤ 1e-2 s
-/// (§11); the run either finishes or stops with a ModelError, never a NaN or a panic.
+/// (§8); the run either finishes or stops with a ModelError, never a NaN or a panic.
 #[test]
 fn gb_only_stalls_without_crashing() {
     for method in sinterdem::models::ode::Method::ALL {

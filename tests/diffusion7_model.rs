@@ -1,5 +1,5 @@
-//! The 7-DOF model against the reference state of seven-dof-model.md §15 and the structural
-//! invariants of §4.2, §5.5, §11.
+//! The 7-DOF model against the reference state of docs/diffusion7.md §11 and the structural
+//! invariants of §2, §3, §8.
 
 use sinterdem::models::diffusion7::geometry::{Side, sides};
 use sinterdem::models::diffusion7::material::{ContactParams, Material, PathFactors};
@@ -24,7 +24,7 @@ fn close(name: &str, got: f64, want: f64, tol: f64) {
     assert!(rel(got, want) < tol, "{name}: got {got:.10e}, want {want:.10e} (rel {:.2e})", rel(got, want));
 }
 
-/// §15 unit-test state: geometry (G1)–(G6), derivatives (G7), (G8) to 1e-9.
+/// §11 unit-test state: geometry (G1)–(G6), derivatives (G7), (G8) to 1e-9.
 #[test]
 fn reference_state_geometry_and_derivatives() {
     let (a, b) = sides(&ref_state()).unwrap();
@@ -45,7 +45,7 @@ fn reference_state_geometry_and_derivatives() {
     close("G9", d.ratio_c, d.da[2] / d.dv[2], 1e-10);
 }
 
-/// §15: potentials, fluxes, dY/dt and dG/dt to 1e-9 relative.
+/// §11: potentials, fluxes, dY/dt and dG/dt to 1e-9 relative.
 #[test]
 fn reference_state_potentials_fluxes_rates() {
     let k = copper().at(1293.0).unwrap();
@@ -71,7 +71,7 @@ fn reference_state_potentials_fluxes_rates() {
     assert_eq!(rates(&ref_state(), &copper(), 1293.0).unwrap(), e.dydt);
 }
 
-/// (M9) diffusivities of spec §12's table.
+/// (M9) diffusivities of docs/diffusion7.md §9.
 #[test]
 fn diffusivities_match_the_table() {
     let cu = &Material::copper().phases[0];
@@ -96,7 +96,7 @@ fn diffusivities_match_the_table() {
     assert_eq!(ti.phase_at(1156.0), 1);
 }
 
-/// §4.2: central differences of (G4), (G5) agree with (G7), (G8).
+/// §2: central differences of (G4), (G5) agree with (G7), (G8).
 #[test]
 fn closed_form_derivatives_match_finite_differences() {
     for y in [ref_state(), initial_state(R, 0.6 * R, 1.6 * R * 0.995, 0.01, 0.1).unwrap()] {
@@ -120,7 +120,7 @@ fn closed_form_derivatives_match_finite_differences() {
     }
 }
 
-/// §4.2: small-neck limit μ_2·R/(2Ωγ_s) → 1.
+/// §2: small-neck limit μ_2·R/(2Ωγ_s) → 1.
 #[test]
 fn small_neck_cap_potential_tends_to_the_sphere() {
     let p = copper();
@@ -156,7 +156,7 @@ fn initial_state_of_touching_and_overlapping_spheres() {
     assert!(initial_state(R, R, f64::NAN, 0.01, 0.1).is_err());
 }
 
-/// §5.5, §11 items 2, 3: Σ Q_i = 0 to round-off and d𝒢/dt ≤ 0 at many admissible states,
+/// §3, §8: Σ Q_i = 0 to round-off and d𝒢/dt ≤ 0 at many admissible states,
 /// equal and unequal, copper and both titanium phases.
 #[test]
 fn mass_balance_and_dissipation_at_many_states() {

@@ -1,4 +1,4 @@
-//! Two-particle runs: the copper pair of seven-dof-model.md §15 and the invariants of §11.
+//! Two-particle runs: the copper pair of docs/diffusion7.md §11 and the invariants of §5.
 
 use sinterdem::config::{apply_override, load_case};
 use sinterdem::models::diffusion7::geometry::volume_and_areas;
@@ -15,7 +15,7 @@ fn spec(overrides: &[&str]) -> PairSpec {
     parse_pair_case(&copper_case(overrides)).unwrap()
 }
 
-/// §15 copper pair table, 1e-4 relative at every listed time.
+/// §11 copper pair table, 1e-4 relative at every listed time.
 #[test]
 fn copper_pair_matches_reference_table() {
     let times = [1.0, 10.0, 100.0, 1000.0, 2000.0, 3000.0, 4000.0, 5000.0];
@@ -35,7 +35,7 @@ fn copper_pair_matches_reference_table() {
 }
 
 /// The production setting (rtol 1e-6, Dormand–Prince) is within 1e-6 of the tight run at 5000 s,
-/// conserves volume to a few rtol (§11.1) and keeps the pair symmetric to round-off (§11.5).
+/// conserves volume to a few rtol (§8) and keeps the pair symmetric to round-off (§8).
 #[test]
 fn copper_pair_invariants_along_the_run() {
     let sp = spec(&[]);

@@ -1,6 +1,6 @@
 //! Stress (issue 3): heating rates up to 1e4 K/min, radii 1 µm – 1 mm, unequal radii up to 10:1,
 //! tolerances over 7 decades, mixed materials: every run finishes or stops with a clear ModelError,
-//! never a NaN or a panic. Also the force (F4) and the correction (C1)–(C4) of spec §8–9.
+//! never a NaN or a panic. Also the force (F4) and the correction (C1)–(C4) of docs/diffusion7.md §5–6.
 
 use sinterdem::error::ModelError;
 use sinterdem::models::diffusion7::material::{Material, PathFactors};
@@ -107,8 +107,8 @@ fn unequal_radii_mixed_materials_and_seven_decades_of_tolerance() {
 }
 
 /// The unequal 25/15 µm copper pair at 1293 K: the model's own split of the approach, w4 = 0.50 at
-/// creation and 0.43 accumulated over 1000 s (spec §9), i.e. the larger particle takes the smaller
-/// share; the isolated-pair correction (ξ = Δy4 + Δy7) leaves y4, y7 unchanged (§11 item 7).
+/// creation and 0.43 accumulated over 1000 s (docs/diffusion7.md §6), i.e. the larger particle takes the smaller
+/// share; the isolated-pair correction (ξ = Δy4 + Δy7) leaves y4, y7 unchanged (§8).
 #[test]
 fn correction_split_and_isolated_pair() {
     let cu = Material::copper();
@@ -132,7 +132,7 @@ fn correction_split_and_isolated_pair() {
     assert_eq!((f.w4, f.w7), (1.0, 0.0));
     let f = correct_y4_y7((1.0, 1.0), (1.0, 1.0), (0.0, 0.0), 0.4, 2.0);
     assert_eq!(f.w4, 0.5);
-    // (F4) = accumulated (F5) for an isolated pair; copper 50 µm at 5000 s gives 4.25 N (§15)
+    // (F4) = accumulated (F5) for an isolated pair; copper 50 µm at 5000 s gives 4.25 N (§11)
     let e = 72e9;
     assert!((sintering_force(2.0, 0.9, 0.95, 1e-5, e) - load_increment(0.1, 0.05, 1e-5, e)).abs() < 1e-9);
     let s = spec(cu.clone(), cu, 25e-6, 25e-6, PairTemperature::Constant(1293.0), 5000.0, 1e-8);

@@ -1,4 +1,4 @@
-//! The 28 titanium experiments (seven-dof-model.md §13): bundled cases, all runs, trends of [IV22],
+//! The 28 titanium experiments (docs/diffusion7.md §9): bundled cases, all runs, trends of [IV22],
 //! invariants across the α/β switch.
 
 use sinterdem::config::load_case;
@@ -21,7 +21,7 @@ fn bundled_titanium_cases_match_the_table() {
         assert_eq!(spec, e.spec(TRUNCATED_START).unwrap());
         assert!((spec.radius_a - e.mean_diameter / 2.0).abs() < 1e-15);
     }
-    // E14B schedule: t1 = 29 min, t2 = 119 min, t3 = 172 min (spec §13)
+    // E14B schedule: t1 = 29 min, t2 = 119 min, t3 = 172 min (docs/diffusion7.md §9)
     let s = Experiment::by_id("E14B").unwrap().spec(TRUNCATED_START).unwrap();
     assert!((s.end_time - 172.0 * 60.0).abs() < 1e-6, "{}", s.end_time);
     let full = Experiment::by_id("E14B").unwrap().spec(FULL_START).unwrap();
@@ -74,7 +74,7 @@ fn check_all(diameter: Option<f64>) {
 }
 
 /// E14B: the integrator splits at the α/β crossings (18.15 and 129.85 min); 𝒢 is non-increasing
-/// within each phase, y4 + y7 never increases, y1 is non-decreasing within a phase (§11 item 8);
+/// within each phase, y4 + y7 never increases, y1 is non-decreasing within a phase (§8);
 /// the full curve from 313 K runs too; leaving the calibrated range gives a warning.
 #[test]
 fn e14b_phase_switches_and_invariants() {

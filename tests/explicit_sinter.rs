@@ -77,7 +77,7 @@ fn luding_collision_in_the_driver_has_the_hysteretic_restitution() {
 
 #[test]
 fn frenkel_pair_in_the_driver_sinters_at_the_steady_rate() {
-    // A free pair under the constant-rate law (spec §2): in steady free sintering F → f_a = s_a·D*
+    // A free pair under the constant-rate law (docs/frenkel.md): in steady free sintering F → f_a = s_a·D*
     // and the plastic overlap grows at ṙ = 2·k_s·D*. Through the driver (damped, pull included).
     let r = 1e-3;
     let spec = FrenkelSpec {

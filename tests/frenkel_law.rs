@@ -1,4 +1,4 @@
-//! The SinterNormal family (explicit-sintering-laws.md §2): the force law (loading rules, unloading
+//! The SinterNormal family (docs/frenkel.md): the force law (loading rules, unloading
 //! stiffness, cohesive floor, pull), and free two-particle sintering against the closed forms:
 //! constant rate → steady ṙ = 2k_s·D* and Frenkel's (a/R)² = (3/2)γ_s t/(ηR) with its 1/R size
 //! effect; temperature_frenkel → Arrhenius factor; Parhami–McMeeking and Bouvard–McMeeking → δ³ ∝ t.

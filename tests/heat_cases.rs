@@ -32,7 +32,7 @@ overlap = 0.1
 boundary = "periodic"
 "#;
 
-/// κ_eff = K/D (SC), √3 K/D (BCC), 2√2 K/D (FCC) for a periodic lattice (heat-network.md).
+/// κ_eff = K/D (SC), √3 K/D (BCC), 2√2 K/D (FCC) for a periodic lattice (docs/heat-model.md "Effective conductivity").
 #[test]
 fn periodic_lattices_match_the_closed_forms() {
     for (lat, factor, overlap) in [("sc", 1.0, 0.3), ("bcc", 3f64.sqrt(), 0.2), ("fcc", 2.0 * 2f64.sqrt(), 0.3)] {

@@ -1,4 +1,4 @@
-//! Luding's sintering contact law (explicit-sintering-laws.md §1): each branch of the normal force
+//! Luding's sintering contact law (docs/luding.md): each branch of the normal force
 //! at chosen overlaps, k1(T) at the paper's temperatures, the relaxation law against its ODE, the
 //! history rules on heating and cooling, cohesion and friction scaling, the tangential spring, and
 //! rejection of bad parameters.
@@ -24,7 +24,7 @@ fn cold(p: &LudingParams) -> LudingState {
 #[test]
 fn k1_of_temperature_matches_eq10_at_the_papers_temperatures() {
     let p = params();
-    // spec §1: 0.598688, 0.401312, 0.119203, 3.3535e-4 (paper rounds to 0.6, 0.4, 0.12, 3e-4)
+    // docs/decisions-laws.md L10: 0.598688, 0.401312, 0.119203, 3.3535e-4 (paper rounds to 0.6, 0.4, 0.12, 3e-4)
     for &(t_c, want) in &[(118.0, 0.598688), (122.0, 0.401312), (130.0, 0.119203), (160.0, 3.3535e-4)] {
         let x = p.k1_of_temperature(C0 + t_c) / p.k1;
         assert!(rel(x, want) < 2e-5, "{t_c} C: {x} vs {want}");
@@ -225,7 +225,7 @@ fn heating_keeps_delta_max_and_cooling_keeps_delta_0() {
 
 #[test]
 fn cooling_rules_on_the_specs_table1_example() {
-    // spec §1: δ_0 = 1e-3 r_0 cooled to k1(T,t) = k1: paper 2.0e-3 r_0, consistent 2.0506e-2 r_0
+    // docs/luding.md, cooling rule: δ_0 = 1e-3 r_0 cooled to k1(T,t) = k1: paper 2.0e-3 r_0, consistent 2.0506e-2 r_0
     let base = LudingSpec { t_melt: 1000.0, ..LudingSpec::default() }; // 300 K is then k1(T) = k1 to e^-140
     for (rule, want) in [(CoolingRule::Paper, 2.0e-3), (CoolingRule::Consistent, 2.0506e-2)] {
         let p = LudingParams::new(&LudingSpec { cooling: rule, ..base.clone() }, R0).unwrap();

@@ -1,4 +1,4 @@
-//! The bonded link (bonded-mechanics.md, "Kinematics", "Stiffness"): symmetry, exactly six zero
+//! The bonded link (docs/mechanics.md (B1)–(B7)): symmetry, exactly six zero
 //! eigenvalues spanned by the rigid modes, self-equilibrated nodal forces, the paper's eq. 37 signs
 //! failing the same checks; constraints, rattlers, pins and bad input.
 

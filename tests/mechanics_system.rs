@@ -1,5 +1,5 @@
 //! Assembled bonded packings against closed forms: the isolated pair with the 7-DOF contact
-//! (seven-dof-model.md §11.7), a cantilever chain (Timoshenko beam with the chain's midpoint
+//! (docs/diffusion7.md §8), a cantilever chain (Timoshenko beam with the chain's midpoint
 //! quadrature, exact for the discrete chain), lattices under uniaxial load and under uniform
 //! sintering loads, SPD assembly of a random packing, PCG against Cholesky, factor reuse, and
 //! thread-count determinism.
@@ -27,7 +27,7 @@ fn rng(seed: &mut u64) -> f64 {
     (*seed >> 11) as f64 / (1u64 << 53) as f64
 }
 
-/// seven-dof-model.md §11.7: an isolated copper pair (25/15 µm, 1293 K) with A fixed, loaded by
+/// docs/diffusion7.md §8: an isolated copper pair (25/15 µm, 1293 K) with A fixed, loaded by
 /// (F5) each step, approaches by exactly Δy4 + Δy7; the correction (C1)–(C4) then leaves y4, y7 at
 /// the free 7-DOF values, so the coupled run follows the free run; the accumulated load is (F4).
 #[test]

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Axisymmetric finite-element conductance of the sintering geometry of
 Rojek, Kasztelan, Tharmaraj (2022) -- validation of the heat-network
-conductance law of sinterdem (docs: /work/shared/docs/heat-network.md,
+conductance law of sinterdem (docs: docs/heat-model.md (H6),
 docs/validation-conductance.md).
 
 Geometry (the paper's Fig. 12, section 5, equal spheres): the segment of a
@@ -74,7 +74,7 @@ PAIR_K_LINEAR = 0.2760354
 
 
 # --------------------------------------------------------------------------
-# neck geometry (heat-network.md, "Volume-conserving cylindrical neck")
+# neck geometry (docs/heat-model.md (H9)–(H15), "Volume-conserving cylindrical neck")
 # --------------------------------------------------------------------------
 def cap_height(r: float, a: float) -> float:
     """Height of the spherical cap of a sphere of radius r cut at section radius a."""

@@ -27,7 +27,7 @@ def test_neck_radius_newton():
     a, hci, hcj, hn, it = fc.neck_radius(1e-3, 3e-3, 6e-5)
     assert a == pytest.approx(0.4191863e-3, abs=0.5e-10)     # 7 digits
     assert it <= 6
-    # spec test values (heat-network.md)
+    # test values of docs/heat-model.md (H11)
     a, hci, hcj, hn, _ = fc.neck_radius(1.0, 3.0, 0.2)
     assert a == pytest.approx(0.7414663, abs=1e-7)
     assert (hci, hcj, hn) == pytest.approx((0.329010, 0.093072, 0.222082), abs=1e-6)

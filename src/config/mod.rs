@@ -1,4 +1,4 @@
-//! Case files: TOML in SI units. Parse → validate → build (architecture map, "Errors and input").
+//! Case files: TOML in SI units. Parse → validate → build (docs/design.md, "Errors and input").
 //!
 //! - [`load_case`] reads a file into a `toml::Value` and applies `--set key.path=value` overrides;
 //! - every typed section derives `Deserialize` with `deny_unknown_fields`, so unknown keys are rejected

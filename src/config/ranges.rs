@@ -65,7 +65,7 @@ pub static TABLE: &[Range] = &[
     c("time.dt_min", 1e-15, 1e7, "s", "smallest step the step control may take (at most dt_max)"),
     c("time.dt_max", 1e-15, 1e7, "s", "largest step the step control may take; end/dt_max at most 1e9 steps"),
     c("time.strategy", 1.0, 2.0, "1", "step control: 1 global, 2 per-contact subdivision"),
-    c("time.alpha", 1.01, 10.0, "1", "step growth/shrink factor alpha (spec: below 1.58 for 4th-order pairs)"),
+    c("time.alpha", 1.01, 10.0, "1", "step growth/shrink factor alpha (docs/coupled.md (S4): below 1.58 for 4th-order pairs)"),
     c("time.grow_below", 0.0, 1.0, "1", "strategy 2: grow when fewer contacts than this fraction subdivided"),
     c("time.substeps_allowed", 1.0, 1e6, "1", "strategy 2: a contact needing more substeps than this counts as subdivided"),
     p("time.stop_relative_density", 0.0, 1.0, "1", "compact runs: stop once the relative density (eq. 49) reaches this value"),
@@ -96,7 +96,7 @@ pub static TABLE: &[Range] = &[
     c("particles.overlap", 0.0, 0.6, "1", "initial overlap h relative to the smaller radius"),
     c("particles.initial_temperature", 1.0, 1e4, "K", "initial temperature of every particle"),
     // thermal
-    p("thermal.conductance_factor", 0.0, 100.0, "1", "c_K of K_i = c_K kappa pi a (heat-network.md eq. 43)"),
+    p("thermal.conductance_factor", 0.0, 100.0, "1", "c_K of K_i = c_K kappa pi a (docs/heat-model.md (H6))"),
     p("thermal.contact_conductance", 0.0, INF, "W/K", "interface conductance K_c in series (eq. 8)"),
     c("thermal.furnace.convection_coefficient", 0.0, 1e6, "W/(m^2 K)", "convective heat transfer coefficient h_c"),
     c("thermal.furnace.emissivity", 0.0, 1.0, "1", "emissivity used for radiation to the furnace walls"),

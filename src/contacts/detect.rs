@@ -1,5 +1,5 @@
 //! Neighbour search: a uniform cell list giving all pairs of spheres whose gap is below a margin,
-//! in O(N) for packings of bounded size ratio (architecture map, stage 1 "Topology").
+//! in O(N) for packings of bounded size ratio (docs/design.md, "The loop", stage 1).
 //!
 //! The cell edge is the largest sphere diameter plus the margin, so any touching pair lies in the
 //! same or adjacent cells. Cells are sorted (counting sort by linear cell index), so the result

@@ -14,7 +14,7 @@ use rayon::prelude::*;
 use std::path::Path;
 use std::time::Instant;
 
-/// Which neck radius feeds the conductance (heat-network.md "Which neck radius ...").
+/// Which neck radius feeds the conductance (docs/heat-model.md "Which neck radius feeds (H6)").
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum NeckSource {
     /// From the overlap of the current centre distance.
@@ -53,7 +53,7 @@ pub struct Settings {
     pub checkpoint_every: u64,
     /// Times of the conductivity analyses [s].
     pub conductivity_at: Vec<f64>,
-    /// Times of the y4/y7 correction histograms [s] (eq. 44).
+    /// Times of the y4/y7 correction histograms [s] ((C4); Ivannikov et al. 2022 eq. 44).
     pub histogram_at: Vec<f64>,
     /// Write the PNG plots at the end (the run API turns them off in studies).
     pub plots: bool,
@@ -131,7 +131,7 @@ impl Settings {
 #[derive(Debug, Clone)]
 pub struct MechanicsSettings {
     pub constrain_planes: bool,
-    /// Relative surface gap of the plane test: centre within (1 + gap)·r (spec §8: 1 %).
+    /// Relative surface gap of the plane test: centre within (1 + gap)·r (docs/mechanics.md "Constraints": 1 %).
     pub plane_gap: f64,
     pub solver: LinearSolver,
     pub reuse_factor: bool,
@@ -261,14 +261,14 @@ impl MechanicsStage {
     }
 }
 
-/// The diffusion contacts of a packing, struct of arrays (architecture map).
+/// The diffusion contacts of a packing, struct of arrays (docs/design.md).
 #[derive(Debug, Clone, Default)]
 pub struct Contacts {
     /// Particle pairs (i < j).
     pub pairs: Vec<[u32; 2]>,
     /// 7-DOF state of each contact.
     pub state: Vec<Contact7>,
-    /// ΔL̄ of the last correction (paper eq. 44) [m].
+    /// ΔL̄ of the last correction ((C4); Ivannikov et al. 2022 eq. 44) [m].
     pub dl_bar: Vec<f64>,
     /// Substeps of the last sweep.
     pub substeps: Vec<u32>,
@@ -450,7 +450,7 @@ impl Simulation {
             let l = &self.far_layer[a];
             let s: f64 = l.iter().map(|&i| p.position[i as usize][a] + p.radius[i as usize]).sum();
             // with constrained planes the near face is the plane itself; without, it is the mean
-            // near face of the particles that started on it (eq. 49 with both faces measured)
+            // near face of the particles that started on it ((S6) with both faces measured)
             let near = if free && !self.near_layer[a].is_empty() {
                 let l = &self.near_layer[a];
                 l.iter().map(|&i| p.position[i as usize][a] - p.radius[i as usize]).sum::<f64>() / l.len() as f64
@@ -554,7 +554,7 @@ impl Simulation {
             let strategy1 = self.settings.strategy == 1 && dt > self.settings.dt_min;
             let mut solver = self.settings.solver;
             if strategy1 {
-                // strategy 1 (spec §10): every contact tries one step of the whole Δt; the first
+                // strategy 1 (docs/coupled.md (S1)–(S2)): every contact tries one step of the whole Δt; the first
                 // rejection anywhere rejects the global step (no adaptive retries)
                 solver.stop_on_reject = true;
                 for c in self.contacts.state.iter_mut() {
@@ -725,7 +725,7 @@ impl Simulation {
             let s = &self.settings;
             self.dt = match s.strategy {
                 1 => {
-                    // grow when every contact's next proposed substep exceeds 1.43 Δt, i.e. e_j < 0.1 (eq. 46)
+                    // grow when every contact's next proposed substep exceeds 1.43 Δt, i.e. e_j < 0.1 ((S2); Ivannikov et al. 2022 eq. 46)
                     let min_h = self.contacts.state.iter().map(|c| c.h_last).fold(f64::INFINITY, f64::min);
                     if min_h >= 0.9 * 10f64.powf(0.2) * dt { (dt * s.alpha).min(s.dt_max) } else { dt.max(self.dt) }
                 }

@@ -1,12 +1,12 @@
 //! Contact laws of the explicit driver, behind one small trait ([`ContactModel`]).
 //!
 //! A law is a pure function of the pair's geometry ([`PairGeom`]) and its own per-contact `Copy`
-//! state (architecture map, "Data and dispatch"): the elastic laws here carry no state (`()`);
-//! Luding's and the SinterNormal laws of `explicit-sintering-laws.md` will carry δ_max, δ_0, δ_p.
+//! state (docs/design.md, "Data and dispatch"): the elastic laws here carry no state (`()`);
+//! Luding's and the SinterNormal laws (docs/luding.md, docs/frenkel.md) will carry δ_max, δ_0, δ_p.
 //! The driver is generic over the law (static dispatch); the case's choice is an enum
 //! ([`NormalLaw`]) matched once when the driver is built.
 //!
-//! Sign conventions (`explicit-sintering-laws.md`, Notation): overlap `δ = r_i + r_j − |x_i − x_j|`
+//! Sign conventions (docs/luding.md, "Notation and signs"): overlap `δ = r_i + r_j − |x_i − x_j|`
 //! (> 0 in contact), overlap rate `δ̇ = −(v_i − v_j)·n` (> 0 while approaching), normal force
 //! positive when repulsive.
 

@@ -1,6 +1,6 @@
 //! The explicit DEM driver: velocity Verlet for translations and rotations of spheres with
 //! elastic-viscous normal contacts, a Coulomb-limited tangential spring, planar walls and gravity
-//! (architecture map, "The explicit-DEM laws ... run in a separate velocity-Verlet driver").
+//! (docs/design.md, "Explicit driver": the explicit-DEM laws run in a separate velocity-Verlet driver).
 //! Packing generation ([`crate::packing`]) runs on it; the explicit sintering laws plug into it
 //! through [`law::ContactModel`].
 //!
@@ -12,7 +12,7 @@
 //! 4. forces at the new positions (velocities of the half step in the viscous terms);
 //! 5. `v ← v + Δt/2 · F/m`, `ω ← ω + Δt/2 · M/I`.
 //!
-//! Tangential law (Luding 2005 eqs. 16–22, `explicit-sintering-laws.md` §1): the spring ξ is
+//! Tangential law (Luding et al. 2005 eqs. 16–22, docs/luding.md): the spring ξ is
 //! projected into the current tangent plane `ξ ← ξ − n(n·ξ)`; trial force `f_t° = −k_t ξ − γ_t v_t`
 //! with `k_t = α k_n`, `γ_t = β γ_n`; sticking if `|f_t°| ≤ μ f_n` (then `ξ ← ξ + v_t Δt`), else
 //! sliding with `f_t = μ f_n t̂` and `ξ ← −(f_t + γ_t v_t)/k_t`.

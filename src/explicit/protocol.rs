@@ -1,5 +1,5 @@
 //! Luding's sample history and compression test for the explicit sintering laws (case kind
-//! `explicit_sinter`; `explicit-sintering-laws.md` §1 "Paper's protocol", Luding et al. 2005 §4).
+//! `explicit_sinter`; docs/luding.md "Protocol", Luding et al. 2005 §4).
 //!
 //! History of one sample, in 3-D, in a box of six walls (x⁻, y⁻, z⁻ fixed through the origin;
 //! x⁺, y⁺, z⁺ under stress control `m_w s̈ = p·A − F_w − γ_w ṡ`, eq. 1, A the current face area):
@@ -21,7 +21,7 @@
 //! Temperature: `coupling.mode = "profile"` (default) puts every particle on the protocol's T(t);
 //! `"network"` fixes the particles touching a wall at the start of heating to T(t) and solves the
 //! heat network ([`crate::heat::network`]) for the others every `heat_every` steps with the
-//! conductances of the volume-conserving neck of the current overlaps (architecture map, "The
+//! conductances of the volume-conserving neck of the current overlaps (docs/design.md, "Explicit
 //! loop"), warning when Δt_heat > 0.1·min C_i/ΣK_ij. Luding's radii follow T by eq. 9 at constant
 //! mass.
 //!
@@ -141,7 +141,7 @@ impl Default for WallSpec {
     }
 }
 
-/// `[protocol]` (defaults: the paper's times, spec §1).
+/// `[protocol]` (defaults: the paper's times, Luding et al. 2005 Table 1).
 #[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ProtocolSpec {

@@ -1,13 +1,13 @@
 //! The explicit sintering laws as [`ContactModel`]s of the velocity-Verlet driver
-//! (`explicit-sintering-laws.md`; issue 6 item "plug both laws into the driver").
+//! (docs/luding.md, docs/frenkel.md; issue 6 item "plug both laws into the driver").
 //!
 //! - [`LudingLaw`]: Luding, Manetsberger & Müllers (2005), the kernels of [`crate::models::luding`]
 //!   (eqs. 4–24): per-contact `Copy` state δ_max, δ_0, ξ, k1(T,t) ([`LudingSlot`]);
 //! - [`FrenkelLaw`]: MercuryDPM's SinterNormal family, the kernels of [`crate::models::frenkel`]
-//!   (spec §2): per-contact state δ_p, ξ ([`FrenkelState`]).
+//!   (docs/frenkel.md): per-contact state δ_p, ξ ([`FrenkelState`]).
 //!
 //! Both override [`ContactModel::contact`]: the contact temperature is the law's mean
-//! (`contact_temperature`: arithmetic by default, harmonic for `temperature_frenkel`, spec §3) of the
+//! (`contact_temperature`: arithmetic by default, harmonic for `temperature_frenkel`, docs/heat-model.md (H16)) of the
 //! two particles' temperatures `Particles::temperature` [K], which the caller keeps current (a
 //! prescribed profile or the heat network, [`crate::explicit::protocol`]); the time step enters the
 //! relaxation of k1(T,t) (eqs. 11–12) and the plastic rate. The driver's tangential spring ξ is
@@ -47,7 +47,7 @@ impl LudingLaw {
 }
 
 /// Per-contact state of [`LudingLaw`]: `None` until the contact first closes (then k1(T,t) = k1(T)
-/// of that step's contact temperature, spec §1 "A new contact starts with k1(T,t) = k1(T)").
+/// of that step's contact temperature, docs/luding.md: a new contact starts with k1(T,t) = k1(T)).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct LudingSlot(pub Option<LudingState>);
 

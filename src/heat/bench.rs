@@ -1,5 +1,5 @@
 //! `sinterdem bench heat`: assembly, symbolic analysis, factorisation and solve times of one
-//! implicit heat step on random packings of N particles (the stack.md test matrices: random
+//! implicit heat step on random packings of N particles (the test matrices used when faer was chosen: random
 //! points at unit density connected within a radius giving a mean degree ≈ 6, pipe conductances
 //! from volume-conserving necks, Δt = 1000 × the explicit limit).
 

@@ -1,4 +1,4 @@
-//! Conductance of one thermal pipe (heat-network.md "Conductance of one pipe"; Rojek et al. 2022
+//! Conductance of one thermal pipe (docs/heat-model.md (H6)–(H8); Rojek et al. 2022
 //! eqs. 5–9, 40–45).
 
 use serde::{Deserialize, Serialize};
@@ -75,7 +75,7 @@ mod tests {
 
     #[test]
     fn published_copper_pair() {
-        // heat-network.md worked check: κ = 394, r_i = 1 mm, r_j = 3 mm, h = 0.06 mm.
+        // worked check of docs/heat-model.md: κ = 394, r_i = 1 mm, r_j = 3 mm, h = 0.06 mm.
         let n = crate::neck::solve(1e-3, 3e-3, 0.06e-3).unwrap();
         let p = Conductance::default().pipe(394.0, 394.0, 1e-3, 3e-3, n.a);
         assert!((p.half_i / 0.552071 - 1.0).abs() < 1e-6, "{}", p.half_i);

@@ -1,4 +1,4 @@
-//! Effective conductivity of a compact (heat-network.md "Effective conductivity of a compact").
+//! Effective conductivity of a compact (docs/heat-model.md (H17), "Effective conductivity").
 //!
 //! - **faces**: two opposite layers of particles held at `T_hot` and `T_cold` (Dirichlet), steady
 //!   state `L T = b` on the rest; components without a Dirichlet node are removed;
@@ -337,7 +337,7 @@ pub fn run_case(value: toml::Value, base: &std::path::Path) -> Result<serde_json
     out.insert("particles".into(), p.len().into());
     out.insert("contacts".into(), prep.pipes.pairs.len().into());
     if let Some((lat, d)) = prep.scene.lattice {
-        // closed forms of heat-network.md for the pipe conductance of the lattice's nearest neighbours
+        // closed forms of docs/heat-model.md for the pipe conductance of the lattice's nearest neighbours
         let r = p.radius[0];
         let neck = crate::neck::solve(r, r, 2.0 * r - d)?;
         let kp = prep.conductance.pipe(kappa_mat, kappa_mat, r, r, neck.a).pair;

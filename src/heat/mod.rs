@@ -1,4 +1,4 @@
-//! The heat network (heat-network.md): conductance of a pipe, the implicit network step, and the
+//! The heat network (docs/heat-model.md): conductance of a pipe, the implicit network step, and the
 //! effective conductivity of a compact.
 
 pub mod bench;

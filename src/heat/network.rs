@@ -1,4 +1,4 @@
-//! The implicit pipe-network heat solve (heat-network.md "Balance per particle", eqs. 1–3).
+//! The implicit pipe-network heat solve (docs/heat-model.md (H1)–(H5)).
 //!
 //! Per free particle i (Dirichlet particles follow their heating profile):
 //! `C_i dT_i/dt = f_i(T, t) = Σ_j K_ij (T_j − T_i) + h_c A_i (T_gas − T_i) + εσA_i (T_wall⁴ − T_i⁴) + Q_i`.

@@ -184,7 +184,7 @@ impl FineOp<'_> {
         self.blocks.matvec(self.pairs, self.inc, self.fixed, x, y);
     }
 
-    /// The scaled residual `r = b − K x` (bonded-mechanics.md, "Scaling") and its norm relative
+    /// The scaled residual `r = b − K x` (docs/mechanics.md (B10)) and its norm relative
     /// to `b_norm = ‖b‖₂` [1], the Newton acceptance measure.
     pub fn residual(&self, b: &[f64], b_norm: f64, x: &[f64], r: &mut [f64]) -> f64 {
         self.matvec(x, r);
@@ -1005,7 +1005,7 @@ mod tests {
                 assert!((a - b).abs() <= 1e-10 * scale, "asymmetry {:.2e} of {scale:.2e}", (a - b).abs());
             }
         }
-        // and CG converges with it (no breakdown) to the spec tolerance, agreeing with Cholesky
+        // and CG converges with it (no breakdown) to the tolerance of (B10), agreeing with Cholesky
         let a = solve(&c, params(LinearSolver::Amg, multilevel()));
         assert!(*a.info.residuals.last().unwrap() <= 1e-10);
         let ch = solve(&c, params(LinearSolver::Cholesky, AmgParams::default()));

@@ -1,4 +1,4 @@
-//! Assembly of the bonded stiffness `S·K·S` (bonded-mechanics.md, "Equilibrium") in 6×6 node
+//! Assembly of the bonded stiffness `S·K·S` (docs/mechanics.md (B10)) in 6×6 node
 //! blocks: one diagonal block per particle, one off-diagonal block `K_AB` per bond. The element
 //! blocks are computed in parallel (each bond writes its own slot) and gathered onto particles
 //! through a particle→bond incidence table in bond order, so the result is bit-identical for any

@@ -1,5 +1,5 @@
-//! The bonded link between two particles (bonded-mechanics.md, "Kinematics of the link" and
-//! "Stiffness"; paper eqs. 18–40 with the eq. 37 signs corrected).
+//! The bonded link between two particles (docs/mechanics.md (B1)–(B7), "The link" and
+//! (B5); Ivannikov et al. 2022 eqs. 18–40 with the eq. 37 signs corrected).
 //!
 //! A contact between particles A and B is a 2-node element with 6 DOF per node,
 //! `y = [u_A, θ_A, u_B, θ_B]`. With the bond points `l_A0 = y4·e3` (from A's centre) and
@@ -12,7 +12,7 @@
 //! and the nodal forces are `P = Hᵀ·K_link·H·y` (eqs. 39–40) with
 //! `K_link = diag(GA, GA, EA, EI, EI, GJ)/L_b` in the local frame (eq. 33–36, `L_b = 2R_m`).
 //!
-//! Every function here works in the **scaled** unknowns of the spec's "Equilibrium" section:
+//! Every function here works in the **scaled** unknowns of docs/mechanics.md (B10):
 //! `ỹ = [u_A, r̄·θ_A, u_B, r̄·θ_B]` [m], so the element matrix `S·K·S` has all entries in N/m and
 //! its moments are divided by `r̄` (`r_scale` below). `r_scale = 1` gives the unscaled matrix.
 
@@ -87,8 +87,8 @@ pub struct BondGeometry {
 
 impl BondGeometry {
     /// Geometry from the current centres `x_a`, `x_b` [m] and the current corrected `y4`, `y7` [m]
-    /// (seven-dof-model.md §9 (C4)), both scaled by `s = d/(y4 + y7)` with `d = |x_b − x_a|`
-    /// (bonded-mechanics.md: the bond points then coincide exactly, so the rigid modes of the pair
+    /// (docs/diffusion7.md (C4)), both scaled by `s = d/(y4 + y7)` with `d = |x_b − x_a|`
+    /// (docs/mechanics.md (B2): the bond points then coincide exactly, so the rigid modes of the pair
     /// carry no energy).
     pub fn new(x_a: &Vector3<f64>, x_b: &Vector3<f64>, y4: f64, y7: f64) -> Result<Self, ModelError> {
         let dx = x_b - x_a;

@@ -1,6 +1,6 @@
 //! Conjugate gradients with a block-Jacobi preconditioner (one 6×6 block per particle, the
 //! particle's translations and scaled rotations together), the iterative alternative to the sparse
-//! Cholesky for large packings (bonded-mechanics.md, "Scaling": iterate to
+//! Cholesky for large packings (docs/mechanics.md (B10): iterate to
 //! `‖S(ΔF − K·Δy)‖₂ ≤ rtol·‖S·ΔF‖₂` or return a [`SolveError`]).
 //!
 //! Vectors are the full `6n` scaled unknowns; fixed DOF are kept at zero (their rows and columns

@@ -2,10 +2,10 @@
 //! AMD (default) or by a geometric nested dissection of the particle positions.
 //!
 //! Why not `linsolve::SpdPattern` as is: it fixes the ordering to AMD and copies the values and
-//! recomputes its own residual at every solve, whereas the Newton loop here checks the spec's
+//! recomputes its own residual at every solve, whereas the Newton loop here checks (B10)'s
 //! residual itself; this module is the same pattern/symbolic-once, numeric-per-step cycle with the
-//! ordering as a parameter and the factor buffer and scratch allocated once per topology (stack.md
-//! §1, lower-level API). On the 6-DOF packings AMD's factor is large (bench: nnz(L) = 2.5·10⁷ at
+//! ordering as a parameter and the factor buffer and scratch allocated once per topology (faer's
+//! lower-level API). On the 6-DOF packings AMD's factor is large (bench: nnz(L) = 2.5·10⁷ at
 //! 10⁴ particles, 8.2·10⁸ at 10⁵), so a nested dissection by recursive coordinate bisection was
 //! tried: split at the median of the longest axis, separator = particles of the lower half bonded
 //! across, order lower half, upper half, separator, leaves of 32 particles in natural order. As

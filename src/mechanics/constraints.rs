@@ -1,4 +1,4 @@
-//! Kinematic constraints and the removal of rigid-body modes (bonded-mechanics.md, "Equilibrium
+//! Kinematic constraints and the removal of rigid-body modes (docs/mechanics.md, "Constraints
 //! and constraints"; paper §3.3).
 //!
 //! - a **rattler** (particle without bonds) is left out of the solve and keeps its position;
@@ -51,7 +51,7 @@ impl Constraints {
 
     /// The paper's plane constraints: a particle whose sphere lies within `rel_gap·r_i` of the
     /// plane x = x_min (y_min, z_min) of the packing's bounding box (centre within `(1 + rel_gap)·r_i`
-    /// of it, overlap counts) gets its x (y, z) displacement fixed. The spec's `rel_gap` is 0.01.
+    /// of it, overlap counts) gets its x (y, z) displacement fixed. docs/mechanics.md's `rel_gap` is 0.01.
     /// With the packing framed at the origin these are the planes x = 0, y = 0, z = 0. Set once at the
     /// start of a run. `positions` [m], `radii` [m].
     pub fn principal_planes(positions: &[Vector3<f64>], radii: &[f64], rel_gap: f64) -> Result<Self, ConfigError> {

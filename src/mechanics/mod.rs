@@ -1,4 +1,4 @@
-//! Bonded quasi-static mechanics (bonded-mechanics.md; Ivannikov et al. 2022 §2.3–2.4, §3.3).
+//! Bonded quasi-static mechanics (docs/mechanics.md; Ivannikov et al. 2022 §2.3–2.4, §3.3).
 //!
 //! Every particle is a node with 6 DOF (displacement, small rotation); every contact a bonded link
 //! ([`bond`]). Each step solves the **increment** `K·Δy = ΔF` caused by the step's sintering-load
@@ -6,7 +6,7 @@
 //! the mean radius, rattlers left out and rigid modes held by plane constraints or pins
 //! ([`constraints`]), by Newton iteration on a sparse Cholesky or block-Jacobi PCG ([`solve`],
 //! [`cg`]). It returns the displacement and rotation increments and, per contact, the axial
-//! approach `ξ = (Δu_A − Δu_B)·e3` (C1) for the y4/y7 correction of `seven-dof-model.md` §9.
+//! approach `ξ = (Δu_A − Δu_B)·e3` (C1) for the y4/y7 correction of docs/diffusion7.md §6.
 //!
 //! ```text
 //! let mut sys = BondedSystem::new(n, MechParams { young_modulus, poisson_ratio, ..Default::default() },

@@ -1,5 +1,5 @@
 //! Newton iteration for the quasi-static equilibrium `S·K·S·ỹ = S·ΔF` with a scaled residual check
-//! (bonded-mechanics.md, "Scaling": accept when `‖S(ΔF − K·Δy)‖₂ ≤ rtol·‖S·ΔF‖₂`, rtol = 1e-10)
+//! (docs/mechanics.md (B10): accept when `‖S(ΔF − K·Δy)‖₂ ≤ rtol·‖S·ΔF‖₂`, rtol = 1e-10)
 //! and the choice of linear solver: faer sparse Cholesky ([`super::cholesky`], geometric nested
 //! dissection or AMD; symbolic analysis reused while the topology is unchanged, optionally the numeric factor reused across
 //! steps as a modified-Newton operator) or block-Jacobi PCG ([`super::cg`]).
@@ -143,7 +143,7 @@ impl MechParams {
     }
 }
 
-/// What a mechanical step did (architecture map: solvers report).
+/// What a mechanical step did (docs/design.md: solvers report).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct MechInfo {
     /// Linear solver used.

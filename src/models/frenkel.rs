@@ -1,5 +1,5 @@
 //! The SinterNormal contact law of MercuryDPM and its plastic-overlap rates (`model = "frenkel"`,
-//! explicit-sintering-laws.md §2): an elastic-plastic normal force whose unloading stiffness grows
+//! docs/frenkel.md): an elastic-plastic normal force whose unloading stiffness grows
 //! with the plastic overlap δ_p, an adhesive sintering pull, and a rate law for δ_p:
 //! `constant` (Frenkel's viscous sintering), `temperature_frenkel` (the same with k_s(T)),
 //! `parhami_mcmeeking` (δ³ ∝ t) and `bouvard_mcmeeking` (viscous grain-boundary neck, as MUSEN/Kratos).
@@ -48,7 +48,7 @@ pub static RANGES: &[Range] = &[
 ];
 
 /// How a contact's temperature follows from its two particles' temperatures [K]
-/// (heat-network.md "Contact temperature").
+/// (docs/heat-model.md (H16)).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum MeanTemperature {
@@ -72,7 +72,7 @@ impl MeanTemperature {
     }
 }
 
-/// `sinter_type`: the plastic-overlap rate (spec §2).
+/// `sinter_type`: the plastic-overlap rate (docs/frenkel.md).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum SinterType {
@@ -459,7 +459,7 @@ pub fn reduced_radius(r_i: f64, r_j: f64) -> f64 {
     r_i * r_j / (r_i + r_j)
 }
 
-/// Per-contact state (architecture map: δ_p, ξ).
+/// Per-contact state (docs/design.md: δ_p, ξ).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct FrenkelState {
     /// Plastic overlap δ_p [m], 0 ≤ δ_p ≤ d_fluid_0.
@@ -484,7 +484,7 @@ pub struct FrenkelNormal {
 }
 
 /// Step 1: the virgin-loading rule, the elastic force with its cohesive floor, damping and pull
-/// (spec §2) at overlap `delta` [m], overlap rate `delta_dot` [m/s], reduced radius `r_red` [m].
+/// (docs/frenkel.md) at overlap `delta` [m], overlap rate `delta_dot` [m/s], reduced radius `r_red` [m].
 /// δ ≤ 0: zero, state kept.
 pub fn normal_force(p: &FrenkelParams, s: &mut FrenkelState, r_red: f64, delta: f64, delta_dot: f64) -> FrenkelNormal {
     if !(delta > 0.0) {
@@ -571,7 +571,7 @@ pub fn contact_force(p: &FrenkelParams, s: &mut FrenkelState, k: &FrenkelKinemat
     FrenkelForce { normal, tangential, plastic_rate }
 }
 
-/// Neck radius for output and conductance [m]: the volume-conserving neck of heat-network.md from
+/// Neck radius for output and conductance [m]: the volume-conserving neck (H11) of docs/heat-model.md from
 /// the overlap δ (ModelError beyond its validity limit).
 pub fn neck_radius(r_i: f64, r_j: f64, delta: f64) -> Result<f64, ModelError> {
     crate::neck::solve(r_i, r_j, delta).map(|n| n.a)

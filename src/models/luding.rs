@@ -1,4 +1,4 @@
-//! Luding's hysteretic, cohesive, frictional sintering contact law (explicit-sintering-laws.md §1;
+//! Luding's hysteretic, cohesive, frictional sintering contact law (docs/luding.md;
 //! Luding, Manetsberger & Müllers 2005, "A discrete model for long time sintering", 2-D there,
 //! 3-D here). `(eq. N)` are the paper's numbers.
 //!
@@ -13,7 +13,7 @@
 //! 3. [`tangential_force`]: the cohesion-shifted Coulomb limit (eqs. 14–15, 24), the tangential
 //!    spring (eqs. 16–23).
 //!
-//! [`contact_force`] does all three. Sign conventions (spec notation): the normal `n` points from
+//! [`contact_force`] does all three. Sign conventions (docs/luding.md notation): the normal `n` points from
 //! j to i, the overlap `δ = r_i + r_j − |x_i − x_j|` (eq. 3), `δ̇ = −(v_i − v_j)·n` (> 0 while
 //! approaching); the normal force is positive when repulsive and acts on i along +n; the
 //! tangential force returned acts on i (−f_t on j), with torques `−r_i n × f_t` on i and
@@ -43,7 +43,7 @@ pub static RANGES: &[Range] = &[
     p("luding.t0", 0.0, 1e15, "s", "relaxation time scale t_0 of k1(T,t) (eqs. 11-12)"),
 ];
 
-/// Which rule moves the history when k1(T,t) rises (cooling), spec §1 "Temperature".
+/// Which rule moves the history when k1(T,t) rises (cooling), docs/luding.md and docs/decisions-laws.md.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum CoolingRule {
@@ -90,7 +90,7 @@ pub struct LudingSpec {
     /// Keep the cohesive (attractive) normal force while the contact slides. `false` is the paper's
     /// choice (footnote 5: f_n ≥ 0 while sliding).
     pub cohesion_while_sliding: bool,
-    /// Contact temperature from the two particle temperatures (heat-network.md: arithmetic default).
+    /// Contact temperature from the two particle temperatures (docs/heat-model.md (H16): arithmetic default).
     pub contact_temperature: MeanTemperature,
 }
 
@@ -222,7 +222,7 @@ impl LudingParams {
     }
 
     /// k2(δ_max) (eq. 7) [N/m]: k1 + (k2 − k1)·δ_max/δ_max^fluid below δ_max^fluid, k2 above.
-    /// Uses the cold k1 (spec §1 "Which k1 where").
+    /// Uses the cold k1 (docs/luding.md, "Equations").
     pub fn k2_of(&self, delta_max: f64) -> f64 {
         if delta_max >= self.delta_max_fluid { self.k2 } else { self.k1 + (self.k2 - self.k1) * delta_max.max(0.0) / self.delta_max_fluid }
     }
@@ -243,7 +243,7 @@ impl LudingParams {
     }
 
     /// δ_min = (k2(δ_max) − k1(T,t))/(k2(δ_max) + kc(T,t,δ_max))·δ_max [m]: the overlap of the
-    /// largest attraction (spec §1, paper §3.1.1).
+    /// largest attraction (Luding et al. 2005 §3.1.1).
     pub fn delta_min(&self, k1_t: f64, delta_max: f64) -> f64 {
         let k2 = self.k2_of(delta_max);
         let kc = self.kc_of(k1_t, delta_max);
@@ -284,7 +284,7 @@ impl LudingParams {
     }
 }
 
-/// Per-contact history of Luding's law (architecture map: δ_max, δ_0, ξ, k1(T,t)).
+/// Per-contact history of Luding's law (docs/design.md: δ_max, δ_0, ξ, k1(T,t)).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LudingState {
     /// Largest overlap reached δ_max [m] (shifted by the cohesive branch and by cooling).
@@ -300,7 +300,7 @@ pub struct LudingState {
 }
 
 impl LudingState {
-    /// A new contact at contact temperature `temperature` [K]: no history, k1(T,t) = k1(T) (spec §1).
+    /// A new contact at contact temperature `temperature` [K]: no history, k1(T,t) = k1(T) (docs/luding.md).
     pub fn new(p: &LudingParams, temperature: f64) -> Self {
         LudingState { delta_max: 0.0, delta_0: 0.0, xi: Vector3::zeros(), k1_t: p.k1_of_temperature(temperature), sliding: false }
     }
@@ -329,7 +329,7 @@ pub fn relax(k_start: f64, k_target: f64, t0: f64, t: f64) -> f64 {
 }
 
 /// Positive root δ_max of `B·δ² + (k1 − k1(T,t) − B·δ_0)·δ − k1·δ_0 = 0`, `B = (k2 − k1)/δ_max^fluid`:
-/// the δ_max at which `δ_0 = [1 − k1(T,t)/k2(δ_max)]·δ_max` with eq. 7 (spec §1, consistent cooling).
+/// the δ_max at which `δ_0 = [1 − k1(T,t)/k2(δ_max)]·δ_max` with eq. 7 (docs/decisions-laws.md, consistent cooling).
 pub fn cooling_delta_max(p: &LudingParams, k1_t: f64, delta_0: f64) -> f64 {
     let b = (p.k2 - p.k1) / p.delta_max_fluid;
     let bb = p.k1 - k1_t - b * delta_0;
@@ -366,7 +366,7 @@ pub fn cohesive_delta_max(p: &LudingParams, k1_t: f64, delta: f64) -> f64 {
     if root < p.delta_max_fluid { root } else { (1.0 + c) * p.k2 / (p.k2 - k1_t) * delta }
 }
 
-/// Step 1 of a contact step: temperature and time (eqs. 10–12 and spec §1).
+/// Step 1 of a contact step: temperature and time (eqs. 10–12, docs/luding.md).
 ///
 /// k1(T) of the contact temperature `temperature` [K]; with `freeze_on_cooling`, k1(T,t) jumps to
 /// k1(T) when k1(T) lies above it; otherwise it relaxes over `dt` [s] with time scale `t0` [s] by

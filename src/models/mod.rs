@@ -1,8 +1,8 @@
-//! Contact models and their small integrators (architecture map `models/`).
+//! Contact models and their small integrators (docs/design.md).
 //!
-//! - [`diffusion7`]: the 7-DOF diffusion contact (seven-dof-model.md);
-//! - [`luding`]: Luding's long-time sintering law (explicit-sintering-laws.md §1);
-//! - [`frenkel`]: the SinterNormal family (explicit-sintering-laws.md §2);
+//! - [`diffusion7`]: the 7-DOF diffusion contact (docs/diffusion7.md);
+//! - [`luding`]: Luding's long-time sintering law (docs/luding.md);
+//! - [`frenkel`]: the SinterNormal family (docs/frenkel.md);
 //! - [`ode`]: fixed-size adaptive integrators (Dormand–Prince 5(4), RK4 step doubling, Rosenbrock 4(3)).
 
 pub mod diffusion7;

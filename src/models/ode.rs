@@ -1,16 +1,16 @@
-//! Small fixed-size adaptive ODE integrators for per-contact models (architecture map `ode.rs`).
+//! Small fixed-size adaptive ODE integrators for per-contact models (docs/diffusion7.md §7).
 //!
 //! - [`Method::Dopri5`]: Dormand–Prince 5(4) with FSAL and local extrapolation (Hairer, Nørsett,
 //!   Wanner, *Solving ODEs I*, II.4–5); the default (measured, `docs/decisions-diffusion7.md`).
 //! - [`Method::Rk4Doubling`]: classical RK4, error by step doubling (Richardson, 1/15), the
-//!   paper's option ([IV22] §3.3).
+//!   paper's option ([IV22] §2).
 //! - [`Method::Rosenbrock4`]: a 4-stage L-stable Rosenbrock method of order 4(3) (Shampine's
 //!   parameters of the Kaps–Rentrop family) with a finite-difference Jacobian and ∂f/∂t, for stiff
 //!   states.
 //!
-//! Error norm (spec §10, T1): `e = max_i |err_i| / (rtol·max(|y_i|, |y_new,i|, floor_i))`; a step is
+//! Error norm (docs/diffusion7.md (T1)): `e = max_i |err_i| / (rtol·max(|y_i|, |y_new,i|, floor_i))`; a step is
 //! accepted when `e ≤ 1`. A right-hand side that fails (inadmissible trial state) rejects the step
-//! and quarters it. The ModelError rule of §10: a step proposed by the error control below
+//! and quarters it. The ModelError rule of §7: a step proposed by the error control below
 //! `min_step_rel·t` (t = the contact's own time, its age) stops the integration with an error, as do
 //! a step that no longer advances t and more than `max_substeps` substeps.
 
@@ -56,17 +56,17 @@ impl Method {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Control<const N: usize> {
     pub method: Method,
-    /// Relative tolerance [1] (spec T1 `rtol`).
+    /// Relative tolerance [1] ((T1) `rtol`).
     pub rtol: f64,
-    /// Per-component floor of the scale, in the units of y (spec T1: 1e-4·R_min).
+    /// Per-component floor of the scale, in the units of y ((T1): 1e-4·R_min).
     pub floor: [f64; N],
     /// Largest substep [s].
     pub h_max: f64,
-    /// ModelError when the controller proposes a step below `min_step_rel · t` (spec §10: 1e-12).
+    /// ModelError when the controller proposes a step below `min_step_rel · t` (docs/diffusion7.md §7: 1e-12).
     pub min_step_rel: f64,
     /// ModelError after this many substeps in one call.
     pub max_substeps: u64,
-    /// A trial step (spec §10, strategy 1): the first rejected step ends the call with the
+    /// A trial step (docs/coupled.md (S1), strategy 1): the first rejected step ends the call with the
     /// ModelError [`STEP_REJECTED`] instead of retrying with a smaller step.
     pub stop_on_reject: bool,
 }

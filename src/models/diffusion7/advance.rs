@@ -1,9 +1,9 @@
 //! Per-contact adaptive integration of the 7-DOF ODE over a global interval `[t0, t1]` with the
-//! contact temperature varying inside it (spec §10, strategy 2's per-contact subdivision):
+//! contact temperature varying inside it (docs/diffusion7.md §7; strategy 2's per-contact subdivision, docs/coupled.md (S3)):
 //! substeps split exactly at the kinks of the temperature history and at the times it crosses a
-//! phase-transition temperature (§5.6); each piece uses the phase of its midpoint temperature, and
+//! phase-transition temperature (docs/diffusion7.md §3); each piece uses the phase of its midpoint temperature, and
 //! RK stages evaluate T at their own times. Tolerance (T1): rtol relative to the state with a
-//! floor `norm_floor·R_min`. Integration runs in the contact's own time `t − t_c` (§10).
+//! floor `norm_floor·R_min`. Integration runs in the contact's own time `t − t_c` (docs/diffusion7.md §7).
 
 use super::contact::Contact7;
 use super::kinetics::rates_with;
@@ -25,12 +25,12 @@ pub struct SolverOptions {
     pub norm_floor: f64,
     /// Largest substep [s].
     pub max_substep: f64,
-    /// ModelError when the proposed substep falls below this fraction of the contact age (§10: 1e-12) [1].
+    /// ModelError when the proposed substep falls below this fraction of the contact age (docs/diffusion7.md §7: 1e-12) [1].
     pub min_step_rel: f64,
     /// ModelError after this many substeps in one call [1].
     pub max_substeps: f64,
     /// Strategy-1 trial (not a case key): the first rejected step ends [`advance`] with the
-    /// ModelError `ode::STEP_REJECTED` (spec §10).
+    /// ModelError `ode::STEP_REJECTED` (docs/coupled.md (S1)).
     #[serde(skip)]
     pub stop_on_reject: bool,
 }
@@ -71,7 +71,7 @@ impl SolverOptions {
 pub enum TemperaturePath<'a> {
     /// Constant [K].
     Constant(f64),
-    /// Linear from `temp0` [K] at `t0` [s] to `temp1` [K] at `t1` [s] (a global step, §5.7).
+    /// Linear from `temp0` [K] at `t0` [s] to `temp1` [K] at `t1` [s] (a global step, §3).
     Linear { t0: f64, temp0: f64, t1: f64, temp1: f64 },
     /// A heating profile (its breakpoints are the kinks).
     Profile(&'a Profile),
@@ -112,7 +112,7 @@ pub struct PairMaterials<'a> {
 }
 
 impl PairMaterials<'_> {
-    /// Parameters of the phase pair at contact temperature `t` [K] (§5.7).
+    /// Parameters of the phase pair at contact temperature `t` [K] (§3).
     pub fn params_at(&self, t: f64) -> ContactParams {
         ContactParams::new(self.a, self.a.phase_at(t), self.b, self.b.phase_at(t), self.factors)
     }
@@ -152,7 +152,7 @@ pub fn split_times(temp: &TemperaturePath, t0: f64, t1: f64, transitions: &[f64]
     out
 }
 
-/// Advances `contact` from global time `t0` to `t1` [s] (§10 strategy 2: as many adaptive substeps as
+/// Advances `contact` from global time `t0` to `t1` [s] (docs/coupled.md (S3), strategy 2: as many adaptive substeps as
 /// needed). `on_step(t, y, T)` is called after every accepted substep with global time [s], state [m]
 /// and contact temperature [K]. On error the contact is left unchanged.
 pub fn advance<G>(
@@ -213,7 +213,7 @@ where
     Ok(())
 }
 
-/// A warning if `[t_lo, t_hi]` [K] leaves the calibrated range of `m` (spec §14).
+/// A warning if `[t_lo, t_hi]` [K] leaves the calibrated range of `m` (docs/diffusion7.md §10).
 pub fn calibrated_range_warning(m: &Material, t_lo: f64, t_hi: f64) -> Option<String> {
     if t_lo < m.calibrated_min_temperature || t_hi > m.calibrated_max_temperature {
         Some(format!(

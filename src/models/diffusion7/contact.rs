@@ -1,6 +1,6 @@
-//! Per-contact state, the initial state of a new contact (spec §6, (I1)–(I4)), the virtual
-//! sintering force (§8, (F1)–(F5)) and the correction of y4, y7 after the mechanical step
-//! (§9, (C1)–(C4)). Pure functions for the coupled simulator.
+//! Per-contact state, the initial state of a new contact (docs/diffusion7.md §4, (I1)–(I4)), the virtual
+//! sintering force (§5, (F1)–(F5)) and the correction of y4, y7 after the mechanical step
+//! (§6, (C1)–(C4)). Pure functions for the coupled simulator.
 
 use super::geometry::{Side, sides};
 use crate::error::ModelError;
@@ -10,7 +10,7 @@ use std::f64::consts::PI;
 pub const DEFAULT_EPSILON: f64 = 0.01;
 pub const DEFAULT_ETA: f64 = 0.1;
 
-/// State of one diffusion contact (architecture map: a small `Copy` struct).
+/// State of one diffusion contact (docs/design.md: a small `Copy` struct).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Contact7 {
     /// Current state `[a, R_A, c_A, d_A, R_B, c_B, d_B]` [m].
@@ -134,7 +134,7 @@ pub fn diagnose(y: &[f64; 7]) -> String {
     s
 }
 
-/// Tangency ratios θ of both sides (monitoring, §2.2); `None` if the state is inadmissible.
+/// Tangency ratios θ of both sides (monitoring, §2); `None` if the state is inadmissible.
 pub fn tangency(y: &[f64; 7]) -> Option<[f64; 2]> {
     sides(y).ok().map(|(a, b): (Side, Side)| [a.theta(), b.theta()])
 }
@@ -159,7 +159,7 @@ pub struct Correction {
     /// Split weights w4 + w7 = 1 [1].
     pub w4: f64,
     pub w7: f64,
-    /// ΔL̄ = (y4 + y7) − (y4* + y7*) [m] (paper eq. 44).
+    /// ΔL̄ = (y4 + y7) − (y4* + y7*) [m] (Ivannikov et al. 2022 eq. 44).
     pub dl_bar: f64,
 }
 

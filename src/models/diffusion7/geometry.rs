@@ -1,11 +1,11 @@
-//! Geometry of the 7-DOF contact (seven-dof-model.md §2–4, all **[derived]** there): per-side
+//! Geometry of the 7-DOF contact (docs/diffusion7.md §2, all derived by the project): per-side
 //! lengths (G1)–(G3), (G6), volume and free surface (G4), (G5), their closed-form partial
 //! derivatives (G7), (G8) and the regular ratio (G9). Pure functions of the state, SI units (m).
 
 use crate::error::ModelError;
 use std::f64::consts::PI;
 
-/// Index names of the seven unknowns `y = [a, R_A, c_A, d_A, R_B, c_B, d_B]` [m] (spec §1).
+/// Index names of the seven unknowns `y = [a, R_A, c_A, d_A, R_B, c_B, d_B]` [m] (docs/diffusion7.md §1).
 pub const NECK: usize = 0;
 
 /// One side (cap + cone) of the pair, evaluated at a state; all lengths in m.
@@ -29,7 +29,7 @@ pub struct Side {
     pub tau: f64,
 }
 
-/// Which admissibility condition of spec §2.3 a state violates.
+/// Which admissibility condition (docs/diffusion7.md §2) a state violates.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Violation {
     /// (A1) a, R or c not positive (or not finite).
@@ -100,7 +100,7 @@ impl Side {
         2.0 * PI * self.r * (self.r + self.p) + PI * (self.a + self.h) * self.s
     }
 
-    /// θ = h(h − a)/(p c), tangency ratio (monitoring only, spec §2.2).
+    /// θ = h(h − a)/(p c), tangency ratio (monitoring only, docs/diffusion7.md (G6)).
     pub fn theta(&self) -> f64 {
         self.h * (self.h - self.a) / (self.p * self.c)
     }

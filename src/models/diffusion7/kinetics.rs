@@ -87,7 +87,7 @@ pub fn rates_with(y: &[f64; 7], k: &Coeffs) -> Result<[f64; 7], ModelError> {
 }
 
 /// Solid volume V [m³] and interfacial free energy 𝒢 [J] (G10) of a state, with the side
-/// surface energies `gamma_s` [J/m²] and GB energy `gamma_gb` [J/m²] (mixed contacts, §5.7).
+/// surface energies `gamma_s` [J/m²] and GB energy `gamma_gb` [J/m²] (mixed contacts, §3).
 pub fn invariants_with(y: &[f64; 7], gamma_s: [f64; 2], gamma_gb: f64) -> Result<(f64, f64), ModelError> {
     let (sa, sb) = sides(y).map_err(|(s, v)| violation_error(s, v, y))?;
     let v = sa.volume() + sb.volume();
@@ -95,7 +95,7 @@ pub fn invariants_with(y: &[f64; 7], gamma_s: [f64; 2], gamma_gb: f64) -> Result
     Ok((v, g))
 }
 
-/// (V [m³], 𝒢 [J]) of a state for the contact parameters of one phase (spec §16 `invariants(y)`).
+/// (V [m³], 𝒢 [J]) of a state for the contact parameters of one phase (docs/diffusion7.md §8).
 pub fn invariants(y: &[f64; 7], params: &ContactParams) -> Result<(f64, f64), ModelError> {
     invariants_with(y, [params.sides[0].gamma_s, params.sides[1].gamma_s], params.gamma_gb)
 }

@@ -1,10 +1,10 @@
-//! Material data of the 7-DOF model (seven-dof-model.md §12) and their resolution into the
-//! per-contact, per-phase parameters of §5.7, then into temperature-dependent transport
+//! Material data of the 7-DOF model (docs/diffusion7.md §9) and their resolution into the
+//! per-contact, per-phase parameters of §3, then into temperature-dependent transport
 //! coefficients (M4), (M9).
 //!
 //! A [`Material`] has one or more [`Phase`]s; a phase applies from its `from_temperature` up to the
 //! next phase's (titanium: α below 1156 K, β at and above). The phase of a contact is chosen at the
-//! contact temperature, for both sides together (§5.7).
+//! contact temperature, for both sides together (§3).
 
 use crate::config::{check, from_value};
 use crate::error::{ConfigError, ModelError};
@@ -20,7 +20,7 @@ pub struct Phase {
     pub name: String,
     /// Lowest temperature of this phase [K].
     pub from_temperature: f64,
-    /// Atomic volume Ω [m³] ("Vm, atom volume" of the tables, §14).
+    /// Atomic volume Ω [m³] ("Vm, atom volume" of the tables, §10).
     pub atomic_volume: f64,
     /// Free-surface energy γ_s [J/m²].
     pub gamma_surface: f64,
@@ -34,7 +34,7 @@ pub struct Phase {
     pub mobile_fraction_surface: f64,
     /// Fraction of mobile GB atoms n_gb [1].
     pub mobile_fraction_gb: f64,
-    /// Lattice weight n_b [1] (not in the papers; 1, spec §5.2).
+    /// Lattice weight n_b [1] (not in the papers; 1, docs/diffusion7.md (M6)).
     #[serde(default = "one")]
     pub mobile_fraction_lattice: f64,
     /// Surface-diffusion prefactor D0_s [m²/s].
@@ -55,8 +55,8 @@ fn one() -> f64 {
     1.0
 }
 
-/// A material of the 7-DOF model (spec §12), with the temperature range its diffusion data were
-/// calibrated for (§14: a contact leaving it triggers a warning).
+/// A material of the 7-DOF model (docs/diffusion7.md §9), with the temperature range its diffusion data were
+/// calibrated for (§10: a contact leaving it triggers a warning).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Material {
@@ -80,7 +80,7 @@ pub struct Material {
     pub phases: Vec<Phase>,
 }
 
-/// The bundled materials (copper and titanium of spec §12), as TOML.
+/// The bundled materials (copper and titanium of docs/diffusion7.md §9), as TOML.
 pub const BUILTIN_MATERIALS: &str = include_str!("materials.toml");
 
 impl Material {
@@ -103,12 +103,12 @@ impl Material {
         Err(ConfigError::invalid(format!("material \"{name}\" is neither defined in the case's [[materials]] nor bundled (bundled: copper, titanium)")))
     }
 
-    /// Bundled copper (§12, Table 2 of [IV22]).
+    /// Bundled copper (docs/diffusion7.md §9, Table 2 of [IV22]).
     pub fn copper() -> Material {
         Material::builtin("copper").expect("bundled copper is valid")
     }
 
-    /// Bundled titanium with α and β phases (§12, Table 4 of [IV22]).
+    /// Bundled titanium with α and β phases (docs/diffusion7.md §9, Table 4 of [IV22]).
     pub fn titanium() -> Material {
         Material::builtin("titanium").expect("bundled titanium is valid")
     }
@@ -178,7 +178,7 @@ impl Material {
     }
 }
 
-/// Path-length factors and lattice depth of spec §5.2 (M6).
+/// Path-length factors and lattice depth of docs/diffusion7.md §3 (M6).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct PathFactors {
@@ -226,7 +226,7 @@ impl Arrhenius {
     }
 }
 
-/// One side's data in a contact (§5.7: its own surface and lattice data).
+/// One side's data in a contact (§3: its own surface and lattice data).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SideData {
     /// γ_s [J/m²].
@@ -254,7 +254,7 @@ pub struct ContactParams {
 }
 
 impl ContactParams {
-    /// Resolves the parameters of a contact between phase `pa` of `ma` and phase `pb` of `mb` (§5.7).
+    /// Resolves the parameters of a contact between phase `pa` of `ma` and phase `pb` of `mb` (§3).
     pub fn new(ma: &Material, pa: usize, mb: &Material, pb: usize, factors: PathFactors) -> ContactParams {
         let side = |ph: &Phase| SideData {
             gamma_s: ph.gamma_surface,

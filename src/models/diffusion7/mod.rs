@@ -1,11 +1,11 @@
-//! The 7-DOF diffusion contact (seven-dof-model.md; Thomsen et al. 2018/2019 as used by
+//! The 7-DOF diffusion contact (docs/diffusion7.md; Thomsen et al. 2018/2019 as used by
 //! Ivannikov et al. 2022, [IV22]): neck radius y1, cap radii y2, y5, cone lengths y3, y6 and
 //! centre–GB distances y4, y7 of a pair of particles evolve by surface, grain-boundary and lattice
 //! diffusion driven by interfacial energy.
 //!
 //! - [`geometry`]: (G1)–(G10), admissibility (A1)–(A4);
 //! - [`kinetics`]: potentials (M3), fluxes (M5), balances (M7), ODE (M8), [`rates`], [`invariants`];
-//! - [`material`]: material data (§12), phases, resolution per contact (§5.7), coefficients (M9);
+//! - [`material`]: material data (§9), phases, resolution per contact (§3), coefficients (M9);
 //! - [`contact`]: per-contact state, initial state (I1)–(I4), force (F4), (F5), correction (C1)–(C4);
 //! - [`advance`]: adaptive per-contact integration over an interval, split at kinks and phase changes;
 //! - [`pair`]: the two-particle run (`kind = "pair"` case files);

@@ -133,7 +133,7 @@ pub struct PairSpec {
     pub plot: bool,
 }
 
-/// The ramp of spec §13: heat from `start` to `peak` at `heat` K/s, hold `hold` s, cool at `cool` K/s
+/// The ramp of docs/diffusion7.md §9: heat from `start` to `peak` at `heat` K/s, hold `hold` s, cool at `cool` K/s
 /// to `end` (no cooling branch when `cool` is None). Returns a piecewise-linear profile.
 pub fn ramp_profile(start: f64, peak: f64, heat: f64, hold: f64, cool: Option<f64>, end: f64) -> Result<Profile, ConfigError> {
     if start > peak {
@@ -365,7 +365,7 @@ pub struct PairSummary {
     pub shrinkage: f64,
     /// |V − V0|/V0 at the end [1].
     pub volume_drift_rel: f64,
-    /// Virtual sintering force (F4) at the end [N] (not a physical force, spec §8).
+    /// Virtual sintering force (F4) at the end [N] (not a physical force, docs/diffusion7.md §5).
     pub virtual_force_n: f64,
     pub method: String,
     pub rtol: f64,

@@ -30,7 +30,7 @@ pub static RANGES: &[Range] = &[
     p("solver.max_substep", 0.0, INF, "s", "largest substep of the per-contact integrator"),
     c("solver.min_step_rel", 0.0, 1e-3, "1", "ModelError if a proposed substep falls below this fraction of the contact age"),
     c("solver.max_substeps", 1.0, 1e12, "1", "ModelError after this many substeps in one interval"),
-    // materials of the 7-DOF model (spec §12)
+    // materials of the 7-DOF model (docs/diffusion7.md §9)
     c("materials.*.calibrated_min_temperature", 1.0, 1e4, "K", "lower end of the calibrated temperature range"),
     c("materials.*.calibrated_max_temperature", 1.0, 1e4, "K", "upper end of the calibrated temperature range"),
     p("materials.*.melting_temperature", 1.0, 1e4, "K", "melting (solidus) temperature: a compact run stops when a particle reaches it"),

@@ -1,4 +1,4 @@
-//! The 28 titanium experiments of [IV22] Table 3 (spec §13) as pair runs: each heats linearly to
+//! The 28 titanium experiments of [IV22] Table 3 (docs/diffusion7.md §9) as pair runs: each heats linearly to
 //! `T_max`, holds, and cools to 313 K; the heating branch is truncated below 793 K by default
 //! (`t = 0` when the furnace passes 793 K), or starts at 313 K for the full curve. Each experiment
 //! uses its own mean particle diameter. Bundled as `cases/titanium/E1B.toml` … `E28B.toml`.
@@ -30,7 +30,7 @@ const fn ex(id: &'static str, d_um: f64, t: f64, rate: f64, hold_min: f64) -> Ex
     Experiment { id, mean_diameter: d_um * 1e-6, peak_temperature: t, rate, hold_time: hold_min * 60.0 }
 }
 
-/// [IV22] Table 3 (spec §13, compact form).
+/// [IV22] Table 3 (docs/diffusion7.md §9, compact form).
 pub const EXPERIMENTS: [Experiment; 28] = [
     ex("E1B", 67.5, 1203.0, R20, 0.0),
     ex("E2B", 66.2, 1203.0, R20, 30.0),
@@ -64,7 +64,7 @@ pub const EXPERIMENTS: [Experiment; 28] = [
 
 /// Start of the truncated heating branch [K] ([IV22]).
 pub const TRUNCATED_START: f64 = 793.0;
-/// Start of the full curve and end of cooling [K] (spec §13).
+/// Start of the full curve and end of cooling [K] (docs/diffusion7.md §9).
 pub const FULL_START: f64 = 313.0;
 
 impl Experiment {
@@ -77,7 +77,7 @@ impl Experiment {
     pub fn case_toml(&self) -> String {
         let rate_kmin = (self.rate * 60.0).round();
         format!(
-            "# Titanium experiment {id} of Ivannikov et al. 2022, Table 3 (seven-dof-model.md §13), as a pair run:\n\
+            "# Titanium experiment {id} of Ivannikov et al. 2022, Table 3 (docs/diffusion7.md §9), as a pair run:\n\
              # two spheres of the experiment's mean diameter {d:.1} µm, heated at {r} K/min to {tm} K, held {h} min,\n\
              # cooled at {r} K/min to 313 K. Heating branch truncated below 793 K as in [IV22]; for the full\n\
              # curve from 313 K: --set temperature.start_temperature=313. Runs in well under a second.\n\
@@ -85,7 +85,7 @@ impl Experiment {
              kind = \"pair\"\n\
              title = \"titanium {id}\"\n\n\
              [pair]\n\
-             material = \"titanium\"   # bundled, alpha/beta at 1156 K (spec §12)\n\
+             material = \"titanium\"   # bundled, alpha/beta at 1156 K (docs/diffusion7.md §9)\n\
              radius = {rad:e}        # m, half the mean diameter\n\n\
              [temperature]\n\
              start_temperature = 793.0     # K\n\
