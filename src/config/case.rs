@@ -98,11 +98,19 @@ pub struct MechanicsSpec {
     /// refactorising only when Newton stalls (default true; the step's residual test still holds).
     #[serde(default = "yes")]
     pub reuse_factor: bool,
+    /// Newton tolerance of the bonded solve: accept when the scaled residual ‖S(ΔF − KΔy)‖₂ ≤
+    /// rtol·‖SΔF‖₂ (docs/mechanics.md (B10)) [1].
+    #[serde(default = "mech_rtol")]
+    pub rtol: f64,
+}
+
+fn mech_rtol() -> f64 {
+    crate::mechanics::MechParams::default().rtol
 }
 
 impl Default for MechanicsSpec {
     fn default() -> Self {
-        MechanicsSpec { constrain_planes: true, plane_margin: margin(), solver: auto(), reuse_factor: true }
+        MechanicsSpec { constrain_planes: true, plane_margin: margin(), solver: auto(), reuse_factor: true, rtol: mech_rtol() }
     }
 }
 

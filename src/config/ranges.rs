@@ -81,6 +81,7 @@ pub static TABLE: &[Range] = &[
     c("contacts.gap_tolerance", 0.0, 0.1, "1", "surface gap, relative to the mean radius, below which a pair counts as touching"),
     c("contacts.epsilon", 1e-4, 0.1, "1", "initial neck excess epsilon of a new contact (I2)"),
     o("contacts.eta", 0.0, 1.0, "1", "initial cone parameter eta of a new contact (I2)"),
+    c("mechanics.rtol", 1e-15, 1e-2, "1", "Newton tolerance of the bonded solve: scaled residual relative to the scaled load"),
     c("mechanics.plane_margin", 1.0, 2.0, "1", "a particle touches a principal plane when its centre is within margin * r"),
     // materials
     p("materials.*.density", 0.0, 1e5, "kg/m^3", "mass density rho"),

@@ -4,7 +4,6 @@
 use super::*;
 use crate::error::{Error, IoError};
 use crate::io::{self, Series, SnapshotWriter};
-use crate::mechanics::MechParams;
 use serde_json::json;
 use std::path::Path;
 use std::time::Instant;
@@ -227,7 +226,7 @@ pub fn run_from(
             "factorizations": sim.mechanics.factorizations,
             "max_final_residual": sim.mechanics.max_residual,
             "profile": sim.mechanics.profile,
-            "rtol": MechParams::default().rtol,
+            "rtol": sim.settings.mechanics.rtol,
         },
         "skipped": sim.skipped,
         "warnings": sim.warnings,

@@ -28,12 +28,20 @@ impl Variant {
     }
 }
 
-/// The tight reference settings: 7-DOF rtol 1e-9, Δt ≤ 1 s, grow below 1 % and shrink above 5 %
+/// The tight reference settings: 7-DOF rtol 1e-9, mechanics rtol 1e-12, Δt ≤ 1 s, grow below 1 % and shrink above 5 %
 /// of contacts subdivided, detection every step.
 pub fn reference_sets() -> Vec<String> {
-    ["solver.rtol=1e-9", "time.dt_max=1.0", "time.grow_below=0.01", "time.shrink_above=0.05", "time.strategy=2", "contacts.detect_every=1"]
-        .map(String::from)
-        .to_vec()
+    [
+        "solver.rtol=1e-9",
+        "mechanics.rtol=1e-12",
+        "time.dt_max=1.0",
+        "time.grow_below=0.01",
+        "time.shrink_above=0.05",
+        "time.strategy=2",
+        "contacts.detect_every=1",
+    ]
+    .map(String::from)
+    .to_vec()
 }
 
 /// The ladder: the case's own settings, then one knob at a time.
@@ -41,6 +49,9 @@ pub fn ladder() -> Vec<Variant> {
     let mut v = vec![Variant::new("defaults", "case settings", &[])];
     for r in ["1e-4", "1e-5", "1e-7", "1e-8"] {
         v.push(Variant::new("7-DOF rtol", format!("rtol {r}"), &[&format!("solver.rtol={r}")]));
+    }
+    for r in ["1e-6", "1e-8"] {
+        v.push(Variant::new("mechanics rtol", format!("mechanics rtol {r}"), &[&format!("mechanics.rtol={r}")]));
     }
     for d in ["2.0", "5.0", "20.0", "50.0"] {
         v.push(Variant::new("dt_max", format!("dt_max {d} s"), &[&format!("time.dt_max={d}")]));
@@ -393,6 +404,7 @@ mod tests {
             let keys: Vec<&str> = v.sets.iter().map(|s| s.split('=').next().unwrap()).collect();
             let ok = match v.family {
                 "7-DOF rtol" => keys == ["solver.rtol"],
+                "mechanics rtol" => keys == ["mechanics.rtol"],
                 "dt_max" => keys == ["time.dt_max"],
                 "thresholds" => keys == ["time.grow_below", "time.shrink_above"],
                 "detect_every" => keys == ["contacts.detect_every"],

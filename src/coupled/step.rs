@@ -135,6 +135,8 @@ pub struct MechanicsSettings {
     pub plane_gap: f64,
     pub solver: LinearSolver,
     pub reuse_factor: bool,
+    /// Newton tolerance [1].
+    pub rtol: f64,
 }
 
 impl MechanicsSettings {
@@ -147,7 +149,8 @@ impl MechanicsSettings {
             "amg" => LinearSolver::Amg,
             o => return Err(ConfigError::invalid(format!("mechanics.solver = \"{o}\": expected auto, cholesky, cg or amg"))),
         };
-        Ok(MechanicsSettings { constrain_planes: m.constrain_planes, plane_gap: margin - 1.0, solver, reuse_factor: m.reuse_factor })
+        let rtol = config::check("mechanics.rtol", m.rtol)?;
+        Ok(MechanicsSettings { constrain_planes: m.constrain_planes, plane_gap: margin - 1.0, solver, reuse_factor: m.reuse_factor, rtol })
     }
 }
 
@@ -210,6 +213,7 @@ impl MechanicsStage {
             poisson_ratio: poisson,
             solver: self.settings.solver,
             reuse_factor: self.settings.reuse_factor,
+            rtol: self.settings.rtol,
             ..Default::default()
         };
         self.sys = Some(BondedSystem::new(p.len(), params, cons)?);

@@ -180,6 +180,21 @@ pub fn bench_mechanics_with(sizes: &[usize], cholesky_max: usize) -> Result<Stri
             sys_cg.step(&inp)?;
             sys_cg.set_params(MechParams { solver: LinearSolver::Cholesky, reuse_factor: true, stale_factor_cg: true, ..params })?;
             let fourth = sys_cg.step(&StepInput { positions: &pos2, ..inp })?;
+            // orderings: fill and cost of the symbolic analysis and of the numeric factorisation
+            let mut ord = String::new();
+            for o in [super::cholesky::Ordering::Amd, super::cholesky::Ordering::BlockAmd] {
+                let mut s = BondedSystem::new(pos.len(), MechParams { solver: LinearSolver::Cholesky, ordering: o, ..params }, cons.clone())?;
+                s.set_topology(&pairs)?;
+                let st = s.step(&inp)?;
+                let _ = write!(
+                    ord,
+                    " {o:?}: nnz(L) {:.3e}, symbolic {:.4} s, factor {:.4} s;",
+                    s.factor_nnz().unwrap_or(0) as f64,
+                    st.info.symbolic_seconds,
+                    st.info.factor_seconds
+                );
+            }
+            let _ = writeln!(notes, "#   n = {}: orderings{ord}", pos.len());
             let diff = first.du.iter().zip(&amg.du).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
             let diff3 = third.du.iter().zip(&fourth.du).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
             let i1 = &first.info;

@@ -27,8 +27,12 @@ use std::time::Instant;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "snake_case")]
 pub enum Ordering {
-    /// faer's approximate minimum degree (default).
+    /// faer's approximate minimum degree on the particle graph, each particle's free DOF kept
+    /// together (default: the same fill as AMD on the DOF graph at a fraction of its cost, since
+    /// the 6×6 blocks are dense).
     #[default]
+    BlockAmd,
+    /// faer's approximate minimum degree on the DOF graph.
     Amd,
     /// Geometric nested dissection on the particle positions (experimental, more fill so far).
     NestedDissection,
@@ -194,6 +198,49 @@ impl BondCholesky {
     }
 }
 
+/// Equation order for the Cholesky: the particles (those with free DOF) in approximate minimum
+/// degree order of the bond graph, each particle's free DOF together. `eq[6i + k]` is the
+/// equation of DOF k of particle i (`u32::MAX` if fixed).
+pub fn block_amd_order(n: usize, pairs: &[[u32; 2]], eq: &[u32], n_eq: usize) -> Result<Vec<usize>, SolveError> {
+    use faer::sparse::linalg::amd;
+    let free = |i: usize| (0..6).any(|k| eq[6 * i + k] != u32::MAX);
+    // compact numbering of the particles in the solve
+    let mut node = vec![u32::MAX; n];
+    let mut members = Vec::new();
+    for i in 0..n {
+        if free(i) {
+            node[i] = members.len() as u32;
+            members.push(i);
+        }
+    }
+    let m = members.len();
+    let mut idx: Vec<Pair<usize, usize>> = (0..m).map(|k| Pair::new(k, k)).collect();
+    for &[a, b] in pairs {
+        let (na, nb) = (node[a as usize], node[b as usize]);
+        if na != u32::MAX && nb != u32::MAX {
+            idx.push(Pair::new(na.min(nb) as usize, na.max(nb) as usize));
+        }
+    }
+    let (pattern, _) = SymbolicSparseColMat::try_new_from_indices(m, m, &idx).map_err(|e| SolveError::new("block AMD", format!("{e:?}")))?;
+    let mut perm = vec![0usize; m];
+    let mut perm_inv = vec![0usize; m];
+    let nnz = pattern.compute_nnz();
+    let mut mem = MemBuffer::try_new(amd::order_scratch::<usize>(m, nnz)).map_err(|e| SolveError::new("block AMD", format!("scratch allocation: {e:?}")))?;
+    amd::order(&mut perm, &mut perm_inv, pattern.as_ref(), amd::Control::default(), MemStack::new(&mut mem))
+        .map_err(|e| SolveError::new("block AMD", format!("{e:?}")))?;
+    let mut fwd = Vec::with_capacity(n_eq);
+    for &k in &perm {
+        let i = members[k];
+        for d in 0..6 {
+            let e = eq[6 * i + d];
+            if e != u32::MAX {
+                fwd.push(e as usize);
+            }
+        }
+    }
+    Ok(fwd)
+}
+
 /// Equation order for the Cholesky: the particles in nested-dissection order, each particle's free
 /// DOF together. `eq[6i + k]` is the equation of DOF k of particle i (`u32::MAX` if fixed).
 pub fn equation_order(pos: &[Vector3<f64>], pairs: &[[u32; 2]], fixed: &[u8], eq: &[u32], n_eq: usize) -> Vec<usize> {
@@ -226,4 +273,34 @@ pub fn equation_order(pos: &[Vector3<f64>], pairs: &[[u32; 2]], fixed: &[u8], eq
         }
     }
     fwd
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Ordering;
+    use crate::mechanics::bench::fcc_packing;
+    use crate::mechanics::{BondedSystem, Constraints, LinearSolver, MechParams, StepInput};
+
+    /// The particle-graph AMD ordering solves to the tolerance with the same displacements as the
+    /// DOF-graph AMD, and its factor is no larger than 1.25× (measured: within a few per cent).
+    #[test]
+    fn block_amd_matches_dof_amd() {
+        let (pos, rad, pairs, y) = fcc_packing(1500, 3);
+        let load: Vec<f64> = (0..pairs.len()).map(|c| 1e-3 * (1.0 + (c % 7) as f64 * 0.1)).collect();
+        let cons = Constraints::principal_planes(&pos, &rad, 0.01).unwrap();
+        let inp = StepInput { positions: &pos, radii: &rad, y4_y7: &y, load: &load, external: None };
+        let mut res = Vec::new();
+        for o in [Ordering::Amd, Ordering::BlockAmd] {
+            let mut sys = BondedSystem::new(pos.len(), MechParams { solver: LinearSolver::Cholesky, ordering: o, ..Default::default() }, cons.clone()).unwrap();
+            sys.set_topology(&pairs).unwrap();
+            let s = sys.step(&inp).unwrap();
+            assert!(*s.info.residuals.last().unwrap() <= 1e-10);
+            res.push((sys.factor_nnz().unwrap(), s.du));
+        }
+        let (nnz_amd, nnz_block) = (res[0].0 as f64, res[1].0 as f64);
+        assert!(nnz_block <= 1.25 * nnz_amd, "block AMD fill {nnz_block:.3e} vs AMD {nnz_amd:.3e}");
+        let scale = res[0].1.iter().map(|v| v.norm()).fold(0.0, f64::max);
+        let diff = res[0].1.iter().zip(&res[1].1).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
+        assert!(diff <= 1e-8 * scale, "{diff:.2e} of {scale:.2e}");
+    }
 }

@@ -426,6 +426,7 @@ impl BondedSystem {
             blocks.for_each_lower(&self.pairs, rep, |r, c, _| entries.push((r, c)));
             let perm = match self.params.ordering {
                 cholesky::Ordering::NestedDissection => Some(cholesky::equation_order(positions, &self.pairs, &rep.fixed, &rep.eq, rep.n_eq)),
+                cholesky::Ordering::BlockAmd => Some(cholesky::block_amd_order(self.n, &self.pairs, &rep.eq, rep.n_eq)?),
                 cholesky::Ordering::Amd => None,
             };
             let c = BondCholesky::new(rep.n_eq, &entries, perm)?;
@@ -434,13 +435,19 @@ impl BondedSystem {
             self.chol_eq = rep.eq.clone();
             self.chol_current = true;
         }
-        let t0 = Instant::now();
-        let mut values = Vec::new();
-        blocks.for_each_lower(&self.pairs, rep, |_, _, v| values.push(v));
-        info.assemble_seconds += t0.elapsed().as_secs_f64();
+        // the reduced lower-triangle values, gathered only when a factorisation needs them
+        let mut values: Vec<f64> = Vec::new();
+        let gather = |values: &mut Vec<f64>, info: &mut MechInfo| {
+            if values.is_empty() {
+                let t0 = Instant::now();
+                blocks.for_each_lower(&self.pairs, rep, |_, _, v| values.push(v));
+                info.assemble_seconds += t0.elapsed().as_secs_f64();
+            }
+        };
         let Some(chol) = self.chol.as_mut() else { unreachable!() };
         let mut fresh = false;
         if !self.params.reuse_factor || !chol.is_factored() || self.refresh {
+            gather(&mut values, info);
             info.factor_seconds += chol.factorize(&values)?;
             info.factorizations += 1;
             fresh = true;
@@ -475,6 +482,7 @@ impl BondedSystem {
             }
             // a stale factor that converges slowly (or diverges) is replaced by a fresh one
             if !fresh && new_rel > 0.1 * rel {
+                gather(&mut values, info);
                 info.factor_seconds += chol.factorize(&values)?;
                 info.factorizations += 1;
                 fresh = true;

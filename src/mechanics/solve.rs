@@ -93,7 +93,7 @@ impl Default for MechParams {
             rtol: 1e-10,
             max_newton: 8,
             solver: LinearSolver::Auto,
-            ordering: super::cholesky::Ordering::Amd,
+            ordering: super::cholesky::Ordering::BlockAmd,
             reuse_factor: false,
             pcg_max_iter: 50_000,
             stale_factor_cg: false,
