@@ -360,3 +360,26 @@ fn resume_with_hdf5_snapshots_and_a_damaged_file() {
         if damaged { assert!((1..5).contains(&n), "{n}") } else { assert_eq!(n, 5) }
     }
 }
+
+/// Steps are shortened to land exactly on the requested snapshot, conductivity and end times
+/// (issue 14 item 6), without lowering the step controller's Δt: the run with outputs takes at
+/// most one extra step per requested time.
+#[test]
+fn outputs_land_exactly_on_the_requested_times() {
+    let dir = tmp("landing");
+    let csv = small_packing(&dir, 0.2e-3);
+    let out = dir.join("with");
+    let (s, _) = run_case(compact_case(&csv, &["time.end=200.0", "output.snapshots=5", "output.vtu=true", "output.conductivity_at=[33.0, 120.5]"]), &out);
+    let pvd = std::fs::read_to_string(out.join("particles.pvd")).unwrap();
+    let times: Vec<f64> = pvd.split("timestep=\"").skip(1).map(|t| t.split('"').next().unwrap().parse().unwrap()).collect();
+    assert_eq!(times, vec![0.0, 50.0, 100.0, 150.0, 200.0]);
+    let cond: Vec<f64> = s["conductivity"].as_array().unwrap().iter().map(|c| c["time_s"].as_f64().unwrap()).collect();
+    assert_eq!(cond, vec![33.0, 120.5]);
+    assert_eq!(s["final_time_s"].as_f64().unwrap(), 200.0);
+    let (plain, _) = run_case(compact_case(&csv, &["time.end=200.0"]), &dir.join("without"));
+    let (a, b) = (s["steps"].as_u64().unwrap(), plain["steps"].as_u64().unwrap());
+    assert!(a >= b && a <= b + 6, "{a} steps with outputs, {b} without");
+    // the trajectory stays within the step control's accuracy
+    let (x, y) = (s["shrinkage_x"].as_f64().unwrap(), plain["shrinkage_x"].as_f64().unwrap());
+    assert!((x / y - 1.0).abs() < 1e-3, "{x} vs {y}");
+}

@@ -124,7 +124,8 @@ pub fn run_from(
         if sim.t >= end {
             break;
         }
-        let dt_used = sim.dt.min(end - sim.t);
+        sim.stop_at = due.next_time(&sim);
+        let dt_used = sim.dt.min(sim.stop_at.min(end) - sim.t);
         if let Err(e) = sim.advance_step(log) {
             match e {
                 // the model's validity ends (a contact's geometry or integrator breaks down): the
@@ -217,6 +218,7 @@ pub fn run_from(
         "ode_steps": sim.ode.steps,
         "ode_rejected": sim.ode.rejected,
         "timing_seconds": sim.timing,
+        "mechanics_profile": sim.mechanics.profile,
         "dl_bar_mean_m": dl_mean,
         "dl_bar_std_m": dl_std,
         "conductivity": due.cond_results,
@@ -225,7 +227,6 @@ pub fn run_from(
             "newton_iterations": sim.mechanics.newton_iterations,
             "factorizations": sim.mechanics.factorizations,
             "max_final_residual": sim.mechanics.max_residual,
-            "profile": sim.mechanics.profile,
             "rtol": sim.settings.mechanics.rtol,
         },
         "skipped": sim.skipped,

@@ -18,6 +18,13 @@ pub(crate) struct Due {
 }
 
 impl Due {
+    /// The earliest requested output time after `t` [s] (∞ when none is left): the next step is
+    /// shortened to land on it.
+    pub(crate) fn next_time(&self, sim: &Simulation) -> f64 {
+        let after = |list: &[f64], from: usize| list[from.min(list.len())..].iter().copied().find(|&v| v > sim.t * (1.0 + 1e-12)).unwrap_or(f64::INFINITY);
+        after(&self.snap_times, self.next_snap).min(after(&sim.settings.conductivity_at, self.next_cond)).min(after(&sim.settings.histogram_at, self.next_hist))
+    }
+
     /// Writes the snapshots, conductivity analyses and correction histograms due at the current time.
     pub(crate) fn write(&mut self, sim: &Simulation, out: &Path, snaps: &mut SnapshotWriter, log: &mut dyn FnMut(&str)) -> Result<(), Error> {
         let now = sim.t * (1.0 + 1e-12);

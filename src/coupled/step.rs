@@ -169,7 +169,7 @@ pub struct MechanicsStage {
     pub profile: MechProfile,
 }
 
-/// Counters and wall times of the mechanics stage, summed over steps (summary `mechanics.profile`).
+/// Counters and wall times of the mechanics stage, summed over steps (summary `mechanics_profile`).
 #[derive(Debug, Clone, Copy, Default, serde::Serialize)]
 pub struct MechProfile {
     /// Topology analyses (bond set changed) [1].
@@ -309,6 +309,9 @@ pub struct Simulation {
     pub t: f64,
     /// Next global step [s].
     pub dt: f64,
+    /// The next step ends no later than this time [s] (a requested output time; the driver sets
+    /// it before each step, ∞ for none): steps are shortened to land on it exactly.
+    pub stop_at: f64,
     /// Accepted steps so far.
     pub step: u64,
     /// Rejected global steps (strategy 1).
@@ -390,6 +393,7 @@ impl Simulation {
             contacts: Contacts::default(),
             t: 0.0,
             dt: 0.0,
+            stop_at: f64::INFINITY,
             step: 0,
             rejected: 0,
             heat: None,
@@ -519,9 +523,11 @@ impl Simulation {
 
     /// One accepted global step (strategy 1 may reject and retry inside).
     pub fn advance_step(&mut self, log: &mut dyn FnMut(&str)) -> Result<(), Error> {
-        let end = self.settings.end;
+        let end = self.stop_at.min(self.settings.end);
         loop {
             let dt = self.dt.min(end - self.t);
+            // a step shortened to land on an output or the end time does not lower the controller's Δt
+            let shortened = dt < self.dt;
             let t0 = self.t;
             let t1 = t0 + dt;
             // 1. topology
@@ -718,6 +724,7 @@ impl Simulation {
             self.timing.correction += tic.elapsed().as_secs_f64();
             // 6. step control
             self.t = if t1 >= end * (1.0 - 1e-12) { end } else { t1 };
+            let base = if shortened { self.dt } else { dt };
             self.step += 1;
             if let Some(prof) = &self.prep.isothermal {
                 // isothermal: the particles carry the furnace temperature (output only; the
@@ -731,15 +738,15 @@ impl Simulation {
                 1 => {
                     // grow when every contact's next proposed substep exceeds 1.43 Δt, i.e. e_j < 0.1 ((S2); Ivannikov et al. 2022 eq. 46)
                     let min_h = self.contacts.state.iter().map(|c| c.h_last).fold(f64::INFINITY, f64::min);
-                    if min_h >= 0.9 * 10f64.powf(0.2) * dt { (dt * s.alpha).min(s.dt_max) } else { dt.max(self.dt) }
+                    if min_h >= 0.9 * 10f64.powf(0.2) * dt { (base * s.alpha).min(s.dt_max) } else { base }
                 }
                 _ => {
                     if frac < s.grow_below {
-                        (dt * s.alpha).min(s.dt_max)
+                        (base * s.alpha).min(s.dt_max)
                     } else if frac > s.shrink_above {
                         (dt / s.alpha).max(s.dt_min)
                     } else {
-                        dt.max(self.dt.min(dt))
+                        base
                     }
                 }
             };
