@@ -33,7 +33,7 @@ enum Command {
         /// No progress bar.
         #[arg(long)]
         quiet: bool,
-        /// Compact runs: write DIR/checkpoint.json every N steps (same as --set output.checkpoint_every=N).
+        /// Compact, heat and explicit_sinter runs: write DIR/checkpoint.json every N steps (same as --set output.checkpoint_every=N).
         #[arg(long, value_name = "N")]
         checkpoint_every: Option<u64>,
     },
@@ -48,7 +48,7 @@ enum Command {
         #[arg(long)]
         quiet: bool,
     },
-    /// Continue an interrupted compact run from DIR/checkpoint.json.
+    /// Continue an interrupted compact, heat or explicit_sinter run from DIR/checkpoint.json.
     Resume {
         /// The run's output directory.
         dir: PathBuf,
