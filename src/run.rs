@@ -110,6 +110,7 @@ pub fn resolve(case: &toml::Value, overrides: &[String]) -> Result<toml::Value, 
     for o in overrides {
         config::apply_override(&mut v, o)?;
     }
+    config::apply_aliases(&mut v)?;
     Ok(v)
 }
 
