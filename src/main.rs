@@ -33,7 +33,7 @@ enum Command {
         /// No progress bar.
         #[arg(long)]
         quiet: bool,
-        /// Compact runs: write DIR/checkpoint.json every N steps (same as --set output.checkpoint_every=N).
+        /// Compact, heat and explicit_sinter runs: write DIR/checkpoint.json every N steps (same as --set output.checkpoint_every=N).
         #[arg(long, value_name = "N")]
         checkpoint_every: Option<u64>,
     },
@@ -48,7 +48,7 @@ enum Command {
         #[arg(long)]
         quiet: bool,
     },
-    /// Continue an interrupted compact run from DIR/checkpoint.json.
+    /// Continue an interrupted compact, heat or explicit_sinter run from DIR/checkpoint.json.
     Resume {
         /// The run's output directory.
         dir: PathBuf,
@@ -292,6 +292,12 @@ fn run_case(case: &CaseArgs, value: toml::Value, out: Option<PathBuf>, quiet: bo
     Ok(())
 }
 
+/// Runs `f` and adds to a configuration error the file:line:column of the key it names in the
+/// case file (or the `--set` that set it).
+fn located(case: &CaseArgs, f: impl FnOnce() -> Result<(), Error>) -> Result<(), Error> {
+    f().map_err(|e| sinterdem::config::messages::locate(e, &case.case, &case.set))
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match real_main(cli) {
@@ -305,29 +311,29 @@ fn main() -> ExitCode {
 
 fn real_main(cli: Cli) -> Result<(), Error> {
     match cli.command {
-        Command::Generate { case, out, quiet } => {
+        Command::Generate { case, out, quiet } => located(&case, || {
             let value = sinterdem::config::load_case(&case.case, &[])?;
             if sinterdem::run::Kind::of(&value)? != sinterdem::run::Kind::Generate {
                 return Err(sinterdem::ConfigError::invalid(format!("{}: kind must be \"generate\"", case.case.display())).into());
             }
-            run_case(&case, value, out, quiet, vec![])
-        }
-        Command::Run { case, out, quiet, checkpoint_every } => {
+            run_case(&case, value, out.clone(), quiet, vec![])
+        }),
+        Command::Run { case, out, quiet, checkpoint_every } => located(&case, || {
             let value = sinterdem::config::load_case(&case.case, &[])?;
             let extra = checkpoint_every.map(|n| format!("output.checkpoint_every={n}")).into_iter().collect();
-            run_case(&case, value, out, quiet, extra)
-        }
+            run_case(&case, value, out.clone(), quiet, extra)
+        }),
         Command::Resume { dir, quiet } => {
             let params = sinterdem::run::RunParams { progress: !quiet, echo_log: true, ..Default::default() };
             sinterdem::run::resume(&dir, &params)?;
             Ok(())
         }
-        Command::Check { case } => {
+        Command::Check { case } => located(&case, || {
             let value = sinterdem::config::load_case(&case.case, &[])?;
             let what = sinterdem::run::check(&value, &case.set, &base_dir(&case.case))?;
             println!("{}: ok ({what})", case.case.display());
             Ok(())
-        }
+        }),
         Command::Titanium { out, full, diameter } => {
             let study = PathBuf::from("cases/studies/titanium-28.toml");
             if !study.is_file() {
@@ -405,12 +411,12 @@ fn real_main(cli: Cli) -> Result<(), Error> {
             println!("{}", serde_json::to_string_pretty(&v).unwrap());
             Ok(())
         }
-        Command::Conductivity { case } => {
+        Command::Conductivity { case } => located(&case, || {
             let value = sinterdem::config::load_case(&case.case, &case.set)?;
             let v = sinterdem::heat::conductivity::run_case(value, &base_dir(&case.case))?;
             println!("{}", serde_json::to_string_pretty(&v).unwrap());
             Ok(())
-        }
+        }),
         Command::Calibrate { case, out, quiet, generate_synthetic, validate_compact } => {
             sinterdem::calibrate::run_file(&case.case, &case.set, &out, quiet, generate_synthetic, validate_compact)
         }

@@ -110,6 +110,7 @@ pub fn resolve(case: &toml::Value, overrides: &[String]) -> Result<toml::Value, 
     for o in overrides {
         config::apply_override(&mut v, o)?;
     }
+    config::apply_aliases(&mut v)?;
     Ok(v)
 }
 
@@ -180,7 +181,7 @@ pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunPar
             serde_json::to_value(&s).map_err(|e| IoError::new(out.join("summary.json"), e))?
         }
         Kind::ExplicitSinter => {
-            let s = crate::explicit::protocol::run_explicit_case(&value, out, params.progress)?;
+            let s = crate::explicit::protocol::run_explicit_from(&value, out, &mut logf, None)?;
             logf("done: explicit sintering protocol finished (summary.json)");
             s
         }
@@ -193,18 +194,33 @@ pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunPar
     Ok(RunSummary { kind, wall_seconds: wall.elapsed().as_secs_f64(), summary })
 }
 
-/// Continues the interrupted run in `dir` from its checkpoint (compact runs).
+/// Continues the interrupted run in `dir` from its checkpoint (compact, heat and explicit_sinter
+/// runs): the checkpoint's `format` names the kind.
 pub fn resume(dir: &Path, params: &RunParams) -> Result<RunSummary, Error> {
     let wall = Instant::now();
-    let mut log = RunLog::open(dir, true, params.echo_log);
-    // the checkpoint's format names the kind
     let path = dir.join("checkpoint.json");
-    let text = std::fs::read_to_string(&path).map_err(|e| IoError::new(&path, e))?;
-    let heat = text.contains(&format!("\"format\":\"{}\"", crate::heat::run::HEAT_CHECKPOINT_FORMAT));
-    let (kind, summary) = if heat {
-        (Kind::Heat, crate::heat::run::resume(dir, params.progress, &mut |m: &str| log.line(m))?)
-    } else {
-        (Kind::Compact, crate::coupled::resume(dir, params.progress, &mut |m: &str| log.line(m))?)
+    let text = crate::io::read_input(&path)?;
+    #[derive(serde::Deserialize)]
+    struct Head {
+        format: Option<String>,
+    }
+    let format = serde_json::from_str::<Head>(&text).map_err(|e| IoError::new(&path, format!("not a sinterdem checkpoint: {e}")))?.format.unwrap_or_default();
+    let mut log = RunLog::open(dir, true, params.echo_log);
+    let mut logf = |m: &str| log.line(m);
+    let (kind, summary) = match format.as_str() {
+        crate::heat::run::HEAT_CHECKPOINT_FORMAT => (Kind::Heat, crate::heat::run::resume(dir, params.progress, &mut logf)?),
+        crate::explicit::protocol::EXPLICIT_CHECKPOINT_FORMAT => (Kind::ExplicitSinter, crate::explicit::protocol::resume(dir, &mut logf)?),
+        crate::coupled::CHECKPOINT_FORMAT => (Kind::Compact, crate::coupled::resume(dir, params.progress, &mut logf)?),
+        f => {
+            return Err(ConfigError::invalid(format!(
+                "{}: format \"{f}\" is not a checkpoint this sinterdem continues ({}, {} or {})",
+                path.display(),
+                crate::coupled::CHECKPOINT_FORMAT,
+                crate::heat::run::HEAT_CHECKPOINT_FORMAT,
+                crate::explicit::protocol::EXPLICIT_CHECKPOINT_FORMAT
+            ))
+            .into());
+        }
     };
     Ok(RunSummary { kind, wall_seconds: wall.elapsed().as_secs_f64(), summary })
 }

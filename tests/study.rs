@@ -256,7 +256,7 @@ fn bad_study_files_name_key_value_and_range() {
             &["design.samples", "0", "[1, 1000000]"][..],
         ),
         ("[engine]\njobs = 2.5\n", &["engine.jobs", "whole number"][..]),
-        ("[engin]\njobs = 2\n", &["unknown field", "engin"][..]),
+        ("[engin]\njobs = 2\n", &["engin: unknown key", "did you mean `engine`?"][..]),
         ("[design]\nkind = \"random\"\n", &["design.kind", "random", "grid, zip, lhs or sobol"][..]),
         ("[[parameters]]\nkey = \"pair.radius\"\nrange = [1e-6, 2e-6]\n", &["parameters.0.num", "missing"][..]),
         ("[[parameters]]\nkey = \"a\"\nvalues = [1, 2]\n[[parameters]]\nkey = \"b\"\nvalues = [1]\n[design]\nkind = \"zip\"\n", &["zip", "equal length"][..]),

@@ -7,6 +7,7 @@
 //!   whose error names key, value, allowed range and unit.
 
 pub mod case;
+pub mod messages;
 pub mod plausible;
 pub mod ranges;
 
@@ -22,13 +23,16 @@ pub fn load_case(path: &Path, overrides: &[String]) -> Result<toml::Value, Error
     for o in overrides {
         apply_override(&mut value, o)?;
     }
+    apply_aliases(&mut value)?;
     Ok(value)
 }
 
 /// Parses case text (`name` appears in the error).
 pub fn parse_case_str(text: &str, name: &str) -> Result<toml::Value, ConfigError> {
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
-    text.parse::<toml::Table>().map(toml::Value::Table).map_err(|e| ConfigError::invalid(format!("{name}{}: {}", position(text, e.span()), e.message())))
+    text.parse::<toml::Table>()
+        .map(toml::Value::Table)
+        .map_err(|e| ConfigError::invalid(format!("{name}{}: {}", position(text, e.span()), messages::syntax_message(text, e.span(), e.message()))))
 }
 
 /// `:LINE:COLUMN` (1-based) of the start of `span` in `text`, or "" without a span.
@@ -84,12 +88,56 @@ pub fn expand_includes(root: &mut toml::Value, base: &Path) -> Result<(), Config
     Ok(())
 }
 
+/// Keys that mean one concept under another name in some kinds (docs/case-file.md, "One name per
+/// concept"): (kind, common key, the kind's own key). A pair case's end time is `pair.end_time`;
+/// `time.end`, the end time of heat and compact cases, names it too.
+pub const ALIASES: &[(&str, &str, &str)] = &[("pair", "time.end", "pair.end_time")];
+
+fn kind_name(root: &toml::Value) -> &str {
+    root.get("kind").and_then(|k| k.as_str()).unwrap_or("heat")
+}
+
+/// The key of `path` in a case of `root`'s kind: the kind's own name for an [`ALIASES`] key.
+pub fn alias_of<'a>(root: &toml::Value, path: &'a str) -> &'a str {
+    let kind = kind_name(root);
+    ALIASES.iter().find(|(k, common, _)| *k == kind && *common == path).map(|(_, _, own)| *own).unwrap_or(path)
+}
+
+/// Moves the [`ALIASES`] keys written in a case file under their common name to the kind's own
+/// key (`[time] end = 60` of a pair case → `pair.end_time = 60`); both given is an error naming
+/// both keys.
+pub fn apply_aliases(root: &mut toml::Value) -> Result<(), ConfigError> {
+    let kind = kind_name(root).to_string();
+    for (k, common, own) in ALIASES.iter().filter(|a| a.0 == kind) {
+        let (csec, ckey) = common.split_once('.').unwrap();
+        let (osec, okey) = own.split_once('.').unwrap();
+        let Some(t) = root.as_table_mut() else { return Ok(()) };
+        let Some(value) = t.get_mut(csec).and_then(|s| s.as_table_mut()).and_then(|s| s.remove(ckey)) else { continue };
+        if t.get(csec).and_then(|s| s.as_table()).is_some_and(|s| s.is_empty()) {
+            t.remove(csec);
+        } else if let Some(rest) = t.get(csec).and_then(|s| s.as_table()) {
+            let extra: Vec<&String> = rest.keys().collect();
+            return Err(ConfigError::inconsistent(
+                format!("{csec}.{}", extra[0]),
+                format!("unknown key: a {k} case takes only `{common}` in [{csec}] (the same as `{own}`)"),
+            ));
+        }
+        let sec = t.entry(osec.to_string()).or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        let Some(sec) = sec.as_table_mut() else { continue };
+        if sec.contains_key(okey) {
+            return Err(ConfigError::inconsistent(*common, format!("and `{own}` name the same end time of a {k} case; give one of them")));
+        }
+        sec.insert(okey.to_string(), value);
+    }
+    Ok(())
+}
+
 /// Applies one `key.path=value` override. The value is parsed as TOML (number, bool, string,
 /// array); a bare word that is not valid TOML is taken as a string. Array elements are addressed
 /// by index (`profiles.0.hold_time=60`).
 pub fn apply_override(root: &mut toml::Value, assignment: &str) -> Result<(), ConfigError> {
     let (path, raw) = assignment.split_once('=').ok_or_else(|| ConfigError::invalid(format!("--set {assignment}: expected key.path=value")))?;
-    let path = path.trim();
+    let path = alias_of(root, path.trim());
     let raw = raw.trim();
     let new: toml::Value = match format!("v = {raw}").parse::<toml::Table>() {
         Ok(mut t) => t.remove("v").unwrap(),
@@ -128,14 +176,11 @@ pub fn apply_override(root: &mut toml::Value, assignment: &str) -> Result<(), Co
     Ok(())
 }
 
-/// Deserialises a typed section, turning serde's message (unknown field, wrong type) into a
-/// [`ConfigError`] that names the key.
+/// Deserialises a typed section (`section`: its dotted path in the case, "" for the whole case),
+/// turning serde's message (unknown key, wrong type, missing key) into a [`ConfigError`] that
+/// names the full key in a user's terms ([`messages::from_serde`]).
 pub fn from_value<T: DeserializeOwned>(value: toml::Value, section: &str) -> Result<T, ConfigError> {
-    T::deserialize(value).map_err(|e| {
-        let msg = e.to_string();
-        let msg = msg.trim().replace('\n', " ");
-        if section.is_empty() { ConfigError::invalid(msg) } else { ConfigError::invalid(format!("[{section}] {msg}")) }
-    })
+    T::deserialize(value).map_err(|e| messages::from_serde(&e.to_string(), section))
 }
 
 /// Checks `value` of `key` against the range table entry for `key` (see [`ranges::lookup`]).
@@ -154,7 +199,7 @@ mod position_tests {
     #[test]
     fn syntax_errors_name_line_and_column() {
         let e = super::parse_case_str("a = 1\nb = 2\nb = 3\n", "case.toml").unwrap_err().to_string();
-        assert!(e.contains("case.toml:3:1") && e.contains("duplicate key"), "{e}");
+        assert!(e.contains("case.toml:3:1") && e.contains("duplicate key `b` at the top level (first defined at line 2)"), "{e}");
         let e = super::parse_case_str("a = 1\n[x\n", "c.toml").unwrap_err().to_string();
         assert!(e.contains("c.toml:2:"), "{e}");
     }

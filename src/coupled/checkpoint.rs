@@ -61,7 +61,8 @@ pub struct Checkpoint {
     pub output: OutputState,
 }
 
-const CHECKPOINT_FORMAT: &str = "sinterdem-checkpoint-1";
+/// Format tag of compact checkpoints.
+pub const CHECKPOINT_FORMAT: &str = "sinterdem-checkpoint-1";
 
 impl Simulation {
     pub(crate) fn checkpoint(&self, output: OutputState) -> Checkpoint {

@@ -20,7 +20,7 @@ mod validate;
 
 pub use bench::bench_coupled;
 pub(crate) use checkpoint::write_checkpoint;
-pub use checkpoint::{Checkpoint, OutputState, read_checkpoint, resume};
+pub use checkpoint::{CHECKPOINT_FORMAT, Checkpoint, OutputState, read_checkpoint, resume};
 pub use driver::{run, run_from};
 pub(crate) use output::{Due, write_snapshot};
 pub use output::{compact_conductivity, write_correction_histogram, write_plots};

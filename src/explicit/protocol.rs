@@ -106,6 +106,17 @@ struct CaseFile {
     stepping: SteppingSpec,
     luding: Option<toml::Value>,
     frenkel: Option<toml::Value>,
+    #[serde(default)]
+    output: OutputSpec,
+}
+
+/// `[output]` of an `explicit_sinter` case.
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct OutputSpec {
+    /// Write `DIR/checkpoint.json` every this many explicit steps, counted over the whole protocol
+    /// (all pressures and branches); 0: never (`sinterdem run --checkpoint-every N`).
+    pub checkpoint_every: f64,
 }
 
 /// `[sample]`.
@@ -246,6 +257,7 @@ pub struct ExplicitSinterCase {
     pub compression: CompressionSpec,
     pub coupling: CouplingSpec,
     pub stepping: SteppingSpec,
+    pub output: OutputSpec,
 }
 
 impl ExplicitSinterCase {
@@ -346,6 +358,10 @@ pub fn parse_explicit_case(case: &toml::Value) -> Result<ExplicitSinterCase, Err
     } else if cu.conductivity.is_some() || cu.specific_heat.is_some() {
         return Err(ConfigError::inconsistent("coupling.conductivity", "only used by mode = \"network\"; remove it").into());
     }
+    let ck = check("output.checkpoint_every", f.output.checkpoint_every)?;
+    if ck.fract() != 0.0 {
+        return Err(ConfigError::inconsistent("output.checkpoint_every", format!("{ck} must be a whole number of steps")).into());
+    }
     let st = &f.stepping;
     check("stepping.dt_fraction", st.dt_fraction)?;
     check("stepping.skin", st.skin)?;
@@ -379,6 +395,7 @@ pub fn parse_explicit_case(case: &toml::Value) -> Result<ExplicitSinterCase, Err
         compression: f.compression,
         coupling: f.coupling,
         stepping: f.stepping,
+        output: f.output,
     };
     case.profile(case.sinter_times().last().copied().unwrap_or(0.0))?;
     Ok(case)
@@ -432,7 +449,7 @@ fn check_plan(c: &ExplicitSinterCase) -> Result<(), Error> {
 }
 
 /// What the protocol needs of a sintering law beyond [`ContactModel`].
-pub trait SinterLaw: ContactModel + Clone {
+pub trait SinterLaw: ContactModel<State: Serialize + serde::de::DeserializeOwned> + Clone {
     /// Switches the sintering-time settings on (Luding: t_0 ← t0_sinter) or off.
     fn set_sintering(&mut self, on: bool, t0_sinter: Option<f64>);
     /// Sets the particle friction coefficient (0 during preparation).
@@ -486,7 +503,7 @@ impl SinterLaw for FrenkelLaw {
 }
 
 /// One history row.
-#[derive(Debug, Clone, Copy, Default, Serialize)]
+#[derive(Debug, Clone, Copy, Default, Serialize, Deserialize)]
 pub struct Row {
     pub time: f64,
     pub temperature: f64,
@@ -815,6 +832,9 @@ impl<M: SinterLaw> Sample<M> {
     }
 
     /// Advances to time `until` [s] under `profile`, writing a history row every `interval`.
+    /// `clock` counts the steps of the whole protocol; when it reaches a multiple of its
+    /// checkpoint interval the advance pauses and returns `Ok(false)` (call it again to go on:
+    /// the continuation is the same as if it had not paused); `Ok(true)` once `until` is reached.
     fn advance(
         &mut self,
         case: &ExplicitSinterCase,
@@ -824,7 +844,8 @@ impl<M: SinterLaw> Sample<M> {
         interval: f64,
         sintering: bool,
         strain_of: Option<(f64, f64)>,
-    ) -> Result<(), Error> {
+        clock: &mut StepClock,
+    ) -> Result<bool, Error> {
         let t0s = case.protocol.t0_sinter;
         self.driver.law.set_sintering(sintering, t0s);
         let dt = self.driver.settings.dt;
@@ -844,13 +865,16 @@ impl<M: SinterLaw> Sample<M> {
                 self.rows.push(r);
                 next_row = self.driver.time + interval;
             }
+            if clock.tick() {
+                return Ok(false);
+            }
         }
-        Ok(())
+        Ok(true)
     }
 }
 
 /// Results of one branch (pressure, sintering time).
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Branch {
     pub pressure: f64,
     pub t_sinter: f64,
@@ -886,127 +910,495 @@ pub struct ExplicitSinterRun {
     pub wall_seconds: f64,
 }
 
+/// Counts the explicit steps of a whole protocol and says when a checkpoint is due.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct StepClock {
+    /// Steps so far (all pressures and branches).
+    pub steps: u64,
+    /// Checkpoint interval [steps]; 0: never.
+    pub every: u64,
+}
+
+impl StepClock {
+    fn tick(&mut self) -> bool {
+        self.steps += 1;
+        self.every > 0 && self.steps.is_multiple_of(self.every)
+    }
+}
+
+/// Where the protocol is (module docs: prepare → heat → per t_s: sinter, then a branch that
+/// cools, relaxes and is compressed). Checkpoints record it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(tag = "stage", rename_all = "snake_case")]
+pub enum Stage {
+    /// A new sample for the pressure `pressure_index`.
+    Start,
+    Prepare,
+    Heat,
+    /// Sintering the trunk to the `k`-th sintering time.
+    Sinter {
+        k: usize,
+    },
+    /// The `k`-th branch cooling and relaxing.
+    Cool {
+        k: usize,
+    },
+    /// The `k`-th branch under the compression test.
+    Compress {
+        k: usize,
+    },
+}
+
+/// Values of the branch in progress taken at earlier stages.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+struct Partial {
+    density_prepared: f64,
+    density_sintered: f64,
+    forces_sintered: Vec<f64>,
+    density_final: f64,
+    forces_cooled: Vec<f64>,
+    coordination_final: f64,
+    history: Vec<Row>,
+    /// Compression test: initial height z_0 [m], top-wall speed [m/s], start time [s].
+    z0: f64,
+    speed: f64,
+    t_start: f64,
+}
+
+/// A [`Sample`] in a checkpoint: what is not rebuilt from the case by [`Sample::new`].
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct SampleState<S> {
+    pressure: f64,
+    #[serde(with = "crate::io::serde_v3::vec")]
+    position: Vec<V3>,
+    #[serde(with = "crate::io::serde_v3::vec")]
+    velocity: Vec<V3>,
+    #[serde(with = "crate::io::serde_v3::vec")]
+    angular_velocity: Vec<V3>,
+    #[serde(with = "crate::io::serde_v3::vec")]
+    rotation: Vec<V3>,
+    radius: Vec<f64>,
+    temperature: Vec<f64>,
+    /// The law's particle friction at the checkpoint (the preparation runs frictionless).
+    friction: f64,
+    driver: super::DriverState<S>,
+    fixed: Vec<bool>,
+    heat_solves: u64,
+    since_heat: u64,
+    radius_drift: f64,
+    acc: [f64; 3],
+    acc_n: u64,
+    rows: Vec<Row>,
+    warnings: Vec<String>,
+    /// The sample had a heat network (rebuilt on resume from `fixed`, which fully defines it).
+    network: bool,
+}
+
+impl<M: SinterLaw> Sample<M> {
+    fn save(&self, network: bool) -> SampleState<M::State> {
+        let p = &self.particles;
+        SampleState {
+            pressure: self.pressure,
+            position: p.position.clone(),
+            velocity: p.velocity.clone(),
+            angular_velocity: p.angular_velocity.clone(),
+            rotation: p.rotation.clone(),
+            radius: p.radius.clone(),
+            temperature: p.temperature.clone(),
+            friction: self.driver.law.friction(),
+            driver: self.driver.save_state(),
+            fixed: self.fixed.clone(),
+            heat_solves: self.heat_solves,
+            since_heat: self.since_heat,
+            radius_drift: self.radius_drift,
+            acc: self.acc,
+            acc_n: self.acc_n,
+            rows: self.rows.clone(),
+            warnings: self.warnings.clone(),
+            network,
+        }
+    }
+
+    /// The sample of `st`: built again from the case (masses, radii at T_cold, step), then the
+    /// saved state laid over it; `what` names it in errors.
+    fn restore(case: &ExplicitSinterCase, law: M, st: SampleState<M::State>, what: &str) -> Result<Self, String> {
+        let mut s = Sample::new(case, law, st.pressure).map_err(|e| format!("{what}: {e}"))?;
+        let n = s.particles.len();
+        let vecs = [("position", &st.position), ("velocity", &st.velocity), ("angular_velocity", &st.angular_velocity), ("rotation", &st.rotation)];
+        for (k, v) in vecs {
+            if v.len() != n || !v.iter().all(|x| x.iter().all(|c| c.is_finite())) {
+                return Err(format!("{what}.{k}: {} values, expected {n} finite vectors (sample.particles = {n})", v.len()));
+            }
+        }
+        if st.radius.len() != n || !st.radius.iter().all(|r| r.is_finite() && *r > 0.0) {
+            return Err(format!("{what}.radius: expected {n} positive radii [m]"));
+        }
+        if st.temperature.len() != n || !st.temperature.iter().all(|t| t.is_finite() && *t > 0.0) {
+            return Err(format!("{what}.temperature: expected {n} positive temperatures [K]"));
+        }
+        if st.fixed.len() != n {
+            return Err(format!("{what}.fixed: {} flags, expected {n}", st.fixed.len()));
+        }
+        if !(st.friction.is_finite() && st.friction >= 0.0) || !(st.radius_drift.is_finite() && st.acc.iter().all(|a| a.is_finite())) {
+            return Err(format!("{what}: friction, radius drift or stress accumulator out of range"));
+        }
+        s.driver.restore_state(st.driver, n).map_err(|e| format!("{what}.driver.{e}"))?;
+        let p = &mut s.particles;
+        p.position = st.position;
+        p.velocity = st.velocity;
+        p.angular_velocity = st.angular_velocity;
+        p.rotation = st.rotation;
+        p.radius = st.radius;
+        p.temperature = st.temperature;
+        s.driver.law.set_friction(st.friction);
+        s.fixed = st.fixed;
+        s.heat_solves = st.heat_solves;
+        s.since_heat = st.since_heat;
+        s.radius_drift = st.radius_drift;
+        s.acc = st.acc;
+        s.acc_n = st.acc_n;
+        s.rows = st.rows;
+        s.warnings = st.warnings;
+        Ok(s)
+    }
+}
+
+/// Format tag of `explicit_sinter` checkpoints.
+pub const EXPLICIT_CHECKPOINT_FORMAT: &str = "sinterdem-explicit-checkpoint-1";
+
+/// `DIR/checkpoint.json` of an `explicit_sinter` run: the case as run, where the protocol is, the
+/// trunk sample and the branch in progress, and the finished branches.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct ExplicitCheckpoint<S> {
+    format: String,
+    case_toml: String,
+    model: String,
+    pressure_index: usize,
+    stage: Stage,
+    steps: u64,
+    dt_used: f64,
+    trunk: Option<SampleState<S>>,
+    branch: Option<SampleState<S>>,
+    partial: Partial,
+    branches: Vec<Branch>,
+    warnings: Vec<String>,
+    /// Wall time before the checkpoint [s].
+    wall_before: f64,
+}
+
+/// The protocol's state machine: one call of [`Machine::run`] takes the protocol from `stage` to
+/// its end, pausing at every checkpoint.
+struct Machine<M: SinterLaw> {
+    law: M,
+    pressure_index: usize,
+    stage: Stage,
+    trunk: Option<Sample<M>>,
+    net: Option<HeatNetwork>,
+    branch: Option<Sample<M>>,
+    bnet: Option<HeatNetwork>,
+    partial: Partial,
+    branches: Vec<Branch>,
+    warnings: Vec<String>,
+    dt_used: f64,
+    clock: StepClock,
+    wall_before: f64,
+}
+
+/// Checkpoint writing of a run: where, and the case text the checkpoint carries.
+pub struct CheckpointSink<'a> {
+    pub dir: &'a Path,
+    /// The case as run (overrides applied), TOML.
+    pub case_toml: String,
+    /// Stop right after the checkpoint at or after this step (as if killed there; for tests).
+    pub stop_after: Option<u64>,
+}
+
 fn forces_of<M: SinterLaw>(s: &Sample<M>) -> Vec<f64> {
     s.driver.contact_states().iter().map(|c| c.1).collect()
 }
 
-fn run_law<M: SinterLaw>(case: &ExplicitSinterCase, law: M, progress: bool) -> Result<(Vec<Branch>, f64, Vec<String>), Error> {
-    let mut branches = Vec::new();
-    let mut warnings = Vec::new();
-    let mut dt_used = 0.0;
-    let times = case.sinter_times();
-    let interval = case.output_interval();
-    let t_s0 = case.t_sinter_start();
-    for &pressure in &case.walls.pressures {
-        let mut s = Sample::new(case, law.clone(), pressure)?;
-        dt_used = s.driver.settings.dt;
-        let mut net: Option<HeatNetwork> = None;
-        let profile_max = case.profile(*times.last().unwrap())?;
-        if progress {
-            eprintln!("explicit_sinter: p = {pressure:.3e} Pa, {} particles, dt = {:.3e} s: prepare", s.particles.len(), dt_used);
+impl<M: SinterLaw> Machine<M> {
+    fn new(law: M, every: u64) -> Self {
+        Machine {
+            law,
+            pressure_index: 0,
+            stage: Stage::Start,
+            trunk: None,
+            net: None,
+            branch: None,
+            bnet: None,
+            partial: Partial::default(),
+            branches: Vec::new(),
+            warnings: Vec::new(),
+            dt_used: 0.0,
+            clock: StepClock { steps: 0, every },
+            wall_before: 0.0,
         }
-        s.advance(case, &profile_max, &mut net, case.protocol.t_prepare, interval, false, None)?;
-        let density_prepared = s.density();
-        let mu = law.friction();
-        s.driver.law.set_friction(mu);
-        s.advance(case, &profile_max, &mut net, t_s0, interval, false, None)?;
-        for &ts in &times {
-            if progress {
-                eprintln!("explicit_sinter: p = {pressure:.3e} Pa: sinter to t_s = {ts} s");
-            }
-            s.advance(case, &profile_max, &mut net, t_s0 + ts, interval, true, None)?;
-            let density_sintered = s.density();
-            let forces_sintered = forces_of(&s);
-            let mut b = s.clone();
-            let mut bnet: Option<HeatNetwork> = None;
-            if case.coupling.mode == CouplingMode::Network && net.is_some() {
-                let prof = case.profile(ts)?;
-                bnet = Some(b.build_network_keep(case, &prof)?);
-            }
-            let profile = case.profile(ts)?;
-            let t_end = t_s0 + ts + case.protocol.t_cool + case.protocol.t_relax;
-            b.advance(case, &profile, &mut bnet, t_end, interval, false, None)?;
-            let density_final = b.density();
-            let forces_cooled = forces_of(&b);
-            let coordination_final = 2.0 * forces_cooled.len() as f64 / b.particles.len() as f64;
-            let history = b.rows.clone();
-            let mut compression = Vec::new();
-            if case.compression.enabled {
-                let z0 = box_size(&b.driver.walls)[2];
-                let v = case.compression.strain_rate * z0;
-                b.driver.walls[5].control = WallControl::Velocity;
-                b.driver.walls[5].velocity = v;
-                let duration = case.compression.max_strain / case.compression.strain_rate;
-                let t_start = b.driver.time;
-                b.rows.clear();
-                let first = b.row(profile.temperature(t_start), 0.0);
-                b.rows.push(first);
-                let d_int = case.compression.output_strain / case.compression.strain_rate;
-                b.advance(case, &profile, &mut bnet, t_start + duration, d_int, false, Some((z0, v)))?;
-                compression = b.rows.clone();
-            }
-            // no contact left: 0 (as in the history rows), with a warning below
-            let min_f = |f: &[f64]| if f.is_empty() { 0.0 } else { f.iter().copied().fold(f64::INFINITY, f64::min) };
-            let max_f = |f: &[f64]| if f.is_empty() { 0.0 } else { f.iter().copied().fold(f64::NEG_INFINITY, f64::max) };
-            for (f, when) in [(&forces_sintered, "after sintering"), (&forces_cooled, "after cool-down")] {
-                if f.is_empty() {
-                    warnings.push(format!("p = {pressure} Pa, t_sinter = {ts} s: no contacts {when}; its force extremes are reported as 0"));
-                }
-            }
-            let (mut peak, mut eps_peak) = (if compression.is_empty() { 0.0 } else { f64::NEG_INFINITY }, 0.0);
-            for r in &compression {
-                if r.stress[2] > peak {
-                    peak = r.stress[2];
-                    eps_peak = r.strain;
-                }
-            }
-            let stiffness = if compression.len() > 2 && eps_peak > 0.0 {
-                let e1 = 0.2 * eps_peak;
-                let r1 = compression.iter().find(|r| r.strain >= e1).unwrap();
-                (r1.stress[2] - compression[0].stress[2]) / r1.strain.max(f64::MIN_POSITIVE)
-            } else {
-                // the stress never rose above its start (or no compression test): no resistance
-                if case.compression.enabled {
-                    warnings.push(format!(
-                        "p = {pressure} Pa, t_sinter = {ts} s: the compression stress never rose above its initial value; stiffness reported as 0"
-                    ));
-                }
-                0.0
-            };
-            warnings.extend(b.warnings.iter().cloned());
-            branches.push(Branch {
-                pressure,
-                t_sinter: ts,
-                history,
-                compression,
-                min_force_sintered: min_f(&forces_sintered),
-                min_force_cooled: min_f(&forces_cooled),
-                max_force_cooled: max_f(&forces_cooled),
-                forces_sintered,
-                forces_cooled,
-                density_prepared,
-                density_sintered,
-                density_final,
-                coordination_final,
-                peak_stress: peak,
-                strain_at_peak: eps_peak,
-                stiffness,
-                heat_solves: b.heat_solves,
-                steps: b.driver.counters.steps,
-            });
-            if progress {
-                let br = branches.last().unwrap();
-                eprintln!(
-                    "  t_s = {ts}: density sintered {:.4}, final {:.4}, min force after cooling {:.3e} N, peak sigma_zz {:.4e} Pa",
-                    br.density_sintered, br.density_final, br.min_force_cooled, br.peak_stress
-                );
-            }
-        }
-        warnings.extend(s.warnings.iter().cloned());
     }
-    warnings.sort();
-    warnings.dedup();
-    Ok((branches, dt_used, warnings))
+
+    fn checkpoint(&self, case_toml: &str, model: &str, wall: f64) -> ExplicitCheckpoint<M::State> {
+        ExplicitCheckpoint {
+            format: EXPLICIT_CHECKPOINT_FORMAT.into(),
+            case_toml: case_toml.into(),
+            model: model.into(),
+            pressure_index: self.pressure_index,
+            stage: self.stage,
+            steps: self.clock.steps,
+            dt_used: self.dt_used,
+            trunk: self.trunk.as_ref().map(|s| s.save(self.net.is_some())),
+            branch: self.branch.as_ref().map(|s| s.save(self.bnet.is_some())),
+            partial: self.partial.clone(),
+            branches: self.branches.clone(),
+            warnings: self.warnings.clone(),
+            wall_before: self.wall_before + wall,
+        }
+    }
+
+    /// The machine of a checkpoint, checked against the case (the error says what does not fit).
+    fn restore(case: &ExplicitSinterCase, law: M, ck: ExplicitCheckpoint<M::State>, every: u64) -> Result<Self, String> {
+        let times = case.sinter_times().len();
+        let np = case.walls.pressures.len();
+        if ck.pressure_index > np || (ck.pressure_index == np && ck.stage != Stage::Start) {
+            return Err(format!("pressure_index = {}: the case has {np} pressures", ck.pressure_index));
+        }
+        let k = match ck.stage {
+            Stage::Sinter { k } | Stage::Cool { k } | Stage::Compress { k } => Some(k),
+            _ => None,
+        };
+        if let Some(k) = k
+            && k >= times
+        {
+            return Err(format!("stage {:?}: the case has {times} sintering times", ck.stage));
+        }
+        let needs_trunk = ck.stage != Stage::Start;
+        let needs_branch = matches!(ck.stage, Stage::Cool { .. } | Stage::Compress { .. });
+        if ck.trunk.is_some() != needs_trunk || ck.branch.is_some() != needs_branch {
+            return Err(format!("stage {:?} does not match the samples it carries (trunk {}, branch {})", ck.stage, ck.trunk.is_some(), ck.branch.is_some()));
+        }
+        if ck.branches.len() != ck.pressure_index * times + k.unwrap_or(0) {
+            return Err(format!("{} finished branches do not fit pressure {} at stage {:?}", ck.branches.len(), ck.pressure_index, ck.stage));
+        }
+        if !(ck.dt_used.is_finite() && ck.dt_used >= 0.0) {
+            return Err(format!("dt_used = {}: expected a finite step [s]", ck.dt_used));
+        }
+        let mut m = Machine::new(law.clone(), every);
+        let profile_max = case.profile(*case.sinter_times().last().unwrap()).map_err(|e| e.to_string())?;
+        if let Some(st) = ck.trunk {
+            let net = st.network;
+            let mut s = Sample::restore(case, law.clone(), st, "trunk")?;
+            if net {
+                m.net = Some(s.build_network_keep(case, &profile_max).map_err(|e| e.to_string())?);
+            }
+            m.trunk = Some(s);
+        }
+        if let Some(st) = ck.branch {
+            let net = st.network;
+            let mut s = Sample::restore(case, law.clone(), st, "branch")?;
+            if net {
+                let ts = case.sinter_times()[k.unwrap_or(0)];
+                m.bnet = Some(s.build_network_keep(case, &case.profile(ts).map_err(|e| e.to_string())?).map_err(|e| e.to_string())?);
+            }
+            m.branch = Some(s);
+        }
+        m.pressure_index = ck.pressure_index;
+        m.stage = ck.stage;
+        m.partial = ck.partial;
+        m.branches = ck.branches;
+        m.warnings = ck.warnings;
+        m.dt_used = ck.dt_used;
+        m.clock.steps = ck.steps;
+        m.wall_before = ck.wall_before;
+        Ok(m)
+    }
+
+    /// Runs the protocol from the current stage to its end; `Ok(false)` when stopped after a
+    /// checkpoint by `sink.stop_after`.
+    fn run(&mut self, case: &ExplicitSinterCase, model: &str, mut sink: Option<&mut CheckpointSink>, log: &mut dyn FnMut(&str)) -> Result<bool, Error> {
+        let wall = std::time::Instant::now();
+        let times = case.sinter_times();
+        let interval = case.output_interval();
+        let t_s0 = case.t_sinter_start();
+        let profile_max = case.profile(*times.last().unwrap())?;
+        while self.pressure_index < case.walls.pressures.len() {
+            let pressure = case.walls.pressures[self.pressure_index];
+            let done = match self.stage {
+                Stage::Start => {
+                    let s = Sample::new(case, self.law.clone(), pressure)?;
+                    self.dt_used = s.driver.settings.dt;
+                    log(&format!("explicit_sinter: p = {pressure:.3e} Pa, {} particles, dt = {:.3e} s: prepare", s.particles.len(), self.dt_used));
+                    self.trunk = Some(s);
+                    self.net = None;
+                    self.stage = Stage::Prepare;
+                    true
+                }
+                Stage::Prepare => {
+                    let s = self.trunk.as_mut().unwrap();
+                    let done = s.advance(case, &profile_max, &mut self.net, case.protocol.t_prepare, interval, false, None, &mut self.clock)?;
+                    if done {
+                        self.partial = Partial { density_prepared: s.density(), ..Default::default() };
+                        s.driver.law.set_friction(self.law.friction());
+                        self.stage = Stage::Heat;
+                    }
+                    done
+                }
+                Stage::Heat => {
+                    let s = self.trunk.as_mut().unwrap();
+                    let done = s.advance(case, &profile_max, &mut self.net, t_s0, interval, false, None, &mut self.clock)?;
+                    if done {
+                        self.stage = Stage::Sinter { k: 0 };
+                        log(&format!("explicit_sinter: p = {pressure:.3e} Pa: sinter to t_s = {} s", times[0]));
+                    }
+                    done
+                }
+                Stage::Sinter { k } => {
+                    let ts = times[k];
+                    let s = self.trunk.as_mut().unwrap();
+                    let done = s.advance(case, &profile_max, &mut self.net, t_s0 + ts, interval, true, None, &mut self.clock)?;
+                    if done {
+                        self.partial.density_sintered = s.density();
+                        self.partial.forces_sintered = forces_of(s);
+                        let mut b = s.clone();
+                        self.bnet = None;
+                        if case.coupling.mode == CouplingMode::Network && self.net.is_some() {
+                            self.bnet = Some(b.build_network_keep(case, &case.profile(ts)?)?);
+                        }
+                        self.branch = Some(b);
+                        self.stage = Stage::Cool { k };
+                    }
+                    done
+                }
+                Stage::Cool { k } => {
+                    let ts = times[k];
+                    let profile = case.profile(ts)?;
+                    let t_end = t_s0 + ts + case.protocol.t_cool + case.protocol.t_relax;
+                    let b = self.branch.as_mut().unwrap();
+                    let done = b.advance(case, &profile, &mut self.bnet, t_end, interval, false, None, &mut self.clock)?;
+                    if done {
+                        let pa = &mut self.partial;
+                        pa.density_final = b.density();
+                        pa.forces_cooled = forces_of(b);
+                        pa.coordination_final = 2.0 * pa.forces_cooled.len() as f64 / b.particles.len() as f64;
+                        pa.history = b.rows.clone();
+                        if case.compression.enabled {
+                            pa.z0 = box_size(&b.driver.walls)[2];
+                            pa.speed = case.compression.strain_rate * pa.z0;
+                            b.driver.walls[5].control = WallControl::Velocity;
+                            b.driver.walls[5].velocity = pa.speed;
+                            pa.t_start = b.driver.time;
+                            b.rows.clear();
+                            let first = b.row(profile.temperature(pa.t_start), 0.0);
+                            b.rows.push(first);
+                            self.stage = Stage::Compress { k };
+                        } else {
+                            self.finish_branch(case, pressure, k, &times, log);
+                        }
+                    }
+                    done
+                }
+                Stage::Compress { k } => {
+                    let ts = times[k];
+                    let profile = case.profile(ts)?;
+                    let duration = case.compression.max_strain / case.compression.strain_rate;
+                    let d_int = case.compression.output_strain / case.compression.strain_rate;
+                    let (z0, v, t_start) = (self.partial.z0, self.partial.speed, self.partial.t_start);
+                    let b = self.branch.as_mut().unwrap();
+                    let done = b.advance(case, &profile, &mut self.bnet, t_start + duration, d_int, false, Some((z0, v)), &mut self.clock)?;
+                    if done {
+                        self.finish_branch(case, pressure, k, &times, log);
+                    }
+                    done
+                }
+            };
+            if !done && let Some(sink) = sink.as_deref_mut() {
+                let ck = self.checkpoint(&sink.case_toml, model, wall.elapsed().as_secs_f64());
+                let path = sink.dir.join("checkpoint.json");
+                let json = serde_json::to_string(&ck).map_err(|e| IoError::new(&path, e))?;
+                crate::io::write_atomic(&path, &json)?;
+                if sink.stop_after.is_some_and(|k| self.clock.steps >= k) {
+                    return Ok(false);
+                }
+            }
+        }
+        self.warnings.sort();
+        self.warnings.dedup();
+        self.wall_before += wall.elapsed().as_secs_f64();
+        Ok(true)
+    }
+
+    /// The branch `k` of the current pressure is done: its results become a [`Branch`], and the
+    /// protocol moves to the next sintering time or pressure.
+    fn finish_branch(&mut self, case: &ExplicitSinterCase, pressure: f64, k: usize, times: &[f64], log: &mut dyn FnMut(&str)) {
+        let ts = times[k];
+        let b = self.branch.take().unwrap();
+        self.bnet = None;
+        let pa = std::mem::take(&mut self.partial);
+        let compression = if case.compression.enabled { b.rows.clone() } else { Vec::new() };
+        // no contact left: 0 (as in the history rows), with a warning below
+        let min_f = |f: &[f64]| if f.is_empty() { 0.0 } else { f.iter().copied().fold(f64::INFINITY, f64::min) };
+        let max_f = |f: &[f64]| if f.is_empty() { 0.0 } else { f.iter().copied().fold(f64::NEG_INFINITY, f64::max) };
+        for (f, when) in [(&pa.forces_sintered, "after sintering"), (&pa.forces_cooled, "after cool-down")] {
+            if f.is_empty() {
+                self.warnings.push(format!("p = {pressure} Pa, t_sinter = {ts} s: no contacts {when}; its force extremes are reported as 0"));
+            }
+        }
+        let (mut peak, mut eps_peak) = (if compression.is_empty() { 0.0 } else { f64::NEG_INFINITY }, 0.0);
+        for r in &compression {
+            if r.stress[2] > peak {
+                peak = r.stress[2];
+                eps_peak = r.strain;
+            }
+        }
+        let stiffness = if compression.len() > 2 && eps_peak > 0.0 {
+            let e1 = 0.2 * eps_peak;
+            let r1 = compression.iter().find(|r| r.strain >= e1).unwrap();
+            (r1.stress[2] - compression[0].stress[2]) / r1.strain.max(f64::MIN_POSITIVE)
+        } else {
+            // the stress never rose above its start (or no compression test): no resistance
+            if case.compression.enabled {
+                self.warnings
+                    .push(format!("p = {pressure} Pa, t_sinter = {ts} s: the compression stress never rose above its initial value; stiffness reported as 0"));
+            }
+            0.0
+        };
+        self.warnings.extend(b.warnings.iter().cloned());
+        self.branches.push(Branch {
+            pressure,
+            t_sinter: ts,
+            history: pa.history,
+            compression,
+            min_force_sintered: min_f(&pa.forces_sintered),
+            min_force_cooled: min_f(&pa.forces_cooled),
+            max_force_cooled: max_f(&pa.forces_cooled),
+            forces_sintered: pa.forces_sintered,
+            forces_cooled: pa.forces_cooled,
+            density_prepared: pa.density_prepared,
+            density_sintered: pa.density_sintered,
+            density_final: pa.density_final,
+            coordination_final: pa.coordination_final,
+            peak_stress: peak,
+            strain_at_peak: eps_peak,
+            stiffness,
+            heat_solves: b.heat_solves,
+            steps: b.driver.counters.steps,
+        });
+        let br = self.branches.last().unwrap();
+        log(&format!(
+            "  t_s = {ts}: density sintered {:.4}, final {:.4}, min force after cooling {:.3e} N, peak sigma_zz {:.4e} Pa",
+            br.density_sintered, br.density_final, br.min_force_cooled, br.peak_stress
+        ));
+        // the next branch starts from the same preparation
+        self.partial = Partial { density_prepared: pa.density_prepared, ..Default::default() };
+        if k + 1 < times.len() {
+            self.stage = Stage::Sinter { k: k + 1 };
+            log(&format!("explicit_sinter: p = {pressure:.3e} Pa: sinter to t_s = {} s", times[k + 1]));
+        } else {
+            let s = self.trunk.take().unwrap();
+            self.warnings.extend(s.warnings.iter().cloned());
+            self.net = None;
+            self.pressure_index += 1;
+            self.stage = Stage::Start;
+        }
+    }
 }
 
 impl<M: SinterLaw> Sample<M> {
@@ -1021,21 +1413,69 @@ impl<M: SinterLaw> Sample<M> {
     }
 }
 
-/// Runs a parsed case (no files written).
-pub fn run_explicit(case: &ExplicitSinterCase, progress: bool) -> Result<ExplicitSinterRun, Error> {
-    let start = std::time::Instant::now();
-    let n = case.sample.particles as usize;
-    let (branches, dt, warnings, model) = match &case.model {
-        SinterModel::Luding(p) => {
-            let (b, dt, w) = run_law(case, LudingLaw::new(p.clone()), progress)?;
-            (b, dt, w, "luding")
-        }
-        SinterModel::Frenkel(p) => {
-            let (b, dt, w) = run_law(case, FrenkelLaw { params: p.clone() }, progress)?;
-            (b, dt, w, "frenkel")
+fn model_name(case: &ExplicitSinterCase) -> &'static str {
+    match case.model {
+        SinterModel::Luding(_) => "luding",
+        SinterModel::Frenkel(_) => "frenkel",
+    }
+}
+
+/// Runs (or continues, from `resume`: the checkpoint's text and its path) the machine of one law.
+fn run_law<M: SinterLaw>(
+    case: &ExplicitSinterCase,
+    law: M,
+    sink: Option<&mut CheckpointSink>,
+    resume: Option<(&str, &Path)>,
+    log: &mut dyn FnMut(&str),
+) -> Result<Option<Machine<M>>, Error> {
+    let every = case.output.checkpoint_every as u64;
+    let mut m = match resume {
+        None => Machine::new(law, every),
+        Some((text, path)) => {
+            let ck: ExplicitCheckpoint<M::State> = serde_json::from_str(text).map_err(|e| IoError::new(path, e))?;
+            let (steps, stage) = (ck.steps, ck.stage);
+            let m = Machine::restore(case, law, ck, every).map_err(|e| ConfigError::invalid(format!("{}: {e}", path.display())))?;
+            log(&format!("resumed from the checkpoint at step {steps} ({stage:?}, pressure {} of {})", m.pressure_index + 1, case.walls.pressures.len()));
+            m
         }
     };
-    Ok(ExplicitSinterRun { title: case.title.clone(), model: model.into(), particles: n, dt, branches, warnings, wall_seconds: start.elapsed().as_secs_f64() })
+    Ok(m.run(case, model_name(case), sink, log)?.then_some(m))
+}
+
+/// Runs a parsed case (no files written); with `progress` the stage lines go to stderr.
+pub fn run_explicit(case: &ExplicitSinterCase, progress: bool) -> Result<ExplicitSinterRun, Error> {
+    let mut log = |m: &str| {
+        if progress {
+            eprintln!("{m}");
+        }
+    };
+    run_explicit_with(case, None, None, &mut log).map(|r| r.expect("no stop without a checkpoint sink"))
+}
+
+/// Runs a parsed case, writing checkpoints into `sink` when given and continuing from `resume`
+/// (a checkpoint's text and path) when given; `Ok(None)` when stopped by `sink.stop_after`.
+pub fn run_explicit_with(
+    case: &ExplicitSinterCase,
+    sink: Option<&mut CheckpointSink>,
+    resume: Option<(&str, &Path)>,
+    log: &mut dyn FnMut(&str),
+) -> Result<Option<ExplicitSinterRun>, Error> {
+    let n = case.sample.particles as usize;
+    let done = match &case.model {
+        SinterModel::Luding(p) => run_law(case, LudingLaw::new(p.clone()), sink, resume, log)?.map(|m| (m.branches, m.dt_used, m.warnings, m.wall_before)),
+        SinterModel::Frenkel(p) => {
+            run_law(case, FrenkelLaw { params: p.clone() }, sink, resume, log)?.map(|m| (m.branches, m.dt_used, m.warnings, m.wall_before))
+        }
+    };
+    Ok(done.map(|(branches, dt, warnings, wall)| ExplicitSinterRun {
+        title: case.title.clone(),
+        model: model_name(case).into(),
+        particles: n,
+        dt,
+        branches,
+        warnings,
+        wall_seconds: wall,
+    }))
 }
 
 fn tag(b: &Branch) -> String {
@@ -1200,12 +1640,62 @@ pub fn summary_json(run: &ExplicitSinterRun) -> serde_json::Value {
 }
 
 /// Runs an `explicit_sinter` case and writes its outputs into `out_dir` (module docs); returns the
-/// summary (also `summary.json`).
+/// summary (also `summary.json`). With `progress` the stage lines go to stderr.
 pub fn run_explicit_case(case: &toml::Value, out_dir: &Path, progress: bool) -> Result<serde_json::Value, Error> {
+    let mut log = |m: &str| {
+        if progress {
+            eprintln!("{m}");
+        }
+    };
+    run_explicit_from(case, out_dir, &mut log, None)
+}
+
+/// The run API's entry: runs `case` into `out_dir`, writing `out_dir/checkpoint.json` every
+/// `output.checkpoint_every` steps; `stop_after` ends the run right after the checkpoint at or
+/// after that step (as if killed there; for tests) with `Ok(Value::Null)`.
+pub fn run_explicit_from(case: &toml::Value, out_dir: &Path, log: &mut dyn FnMut(&str), stop_after: Option<u64>) -> Result<serde_json::Value, Error> {
     let c = parse_explicit_case(case)?;
-    let run = run_explicit(&c, progress)?;
-    for w in &run.warnings {
-        eprintln!("warning: {w}");
+    crate::io::ensure_dir(out_dir)?;
+    let case_toml = toml::to_string(case).map_err(|e| ConfigError::invalid(format!("case cannot be re-serialised: {e}")))?;
+    let mut sink = CheckpointSink { dir: out_dir, case_toml, stop_after };
+    let sink = (c.output.checkpoint_every > 0.0).then_some(&mut sink);
+    match run_explicit_with(&c, sink, None, log)? {
+        None => Ok(serde_json::Value::Null),
+        Some(run) => finish(&c, &run, out_dir, log),
     }
-    write_outputs(&c, &run, out_dir)
+}
+
+fn finish(c: &ExplicitSinterCase, run: &ExplicitSinterRun, out_dir: &Path, log: &mut dyn FnMut(&str)) -> Result<serde_json::Value, Error> {
+    for w in &run.warnings {
+        log(&format!("warning: {w}"));
+    }
+    write_outputs(c, run, out_dir)
+}
+
+/// `sinterdem resume DIR` for an `explicit_sinter` run: rebuilds the case from the checkpoint's
+/// text, restores the protocol's stage, samples and finished branches after checking them against
+/// the case, and continues bit for bit.
+pub fn resume(dir: &Path, log: &mut dyn FnMut(&str)) -> Result<serde_json::Value, Error> {
+    #[derive(Deserialize)]
+    struct Head {
+        format: String,
+        case_toml: String,
+        model: String,
+    }
+    let path = dir.join("checkpoint.json");
+    let text = crate::io::read_input(&path)?;
+    let head: Head = serde_json::from_str(&text).map_err(|e| IoError::new(&path, e))?;
+    if head.format != EXPLICIT_CHECKPOINT_FORMAT {
+        return Err(ConfigError::invalid(format!("{}: format \"{}\" is not {EXPLICIT_CHECKPOINT_FORMAT}", path.display(), head.format)).into());
+    }
+    let value =
+        toml::Value::Table(head.case_toml.parse::<toml::Table>().map_err(|e| ConfigError::invalid(format!("{}: case: {}", path.display(), e.message())))?);
+    let c = parse_explicit_case(&value).map_err(|e| ConfigError::invalid(format!("{}: case: {e}", path.display())))?;
+    if head.model != model_name(&c) {
+        return Err(ConfigError::invalid(format!("{}: model \"{}\" does not match the case's model \"{}\"", path.display(), head.model, model_name(&c))).into());
+    }
+    let mut sink = CheckpointSink { dir, case_toml: head.case_toml, stop_after: None };
+    let sink = (c.output.checkpoint_every > 0.0).then_some(&mut sink);
+    let run = run_explicit_with(&c, sink, Some((&text, &path)), log)?.expect("no stop without stop_after");
+    finish(&c, &run, dir, log)
 }

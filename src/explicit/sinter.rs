@@ -48,7 +48,7 @@ impl LudingLaw {
 
 /// Per-contact state of [`LudingLaw`]: `None` until the contact first closes (then k1(T,t) = k1(T)
 /// of that step's contact temperature, docs/luding.md: a new contact starts with k1(T,t) = k1(T)).
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct LudingSlot(pub Option<LudingState>);
 
 impl ContactModel for LudingLaw {

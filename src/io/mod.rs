@@ -46,6 +46,36 @@ pub fn write_atomic(path: &Path, text: &str) -> Result<(), IoError> {
     std::fs::rename(&tmp, path).map_err(|e| IoError::new(path, e))
 }
 
+/// Serde for `Vector3<f64>` as `[x, y, z]` (checkpoints; nalgebra's serde feature is off):
+/// `#[serde(with = "crate::io::serde_v3")]` on a `Vector3<f64>` field.
+pub mod serde_v3 {
+    use nalgebra::Vector3;
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+    pub fn serialize<S: Serializer>(v: &Vector3<f64>, s: S) -> Result<S::Ok, S::Error> {
+        [v.x, v.y, v.z].serialize(s)
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vector3<f64>, D::Error> {
+        let a = <[f64; 3]>::deserialize(d)?;
+        Ok(Vector3::new(a[0], a[1], a[2]))
+    }
+
+    /// The same for `Vec<Vector3<f64>>`: `#[serde(with = "crate::io::serde_v3::vec")]`.
+    pub mod vec {
+        use nalgebra::Vector3;
+        use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+        pub fn serialize<S: Serializer>(v: &[Vector3<f64>], s: S) -> Result<S::Ok, S::Error> {
+            v.iter().map(|x| [x.x, x.y, x.z]).collect::<Vec<_>>().serialize(s)
+        }
+
+        pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<Vector3<f64>>, D::Error> {
+            Ok(Vec::<[f64; 3]>::deserialize(d)?.into_iter().map(|a| Vector3::new(a[0], a[1], a[2])).collect())
+        }
+    }
+}
+
 /// A text CSV field, quoted when it holds a comma, quote or line break (RFC 4180).
 pub fn csv_text(s: &str) -> String {
     if s.contains([',', '"', '\n', '\r']) { format!("\"{}\"", s.replace('"', "\"\"")) } else { s.to_string() }

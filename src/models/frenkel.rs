@@ -460,11 +460,12 @@ pub fn reduced_radius(r_i: f64, r_j: f64) -> f64 {
 }
 
 /// Per-contact state (docs/design.md: δ_p, ξ).
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct FrenkelState {
     /// Plastic overlap δ_p [m], 0 ≤ δ_p ≤ d_fluid_0.
     pub delta_p: f64,
     /// Tangential spring ξ [m].
+    #[serde(with = "crate::io::serde_v3")]
     pub xi: Vector3<f64>,
 }
 

@@ -285,13 +285,14 @@ impl LudingParams {
 }
 
 /// Per-contact history of Luding's law (docs/design.md: δ_max, δ_0, ξ, k1(T,t)).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct LudingState {
     /// Largest overlap reached δ_max [m] (shifted by the cohesive branch and by cooling).
     pub delta_max: f64,
     /// Force-free overlap δ_0 [m].
     pub delta_0: f64,
     /// Tangential spring ξ [m] (eqs. 16, 20, 21).
+    #[serde(with = "crate::io::serde_v3")]
     pub xi: Vector3<f64>,
     /// Current effective loading stiffness k1(T,t) [N/m] (eqs. 11–12).
     pub k1_t: f64,
