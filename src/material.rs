@@ -19,6 +19,12 @@ pub struct MaterialSpec {
     pub heat_capacity: Option<f64>,
     /// Thermal conductivity κ [W/(m·K)].
     pub conductivity: Option<f64>,
+    /// κ(T) as a piecewise-linear table: `[[T, κ], ...]` ([K], [W/(m·K)]) or the name of a bundled
+    /// table ("copper", "titanium"); replaces `conductivity` in every heat path (heat-model.md eq. P3).
+    pub conductivity_table: Option<toml::Value>,
+    /// c(T) as a piecewise-linear table: `[[T, c], ...]` ([K], [J/(kg·K)]) or the name of a bundled
+    /// table; replaces `heat_capacity` in every heat path (heat-model.md eqs. P1–P2).
+    pub heat_capacity_table: Option<toml::Value>,
     /// Young's modulus E [Pa].
     pub young_modulus: Option<f64>,
     /// Poisson's ratio ν [1].
@@ -47,8 +53,13 @@ pub struct Material {
     pub density: f64,
     /// c [J/(kg·K)].
     pub heat_capacity: f64,
-    /// κ [W/(m·K)].
+    /// κ [W/(m·K)]; with `conductivity_table` the table's value at 293.15 K (the reference the
+    /// pipe conductances are computed with, rescaled by κ(T)/κ_ref in the heat network).
     pub conductivity: f64,
+    /// κ(T) [W/(m·K)], if given.
+    pub conductivity_table: Option<Table>,
+    /// c(T) [J/(kg·K)], if given (then `heat_capacity` is its value at 293.15 K).
+    pub heat_capacity_table: Option<Table>,
     /// E [Pa].
     pub young_modulus: f64,
     /// ν [1].
@@ -71,6 +82,8 @@ pub fn preset(name: &str) -> Option<Material> {
             density: 8960.0,
             heat_capacity: 385.0,
             conductivity: 394.0,
+            conductivity_table: None,
+            heat_capacity_table: None,
             young_modulus: 72e9,
             poisson_ratio: 0.34,
             diffusion: Some("copper".into()),
@@ -81,6 +94,8 @@ pub fn preset(name: &str) -> Option<Material> {
             density: 4506.0,
             heat_capacity: 523.0,
             conductivity: 21.9,
+            conductivity_table: None,
+            heat_capacity_table: None,
             young_modulus: 57e9,
             poisson_ratio: 0.39,
             diffusion: Some("titanium".into()),
@@ -150,11 +165,29 @@ impl MaterialSpec {
                 Some(m)
             }
         };
+        let table = |v: &Option<toml::Value>, k: &str, constant: Option<f64>, quantity: Quantity| -> Result<Option<Table>, ConfigError> {
+            let Some(v) = v else { return Ok(None) };
+            if constant.is_some() {
+                return Err(ConfigError::inconsistent(key(k), format!("give either {} or {k}, not both", key(quantity.constant_key()))));
+            }
+            Table::from_value(v, &key(k), quantity).map(Some)
+        };
+        let conductivity_table = table(&self.conductivity_table, "conductivity_table", self.conductivity, Quantity::Conductivity)?;
+        let heat_capacity_table = table(&self.heat_capacity_table, "heat_capacity_table", self.heat_capacity, Quantity::HeatCapacity)?;
+        let from_table = |t: &Option<Table>| t.as_ref().map(|t| t.at(REFERENCE_TEMPERATURE));
         Ok(Material {
             name: self.name.clone(),
             density: get(self.density, "density", base.as_ref().map(|b| b.density))?,
-            heat_capacity: get(self.heat_capacity, "heat_capacity", base.as_ref().map(|b| b.heat_capacity))?,
-            conductivity: get(self.conductivity, "conductivity", base.as_ref().map(|b| b.conductivity))?,
+            heat_capacity: match from_table(&heat_capacity_table) {
+                Some(c) => c,
+                None => get(self.heat_capacity, "heat_capacity", base.as_ref().map(|b| b.heat_capacity))?,
+            },
+            conductivity: match from_table(&conductivity_table) {
+                Some(k) => k,
+                None => get(self.conductivity, "conductivity", base.as_ref().map(|b| b.conductivity))?,
+            },
+            conductivity_table,
+            heat_capacity_table,
             young_modulus: young,
             poisson_ratio: poisson,
             diffusion: diffusion_name,
@@ -181,4 +214,204 @@ pub fn from_case(list: &[MaterialSpec]) -> Result<Vec<Material>, ConfigError> {
 /// Convenience for tests and tools: one material from a TOML table.
 pub fn parse_one(v: toml::Value) -> Result<Material, ConfigError> {
     from_value::<MaterialSpec>(v, "materials")?.resolve()
+}
+
+/// Temperature at which a table gives the material's constant `conductivity` and `heat_capacity`
+/// (used where one value is needed: the pipe reference, the explicit limit, `sinterdem
+/// conductivity`) [K].
+pub const REFERENCE_TEMPERATURE: f64 = 293.15;
+
+/// Which property a table holds (for its range check and messages).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Quantity {
+    /// κ [W/(m·K)], (0, 1e4].
+    Conductivity,
+    /// c [J/(kg·K)], (0, 1e5].
+    HeatCapacity,
+}
+
+impl Quantity {
+    fn range(self) -> (f64, &'static str, &'static str) {
+        match self {
+            Quantity::Conductivity => (1e4, "W/(m K)", "conductivity"),
+            Quantity::HeatCapacity => (1e5, "J/(kg K)", "heat capacity"),
+        }
+    }
+    fn constant_key(self) -> &'static str {
+        match self {
+            Quantity::Conductivity => "conductivity",
+            Quantity::HeatCapacity => "heat_capacity",
+        }
+    }
+}
+
+/// A piecewise-linear property table v(T) through points (T_k, v_k), T strictly increasing,
+/// held constant beyond its end points (heat-model.md "Temperature-dependent properties").
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Table {
+    /// Temperatures T_k [K], strictly increasing, at least two.
+    pub temperature: Vec<f64>,
+    /// Values v_k (unit of the property), positive.
+    pub value: Vec<f64>,
+}
+
+/// Bundled tables: Incropera, DeWitt, Bergman & Lavine (2007), *Fundamentals of Heat and Mass
+/// Transfer*, 6th ed., Wiley, Table A.1 (pure copper; unalloyed titanium), points 200–1200 K
+/// (copper, melting at 1358 K) and 200–1500 K (titanium). The titanium heat capacity falls from
+/// 675 (1000 K) to 620 J/(kg·K) (1200 K) across the α→β transition (1155 K); the table has no
+/// point inside it and no latent-heat peak (docs/heat-model.md).
+pub fn bundled_table(name: &str, quantity: Quantity) -> Option<Table> {
+    let (t, v): (&[f64], &[f64]) = match (name, quantity) {
+        ("copper", Quantity::Conductivity) => (&[200.0, 300.0, 400.0, 600.0, 800.0, 1000.0, 1200.0], &[413.0, 401.0, 393.0, 379.0, 366.0, 352.0, 339.0]),
+        ("copper", Quantity::HeatCapacity) => (&[200.0, 300.0, 400.0, 600.0, 800.0, 1000.0, 1200.0], &[356.0, 385.0, 397.0, 417.0, 433.0, 451.0, 480.0]),
+        ("titanium", Quantity::Conductivity) => {
+            (&[200.0, 300.0, 400.0, 600.0, 800.0, 1000.0, 1200.0, 1500.0], &[24.5, 21.9, 20.4, 19.4, 19.7, 20.7, 22.0, 24.5])
+        }
+        ("titanium", Quantity::HeatCapacity) => {
+            (&[200.0, 300.0, 400.0, 600.0, 800.0, 1000.0, 1200.0, 1500.0], &[465.0, 522.0, 551.0, 591.0, 633.0, 675.0, 620.0, 686.0])
+        }
+        _ => return None,
+    };
+    Some(Table { temperature: t.to_vec(), value: v.to_vec() })
+}
+
+impl Table {
+    /// A validated table from points `[[T, v], ...]`; `key` names it in errors.
+    pub fn new(points: &[[f64; 2]], key: &str, quantity: Quantity) -> Result<Table, ConfigError> {
+        let (vmax, unit, what) = quantity.range();
+        if points.len() < 2 {
+            return Err(ConfigError::invalid(format!("{key}: {} point(s); a table needs at least 2 points [T, value]", points.len())));
+        }
+        for (k, &[t, v]) in points.iter().enumerate() {
+            if !(t > 0.0 && t <= 1e4) {
+                return Err(ConfigError::invalid(format!("{key}[{k}] = [{t}, {v}]: temperature {t} K is outside (0, 10000] K")));
+            }
+            if !(v > 0.0 && v <= vmax) {
+                return Err(ConfigError::invalid(format!("{key}[{k}] = [{t}, {v}]: {what} {v} {unit} is outside (0, {vmax:e}] {unit}")));
+            }
+            if k > 0 && t <= points[k - 1][0] {
+                return Err(ConfigError::invalid(format!(
+                    "{key}[{k}] = [{t}, {v}]: temperatures must increase strictly ({t} K follows {} K)",
+                    points[k - 1][0]
+                )));
+            }
+        }
+        Ok(Table { temperature: points.iter().map(|p| p[0]).collect(), value: points.iter().map(|p| p[1]).collect() })
+    }
+
+    /// From a case value: a bundled name or an array of `[T, v]` pairs.
+    pub fn from_value(v: &toml::Value, key: &str, quantity: Quantity) -> Result<Table, ConfigError> {
+        match v {
+            toml::Value::String(name) => bundled_table(name, quantity)
+                .ok_or_else(|| ConfigError::invalid(format!("{key} = \"{name}\": unknown bundled table (copper, titanium), or give [[T, value], ...]"))),
+            toml::Value::Array(rows) => {
+                let num = |x: &toml::Value| x.as_float().or_else(|| x.as_integer().map(|i| i as f64));
+                let mut pts = Vec::with_capacity(rows.len());
+                for (k, r) in rows.iter().enumerate() {
+                    match r.as_array().map(|a| a.iter().map(num).collect::<Option<Vec<f64>>>()) {
+                        Some(Some(a)) if a.len() == 2 => pts.push([a[0], a[1]]),
+                        _ => return Err(ConfigError::invalid(format!("{key}[{k}] = {r}: expected a pair of numbers [T in K, value]"))),
+                    }
+                }
+                Table::new(&pts, key, quantity)
+            }
+            other => Err(ConfigError::invalid(format!("{key} = {other}: expected [[T, value], ...] or a bundled name (copper, titanium)"))),
+        }
+    }
+
+    /// v(T), linear between points, constant beyond the ends.
+    pub fn at(&self, t: f64) -> f64 {
+        let (ts, vs) = (&self.temperature, &self.value);
+        let n = ts.len();
+        if t <= ts[0] {
+            return vs[0];
+        }
+        if t >= ts[n - 1] {
+            return vs[n - 1];
+        }
+        let k = ts.partition_point(|&x| x <= t) - 1;
+        vs[k] + (vs[k + 1] - vs[k]) * (t - ts[k]) / (ts[k + 1] - ts[k])
+    }
+
+    /// ∫_a^b v(T) dT, exact for the piecewise-linear table (trapezoids split at the points).
+    pub fn integral(&self, a: f64, b: f64) -> f64 {
+        if a == b {
+            return 0.0;
+        }
+        let (lo, hi, sign) = if a < b { (a, b, 1.0) } else { (b, a, -1.0) };
+        let mut sum = 0.0;
+        let mut x = lo;
+        for &tk in self.temperature.iter().filter(|&&tk| tk > lo && tk < hi) {
+            sum += (tk - x) * 0.5 * (self.at(x) + self.at(tk));
+            x = tk;
+        }
+        sum += (hi - x) * 0.5 * (self.at(x) + self.at(hi));
+        sign * sum
+    }
+
+    /// The mean of v over [a, b], `∫_a^b v dT / (b − a)`, and v(a) when a = b; robust when b − a
+    /// is tiny (the segments' lengths cancel).
+    pub fn mean(&self, a: f64, b: f64) -> f64 {
+        if a == b {
+            return self.at(a);
+        }
+        let (lo, hi) = if a < b { (a, b) } else { (b, a) };
+        let mut sum = 0.0;
+        let mut x = lo;
+        for &tk in self.temperature.iter().filter(|&&tk| tk > lo && tk < hi) {
+            sum += (tk - x) / (hi - lo) * 0.5 * (self.at(x) + self.at(tk));
+            x = tk;
+        }
+        sum + (hi - x) / (hi - lo) * 0.5 * (self.at(x) + self.at(hi))
+    }
+}
+
+#[cfg(test)]
+mod table_tests {
+    use super::*;
+
+    #[test]
+    fn piecewise_linear_values_integrals_and_means() {
+        let t = Table::new(&[[300.0, 400.0], [1300.0, 340.0]], "k", Quantity::Conductivity).unwrap();
+        assert_eq!(t.at(200.0), 400.0);
+        assert_eq!(t.at(2000.0), 340.0);
+        assert!((t.at(800.0) - 370.0).abs() < 1e-12);
+        // linear piece: mean over [a, b] is the value at the midpoint
+        assert!((t.mean(400.0, 1000.0) - t.at(700.0)).abs() < 1e-12);
+        assert!((t.mean(1000.0, 400.0) - t.at(700.0)).abs() < 1e-12);
+        // constant extension below the first point: ∫_0^300 = 400·300
+        assert!((t.integral(0.0, 300.0) - 120_000.0).abs() < 1e-9);
+        assert!((t.integral(100.0, 1500.0) + t.integral(1500.0, 100.0)).abs() < 1e-9);
+        let exact = 200.0 * 400.0 + 0.5 * (400.0 + 340.0) * 1000.0 + 200.0 * 340.0;
+        assert!((t.integral(100.0, 1500.0) - exact).abs() < 1e-9);
+        assert!((t.mean(500.0, 500.0 + 1e-12) - t.at(500.0)).abs() < 1e-9);
+    }
+
+    #[test]
+    fn bad_tables_name_the_key_value_and_range() {
+        let q = Quantity::HeatCapacity;
+        let e = Table::new(&[[300.0, 500.0]], "materials.ti.heat_capacity_table", q).unwrap_err().to_string();
+        assert!(e.contains("materials.ti.heat_capacity_table") && e.contains("at least 2"), "{e}");
+        let e = Table::new(&[[300.0, 500.0], [300.0, 510.0]], "m.t", q).unwrap_err().to_string();
+        assert!(e.contains("m.t[1] = [300, 510]") && e.contains("increase strictly"), "{e}");
+        let e = Table::new(&[[300.0, 500.0], [400.0, -1.0]], "m.t", q).unwrap_err().to_string();
+        assert!(e.contains("m.t[1]") && e.contains("-1") && e.contains("(0, 1e5]") && e.contains("J/(kg K)"), "{e}");
+        let e = Table::new(&[[-3.0, 500.0], [400.0, 1.0]], "m.t", q).unwrap_err().to_string();
+        assert!(e.contains("(0, 10000] K"), "{e}");
+        let v: toml::Value = toml::from_str::<toml::Table>("t = [[300, 1], [400]]").unwrap()["t"].clone();
+        let e = Table::from_value(&v, "m.t", q).unwrap_err().to_string();
+        assert!(e.contains("m.t[1]") && e.contains("pair of numbers"), "{e}");
+        let v = toml::Value::String("brass".into());
+        assert!(Table::from_value(&v, "m.t", q).unwrap_err().to_string().contains("copper, titanium"));
+    }
+
+    #[test]
+    fn bundled_tables_at_300_k_match_the_constants_of_the_same_handbook() {
+        // Incropera et al. (2007) Table A.1 at 300 K: copper 401 W/(m K), 385 J/(kg K); titanium 21.9, 522
+        let k = |m, q| bundled_table(m, q).unwrap().at(300.0);
+        assert_eq!(k("copper", Quantity::Conductivity), 401.0);
+        assert_eq!(k("copper", Quantity::HeatCapacity), 385.0);
+        assert_eq!(k("titanium", Quantity::Conductivity), 21.9);
+        assert_eq!(k("titanium", Quantity::HeatCapacity), 522.0);
+    }
 }

@@ -266,6 +266,9 @@ pub struct Pipes {
     pub neck: Vec<f64>,
     /// Pipe conductance K_ij [W/K].
     pub conductance: Vec<f64>,
+    /// The halves and series conductance of each pipe at the materials' constant κ [W/K] (the
+    /// heat network rescales the halves with κ(T), heat-model.md eq. P4).
+    pub parts: Vec<crate::heat::PipeConductance>,
     /// Pipes whose a/r_min exceeds 0.7 (the linear law is extrapolated there).
     pub extrapolated: usize,
 }
@@ -286,6 +289,7 @@ pub fn pipes_from_pairs(pairs: Vec<[u32; 2]>, branch: &[Vector3<f64>], p: &Parti
         out.overlap.push(h);
         out.neck.push(neck.a);
         out.conductance.push(pipe.pair);
+        out.parts.push(pipe);
     }
     Ok(out)
 }

@@ -149,6 +149,10 @@ pub struct TimeSpec {
     /// Compact runs: end the run once the relative density (eq. 49) reaches this value, e.g. 0.8,
     /// the end of the 7-DOF model's validity (Ivannikov et al. 2022 §4) [1].
     pub stop_relative_density: Option<f64>,
+    /// Local error tolerance of the heat step, max over particles [K] (heat-model.md eq. E3).
+    /// Heat runs: Δt is chosen by error (time.dt the first step, within time.dt_min, time.dt_max);
+    /// compact runs: the heat stage subdivides its step. Absent: the fixed Δt.
+    pub heat_tolerance: Option<f64>,
 }
 
 #[derive(Debug, Clone, Deserialize, Serialize)]

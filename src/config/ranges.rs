@@ -69,6 +69,7 @@ pub static TABLE: &[Range] = &[
     c("time.grow_below", 0.0, 1.0, "1", "strategy 2: grow when fewer contacts than this fraction subdivided"),
     c("time.substeps_allowed", 1.0, 1e6, "1", "strategy 2: a contact needing more substeps than this counts as subdivided"),
     p("time.stop_relative_density", 0.0, 1.0, "1", "compact runs: stop once the relative density (eq. 49) reaches this value"),
+    c("time.heat_tolerance", 1e-9, 1e4, "K", "local error tolerance of the heat step (heat-model.md eq. E3); absent: fixed dt"),
     c("time.shrink_above", 0.0, 1.0, "1", "strategy 2: shrink when more contacts than this fraction subdivided"),
     // output
     c("output.snapshots", 0.0, 1e5, "1", "number of VTU/HDF5 snapshots, evenly spaced in time"),

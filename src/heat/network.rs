@@ -19,6 +19,8 @@
 //! schemes); their difference is the discrete energy-balance residual (round-off).
 
 use crate::error::SolveError;
+use crate::heat::PipeConductance;
+use crate::heat::properties::ThermalProperties;
 use crate::linsolve::{SolveInfo, SpdFactor, SpdPattern, set_parallelism_for};
 use crate::profile::Profile;
 use crate::units::STEFAN_BOLTZMANN;
@@ -113,6 +115,8 @@ pub struct HeatNetwork {
     factor: Option<SpdFactor>,
     // history for BDF2
     prev: Option<(Vec<f64>, f64)>,
+    // temperature-dependent properties (heat-model.md eqs. P1–P4)
+    props: Option<ThermalProperties>,
 }
 
 const NONE: u32 = u32::MAX;
@@ -142,6 +146,59 @@ impl HeatNetwork {
             pattern: None,
             factor: None,
             prev: None,
+            props: None,
+        }
+    }
+
+    /// Sets temperature-dependent properties (`None`: the constant capacities and conductances).
+    /// With c(T) the steps solve the enthalpy form (eqs. P1–P2), with κ(T) they need
+    /// [`step_pipes`](Self::step_pipes); both iterate (Picard) to `radiation_tol`.
+    pub fn set_properties(&mut self, props: Option<ThermalProperties>) {
+        self.props = props;
+    }
+
+    /// The temperature-dependent properties, if any.
+    pub fn properties(&self) -> Option<&ThermalProperties> {
+        self.props.as_ref()
+    }
+
+    /// H_i(b) − H_i(a) of particle `i` [J]: `C_i (b − a)` with a constant capacity, `m_i ∫_a^b c dT`
+    /// with a table (eq. P1).
+    pub fn enthalpy_change(&self, i: usize, a: f64, b: f64) -> f64 {
+        match self.props.as_ref().and_then(|p| p.capacity_table(i).map(|t| (t, p.mass[i]))) {
+            Some((t, m)) => m * t.integral(a, b),
+            None => self.capacity[i] * (b - a),
+        }
+    }
+
+    /// Stored heat of the free particles, Σ H_i(T_i) with H_i(T) = C_i T (constant capacity) or
+    /// `m_i ∫_0^T c dT` (eq. P1) [J].
+    pub fn stored_heat(&self, temps: &[f64]) -> f64 {
+        self.free.iter().map(|&i| self.enthalpy_change(i as usize, 0.0, temps[i as usize])).sum()
+    }
+
+    /// dT_i/dt [K/s] per particle at (`temps`, `t`) (0 for Dirichlet particles): `f_i / C_i(T_i)`.
+    pub fn rate_of_change(&self, t: f64, temps: &[f64], pipes: &[PipeConductance]) -> Vec<f64> {
+        let k = self.conductances_at(temps, pipes);
+        let mut f = vec![0.0; self.free.len()];
+        self.rates(temps, t, &k, &mut f);
+        let mut out = vec![0.0; temps.len()];
+        for (l, &i) in self.free.iter().enumerate() {
+            let i = i as usize;
+            let c = match self.props.as_ref().and_then(|p| p.capacity_table(i).map(|t| (t, p.mass[i]))) {
+                Some((t, m)) => m * t.at(temps[i]),
+                None => self.capacity[i],
+            };
+            out[i] = f[l] / c;
+        }
+        out
+    }
+
+    /// Pipe conductances [W/K] at `temps`: the pairs' values, or with κ(T) eq. P4.
+    fn conductances_at(&self, temps: &[f64], pipes: &[PipeConductance]) -> Vec<f64> {
+        match self.props.as_ref().filter(|p| p.has_conductivity()) {
+            Some(pr) => self.pipes.iter().zip(pipes).map(|(&[i, j], pc)| pr.pipe(pc, i as usize, j as usize, temps[i as usize], temps[j as usize])).collect(),
+            None => pipes.iter().map(|p| p.pair).collect(),
         }
     }
 
@@ -258,12 +315,28 @@ impl HeatNetwork {
     }
 
     /// Advances `temps` [K] from `t` to `t + dt` [s] with pipe conductances `conductance` [W/K]
-    /// (one per pipe of [`set_topology`](Self::set_topology)).
+    /// (one per pipe of [`set_topology`](Self::set_topology)). A network with κ(T) needs
+    /// [`step_pipes`](Self::step_pipes).
     pub fn step(&mut self, t: f64, dt: f64, temps: &mut [f64], conductance: &[f64]) -> Result<HeatStepInfo, SolveError> {
+        if self.props.as_ref().is_some_and(|p| p.has_conductivity()) {
+            return Err(SolveError::new("heat step", "a network with temperature-dependent conductivity needs the pipe halves (step_pipes)"));
+        }
+        self.step_impl(t, dt, temps, conductance, None)
+    }
+
+    /// [`step`](Self::step) with the pipes' halves and series conductance computed with the
+    /// materials' constant κ (κ_ref); with κ(T) the halves are rescaled by eq. P3.
+    pub fn step_pipes(&mut self, t: f64, dt: f64, temps: &mut [f64], pipes: &[PipeConductance]) -> Result<HeatStepInfo, SolveError> {
+        let k: Vec<f64> = pipes.iter().map(|p| p.pair).collect();
+        let kappa = self.props.as_ref().is_some_and(|p| p.has_conductivity());
+        self.step_impl(t, dt, temps, &k, kappa.then_some(pipes))
+    }
+
+    fn step_impl(&mut self, t: f64, dt: f64, temps: &mut [f64], conductance: &[f64], halves: Option<&[PipeConductance]>) -> Result<HeatStepInfo, SolveError> {
         if !(dt > 0.0 && dt.is_finite()) {
             return Err(SolveError::new("heat step", format!("time step {dt} s is not positive")));
         }
-        if conductance.len() != self.pipes.len() {
+        if conductance.len() != self.pipes.len() || halves.is_some_and(|h| h.len() != self.pipes.len()) {
             return Err(SolveError::new("heat step", format!("{} conductances for {} pipes", conductance.len(), self.pipes.len())));
         }
         let Some(pattern) = self.pattern.as_ref() else {
@@ -281,10 +354,27 @@ impl HeatNetwork {
             (Scheme::CrankNicolson, _) => (1.0, -1.0, 0.0, 0.5, None),
             _ => (1.0, -1.0, 0.0, 1.0, None),
         };
-        // r = storage part + explicit half for CN
+        // particles with c(T) (enthalpy form, eqs. P1–P2) and whether κ(T) rescales the pipes
+        let table = |i: usize| self.props.as_ref().and_then(|p| p.capacity_table(i).map(|t| (t, p.mass[i])));
+        let nonlinear = self.props.is_some();
+        let pipes_now = |temps: &[f64]| -> Vec<f64> {
+            match (halves, self.props.as_ref()) {
+                (Some(h), Some(pr)) => {
+                    self.pipes.iter().zip(h).map(|(&[i, j], pc)| pr.pipe(pc, i as usize, j as usize, temps[i as usize], temps[j as usize])).collect()
+                }
+                _ => conductance.to_vec(),
+            }
+        };
+        // r = storage part + explicit half for CN; with c(T) the BDF2 history term a2 ΔH^{n}
         let mut rhs0 = vec![0.0; nf];
         for (l, &i) in self.free.iter().enumerate() {
             let i = i as usize;
+            if let Some((tab, m)) = table(i) {
+                if let Some(tp) = &bdf_prev {
+                    rhs0[l] = a2 * m * tab.integral(tp[i], t_old[i]) / dt;
+                }
+                continue;
+            }
             let c = self.capacity[i] / dt;
             let mut r = -c * a1 * t_old[i];
             if let Some(tp) = &bdf_prev {
@@ -295,7 +385,8 @@ impl HeatNetwork {
         let mut g_old = 0.0;
         if w < 1.0 {
             let mut f_old = vec![0.0; nf];
-            g_old = self.rates(&t_old, t, conductance, &mut f_old);
+            let k_old = if halves.is_some() { pipes_now(&t_old) } else { conductance.to_vec() };
+            g_old = self.rates(&t_old, t, &k_old, &mut f_old);
             for l in 0..nf {
                 rhs0[l] += (1.0 - w) * f_old[l];
             }
@@ -304,45 +395,84 @@ impl HeatNetwork {
         let (tg, tw4, hc, eps) = self.furnace_at(t1);
         let radiation = self.has_radiation();
         let ta = Instant::now();
-        // constant part of the matrix and rhs
-        let mut diag0 = vec![0.0; nf];
-        let mut vals = vec![0.0; pattern.len()];
-        let mut rhs_c = rhs0.clone();
-        for (l, &i) in self.free.iter().enumerate() {
-            let i = i as usize;
-            let a = self.sources.exposed_area[i];
-            diag0[l] = a0 * self.capacity[i] / dt + w * hc * a;
-            rhs_c[l] += w * (hc * a * tg + self.sources.power[i]);
-        }
-        for (p, &[i, j]) in self.pipes.iter().enumerate() {
-            let k = conductance[p];
-            if !(k >= 0.0 && k.is_finite()) {
-                return Err(SolveError::new("heat assembly", format!("pipe {p} ({i}–{j}) has conductance {k} W/K")));
-            }
-            let (li, lj) = (self.local[i as usize], self.local[j as usize]);
-            if li != NONE {
-                diag0[li as usize] += w * k;
-                if lj == NONE {
-                    rhs_c[li as usize] += w * k * temps[j as usize];
+        let pattern_len = pattern.len();
+        // the matrix and rhs without radiation, for storage coefficients `cap` (a0 C/Δt per free
+        // particle), extra storage rhs `cap_rhs` and pipe conductances `k`
+        let assemble = |cap: &[f64], cap_rhs: Option<&[f64]>, k: &[f64], temps: &[f64]| -> Result<(Vec<f64>, Vec<f64>, Vec<f64>), SolveError> {
+            let mut diag0 = vec![0.0; nf];
+            let mut vals = vec![0.0; pattern_len];
+            let mut rhs_c = rhs0.clone();
+            if let Some(cr) = cap_rhs {
+                for l in 0..nf {
+                    rhs_c[l] += cr[l];
                 }
             }
-            if lj != NONE {
-                diag0[lj as usize] += w * k;
-                if li == NONE {
-                    rhs_c[lj as usize] += w * k * temps[i as usize];
+            for (l, &i) in self.free.iter().enumerate() {
+                let i = i as usize;
+                let a = self.sources.exposed_area[i];
+                diag0[l] = cap[l] + w * hc * a;
+                rhs_c[l] += w * (hc * a * tg + self.sources.power[i]);
+            }
+            for (p, &[i, j]) in self.pipes.iter().enumerate() {
+                let k = k[p];
+                if !(k >= 0.0 && k.is_finite()) {
+                    return Err(SolveError::new("heat assembly", format!("pipe {p} ({i}–{j}) has conductance {k} W/K")));
+                }
+                let (li, lj) = (self.local[i as usize], self.local[j as usize]);
+                if li != NONE {
+                    diag0[li as usize] += w * k;
+                    if lj == NONE {
+                        rhs_c[li as usize] += w * k * temps[j as usize];
+                    }
+                }
+                if lj != NONE {
+                    diag0[lj as usize] += w * k;
+                    if li == NONE {
+                        rhs_c[lj as usize] += w * k * temps[i as usize];
+                    }
+                }
+                let e = self.pipe_entry[p];
+                if e != NONE {
+                    vals[e as usize] -= w * k;
                 }
             }
-            let e = self.pipe_entry[p];
-            if e != NONE {
-                vals[e as usize] -= w * k;
-            }
-        }
+            Ok((diag0, vals, rhs_c))
+        };
+        let mut cap: Vec<f64> = self.free.iter().map(|&i| a0 * self.capacity[i as usize] / dt).collect();
+        let (mut diag0, mut vals, mut rhs_c) = if nonlinear { Default::default() } else { assemble(&cap, None, conductance, temps)? };
         let mut info = HeatStepInfo { assemble_seconds: ta.elapsed().as_secs_f64(), ..Default::default() };
         let mut x: Vec<f64> = self.free.iter().map(|&i| t_old[i as usize]).collect();
-        let max_iter = if radiation { 20 } else { 1 };
+        let max_iter = if nonlinear {
+            50
+        } else if radiation {
+            20
+        } else {
+            1
+        };
         let mut history = Vec::new();
         let mut converged = false;
+        let mut k_last = conductance.to_vec();
+        let mut work = temps.to_vec();
         for it in 1..=max_iter {
+            if nonlinear {
+                // Picard: secant capacity C(T^n, T*) (eq. P2) and κ(T*) (eq. P4) at the iterate T*
+                let ta = Instant::now();
+                for (l, &i) in self.free.iter().enumerate() {
+                    work[i as usize] = x[l];
+                }
+                let mut cap_rhs = vec![0.0; nf];
+                for (l, &i) in self.free.iter().enumerate() {
+                    let i = i as usize;
+                    if let Some((tab, m)) = table(i) {
+                        let cs = a0 * m * tab.mean(t_old[i], x[l]) / dt;
+                        cap[l] = cs;
+                        cap_rhs[l] = cs * t_old[i];
+                    }
+                }
+                k_last = pipes_now(&work);
+                (diag0, vals, rhs_c) = assemble(&cap, Some(&cap_rhs), &k_last, &work)?;
+                info.assemble_seconds += ta.elapsed().as_secs_f64();
+            }
             let mut b = rhs_c.clone();
             vals[..nf].copy_from_slice(&diag0[..nf]);
             if radiation {
@@ -373,13 +503,21 @@ impl HeatNetwork {
             let tmax = b.iter().map(|v| v.abs()).fold(0.0, f64::max);
             x = b;
             history.push(dmax / tmax.max(1e-300));
-            if !radiation || dmax <= self.radiation_tol * tmax {
+            if !(radiation || nonlinear) || dmax <= self.radiation_tol * tmax {
                 converged = true;
+                break;
+            }
+            if x.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
                 break;
             }
         }
         if !converged {
-            return Err(SolveError { stage: "radiation Newton".into(), message: format!("no convergence in {max_iter} iterations"), residuals: history });
+            let stage = if nonlinear { "radiation Newton / temperature-dependent properties (Picard)" } else { "radiation Newton" };
+            return Err(SolveError {
+                stage: stage.into(),
+                message: format!("no convergence in {max_iter} iterations (max|ΔT| ≤ thermal.radiation_tolerance · max T)"),
+                residuals: history,
+            });
         }
         for (l, &i) in self.free.iter().enumerate() {
             temps[i as usize] = x[l];
@@ -389,12 +527,23 @@ impl HeatNetwork {
         }
         // energy accounting
         let mut f_new = vec![0.0; nf];
-        let g_new = self.rates(temps, t1, conductance, &mut f_new);
+        let g_new = self.rates(temps, t1, &k_last, &mut f_new);
         info.heat_in = dt * (w * g_new + (1.0 - w) * g_old);
         let mut stored = 0.0;
         let mut plain = 0.0;
         for &i in &self.free {
             let i = i as usize;
+            if let Some((tab, m)) = table(i) {
+                // eq. P1: a0 (H^{n+1} − H^n) − a2 (H^n − H^{n−1})
+                let dh = m * tab.integral(t_old[i], temps[i]);
+                let mut s = a0 * dh;
+                if let Some(tp) = &bdf_prev {
+                    s -= a2 * m * tab.integral(tp[i], t_old[i]);
+                }
+                stored += s;
+                plain += dh;
+                continue;
+            }
             let c = self.capacity[i];
             let mut s = c * (a0 * temps[i] + a1 * t_old[i]);
             if let Some(tp) = &bdf_prev {

@@ -68,8 +68,8 @@ pub fn prepare(value: toml::Value, base: &Path) -> Result<Prepared, Error> {
     let o = &c.output;
     let compact_only = [
         (t.strategy.is_some(), "time.strategy"),
-        (t.dt_max.is_some(), "time.dt_max"),
-        (t.dt_min.is_some(), "time.dt_min"),
+        (t.dt_max.is_some() && t.heat_tolerance.is_none(), "time.dt_max"),
+        (t.dt_min.is_some() && t.heat_tolerance.is_none(), "time.dt_min"),
         (t.alpha.is_some(), "time.alpha"),
         (t.grow_below.is_some(), "time.grow_below"),
         (t.shrink_above.is_some(), "time.shrink_above"),
@@ -79,9 +79,11 @@ pub fn prepare(value: toml::Value, base: &Path) -> Result<Prepared, Error> {
         (!o.correction_histogram_at.is_empty(), "output.correction_histogram_at"),
     ];
     if let Some((_, key)) = compact_only.iter().find(|(present, _)| *present) {
-        return Err(
-            ConfigError::inconsistent(*key, "this key is read by kind = \"compact\" runs only (a heat run has no step control or sintering analyses)").into()
-        );
+        return Err(ConfigError::inconsistent(
+            *key,
+            "this key is read by kind = \"compact\" runs only, and by heat runs with time.heat_tolerance (a heat run has no sintering analyses)",
+        )
+        .into());
     }
     Ok(prep)
 }
@@ -179,6 +181,31 @@ pub fn prepare_scene(value: toml::Value, base: &Path) -> Result<Prepared, Error>
     Ok(Prepared { case, scene, pipes, sources, isothermal, conductance, source: None })
 }
 
+/// The heat network of a case: capacities, sources, scheme and, when a material has c(T) or κ(T)
+/// tables, the temperature-dependent properties (heat-model.md eqs. P1–P4). Shared by heat runs and
+/// the coupled loop.
+pub fn network_for(
+    case: &Case,
+    sources: &HeatSources,
+    p: &crate::particles::Particles,
+    materials: &[crate::material::Material],
+    conductance: &Conductance,
+) -> HeatNetwork {
+    let mut net = HeatNetwork::new(p.capacity.clone(), sources.clone(), case.time.scheme, case.thermal.radiation_tolerance);
+    net.set_properties(crate::heat::properties::ThermalProperties::of(&p.mass, &p.material, materials, conductance.contact));
+    net
+}
+
+/// The step control of a case (heat-model.md eq. E3): `None` without `time.heat_tolerance`.
+/// Defaults: dt_min = 1e-9 · end, dt_max = end.
+pub fn step_control(case: &Case) -> Result<Option<crate::heat::adaptive::StepControl>, ConfigError> {
+    let t = &case.time;
+    let Some(tol) = config::check_opt("time.heat_tolerance", t.heat_tolerance)? else { return Ok(None) };
+    let dt_min = config::check_opt("time.dt_min", t.dt_min)?.unwrap_or(1e-9 * t.end);
+    let dt_max = config::check_opt("time.dt_max", t.dt_max)?.unwrap_or(t.end);
+    Ok(Some(crate::heat::adaptive::StepControl { tolerance: tol, dt_min, dt_max }))
+}
+
 /// Floor of the energy-balance denominator, relative to the stored heat Σ C_i T_i [1].
 pub const ENERGY_BALANCE_FLOOR: f64 = 1e-6;
 
@@ -214,6 +241,17 @@ pub struct HeatLoop {
     /// Temperatures of the last steps of equal Δt for the local error estimate [K], that Δt [s].
     pub hist: Vec<Vec<f64>>,
     pub hist_dt: Option<f64>,
+    /// Times of `hist` [s] (eq. E1 with unequal steps).
+    #[serde(default)]
+    pub hist_t: Vec<f64>,
+    /// Step control (time.heat_tolerance): the next proposed Δt [s], rejected steps, steps
+    /// accepted at dt_min above the tolerance.
+    #[serde(default)]
+    pub dt_next: Option<f64>,
+    #[serde(default)]
+    pub rejected: usize,
+    #[serde(default)]
+    pub forced_at_dt_min: usize,
     pub max_err_est: f64,
     /// Next snapshot, series lines written (header included), snapshots and VTU entries so far.
     pub next_snap: usize,
@@ -302,7 +340,10 @@ pub fn run_from(
         prep.pipes.extrapolated,
         case.time.scheme
     ));
-    let mut net = HeatNetwork::new(p.capacity.clone(), prep.sources.clone(), case.time.scheme, case.thermal.radiation_tolerance);
+    let mut net = network_for(&prep.case, &prep.sources, p, &prep.scene.materials, &prep.conductance);
+    if net.properties().is_some() {
+        log("temperature-dependent properties: c(T) and/or κ(T) tables (enthalpy form, Picard iteration; docs/heat-model.md eqs. P1–P4)");
+    }
     if let Some(prof) = &prep.isothermal {
         log("thermal.mode = isothermal: the heat network solve is skipped; every particle follows the furnace profile");
         p.temperature.iter_mut().for_each(|t| *t = prof.temperature(0.0));
@@ -346,7 +387,7 @@ pub fn run_from(
     let st0 = ck.as_ref().map(|c| c.state.clone()).unwrap_or_default();
     let mut next_snap = st0.next_snap;
     let mut series_lines = if resumed { st0.series_lines } else { 1 };
-    let stored_of = |temps: &[f64], net: &HeatNetwork, cap: &[f64]| -> f64 { (0..temps.len()).filter(|&i| !net.is_fixed(i)).map(|i| cap[i] * temps[i]).sum() };
+    let stored_of = |temps: &[f64], net: &HeatNetwork, _cap: &[f64]| -> f64 { net.stored_heat(temps) };
     let stored0 = if resumed { st0.stored0 } else { stored_of(&p.temperature, &net, &p.capacity) };
     let parameters = io::Parameters {
         case_toml: toml::to_string(case).unwrap_or_else(|e| format!("# the case could not be written as TOML: {e}")),
@@ -378,11 +419,20 @@ pub fn run_from(
     let (mut t_assemble, mut t_factor, mut t_solve, mut factorizations, mut max_resid) =
         (st0.t_assemble, st0.t_factor, st0.t_solve, st0.factorizations, st0.max_resid);
     let mut max_iters = st0.max_iters;
-    // local error estimate (docs/heat-model.md): difference between the step's result and an
-    // explicit extrapolation from earlier steps of the same size, scaled by the scheme's error
-    // constant: BE ½|T¹ − (2T⁰ − T⁻¹)|, CN (1/11)|T¹ − P|, BDF2 (2/7)|T¹ − P|, P = 3T⁰ − 3T⁻¹ + T⁻².
+    // local error estimate (docs/heat-model.md eqs. E1–E2, src/heat/adaptive.rs): the step's
+    // result against the extrapolation through the last accepted points (times `hist_t`, values
+    // `hist`, the last one the current state), restarted at every kink of a prescribed profile
     let mut hist: Vec<Vec<f64>> = st0.hist.clone();
-    let mut hist_dt = st0.hist_dt.unwrap_or(f64::NAN);
+    let mut hist_t: Vec<f64> = st0.hist_t.clone();
+    if hist_t.len() != hist.len() {
+        // a checkpoint of an older version: equal steps hist_dt ending at t
+        let h = st0.hist_dt.unwrap_or(0.0);
+        hist_t = (0..hist.len()).map(|k| t - (hist.len() - 1 - k) as f64 * h).collect();
+    }
+    if hist.is_empty() && prep.isothermal.is_none() {
+        hist.push(p.temperature.clone());
+        hist_t.push(t);
+    }
     let mut max_err_est = st0.max_err_est;
     let wall_before = st0.wall_before;
     // the extrapolation is not valid across a kink of a prescribed profile: restart it there
@@ -391,20 +441,103 @@ pub fn run_from(
         kinks.extend_from_slice(f.gas.breakpoints());
         kinks.extend_from_slice(f.wall.breakpoints());
     }
+    kinks.retain(|k| *k > 0.0 && *k < end);
+    kinks.sort_by(f64::total_cmp);
+    // step control (eq. E3): None = the fixed Δt of the case
+    let control = step_control(case)?;
+    let mut dt_next = st0.dt_next.unwrap_or(dt0);
+    let (mut rejected, mut forced) = (st0.rejected, st0.forced_at_dt_min);
+    if let Some(c) = &control {
+        log(&format!("Δt chosen by error: time.heat_tolerance = {} K per step, first step {dt0} s, Δt in [{:e}, {:e}] s", c.tolerance, c.dt_min, c.dt_max));
+    }
+    let tiny = 1e-12 * end;
     while next_snap < snap_times.len() && snap_times[next_snap] <= t + 1e-12 * end {
         write_snapshot(&mut snaps, t, steps, p, &prep.pipes)?;
         next_snap += 1;
     }
     while t < end * (1.0 - 1e-12) {
-        let dt = dt0.min(end - t);
+        // where this step must land: the end, or (adaptive) the next snapshot or profile kink
+        let stop = match &control {
+            None => end,
+            Some(_) => {
+                let snap = snap_times.get(next_snap).copied().filter(|&s| s > t + tiny).unwrap_or(end);
+                let kink = kinks.iter().copied().find(|&k| k > t + tiny).unwrap_or(end);
+                end.min(snap).min(kink)
+            }
+        };
+        let mut h = match &control {
+            None => dt0,
+            Some(c) => dt_next.clamp(c.dt_min, c.dt_max),
+        };
         let mut iters = 0;
         let mut hin = 0.0;
-        if let Some(prof) = &prep.isothermal {
-            let tt = prof.temperature(t + dt);
-            p.temperature.iter_mut().for_each(|v| *v = tt);
-        } else {
-            let info = net.step(t, dt, &mut p.temperature, &prep.pipes.conductance)?;
+        let dt = loop {
+            let left = stop - t;
+            let dt = if h >= left * (1.0 - 1e-12) {
+                left
+            } else if control.is_some() && h > 0.5 * left {
+                0.5 * left // two equal steps rather than a sliver
+            } else {
+                h
+            };
+            if let Some(prof) = &prep.isothermal {
+                let tt = prof.temperature(t + dt);
+                p.temperature.iter_mut().for_each(|v| *v = tt);
+                break dt;
+            }
+            let spans_kink = kinks.iter().any(|&k| k > t + tiny && k < t + dt - tiny);
+            if spans_kink || hist_t.last().is_some_and(|&tl| (tl - t).abs() > tiny) {
+                hist.clear();
+                hist_t.clear();
+                hist.push(p.temperature.clone());
+                hist_t.push(t);
+            }
+            let saved = control.as_ref().map(|_| (p.temperature.clone(), net.history().cloned()));
+            // the fixed-Δt report uses full-order estimates only; step control also the
+            // conservative lower-order ones while the history builds up
+            let ydot = (control.is_some() && hist.len() == 1 && !spans_kink).then(|| net.rate_of_change(t, &p.temperature, &prep.pipes.parts));
+            let bdf2_step = case.time.scheme == crate::heat::Scheme::Bdf2 && net.history().is_some();
+            let step_order =
+                if case.time.scheme == crate::heat::Scheme::BackwardEuler || (case.time.scheme == crate::heat::Scheme::Bdf2 && !bdf2_step) { 1 } else { 2 };
+            let info = match (net.step_pipes(t, dt, &mut p.temperature, &prep.pipes.parts), &control, &saved) {
+                (Ok(i), _, _) => i,
+                (Err(e), Some(c), Some((temps, bdf))) if dt > c.dt_min * (1.0 + 1e-9) => {
+                    // a failed solve (radiation or property iteration) on a long step: shorter
+                    log(&format!("t = {t:e} s: step of {dt:e} s failed ({e}); retried with a shorter one"));
+                    p.temperature.clone_from(temps);
+                    net.set_history(bdf.clone());
+                    rejected += 1;
+                    h = (dt * crate::heat::adaptive::SHRINK_MIN).max(c.dt_min);
+                    continue;
+                }
+                (Err(e), _, _) => return Err(e.into()),
+            };
             crate::finite::ensure_finite("heat", steps as u64 + 1, t + dt, "particle", "temperature", p.temperature.iter().copied())?;
+            let est = if spans_kink {
+                None
+            } else {
+                let vals: Vec<&[f64]> = hist.iter().map(|v| v.as_slice()).collect();
+                crate::heat::adaptive::estimate(case.time.scheme, bdf2_step, &hist_t, &vals, t + dt, &p.temperature, ydot.as_deref(), |i| !net.is_fixed(i))
+                    .filter(|e| control.is_some() || e.order == step_order)
+            };
+            if let (Some(c), Some(e), Some((temps, bdf))) = (&control, est, &saved) {
+                if e.error > c.tolerance && dt > c.dt_min * (1.0 + 1e-9) {
+                    p.temperature.clone_from(temps);
+                    net.set_history(bdf.clone());
+                    rejected += 1;
+                    h = (dt * c.factor(e.error, e.order).min(1.0)).max(c.dt_min);
+                    continue;
+                }
+                if e.error > c.tolerance {
+                    forced += 1;
+                }
+                let proposal = (dt * c.factor(e.error, e.order)).clamp(c.dt_min, c.dt_max);
+                // a step shortened to land on a stop does not shrink the next one
+                dt_next = if dt < h { proposal.max(dt_next) } else { proposal };
+            }
+            if let Some(e) = est {
+                max_err_est = max_err_est.max(e.error);
+            }
             heat_in += info.heat_in;
             stored += info.stored_change;
             stored_plain += info.stored_change_plain;
@@ -417,30 +550,19 @@ pub fn run_from(
             iters = info.iterations;
             max_iters = max_iters.max(iters);
             hin = info.heat_in;
-        }
-        if prep.isothermal.is_none() {
-            if dt != hist_dt || kinks.iter().any(|&k| k > t && k <= t + dt) {
+            let ends_at_kink = kinks.iter().any(|&k| (k - (t + dt)).abs() <= tiny);
+            if spans_kink || ends_at_kink {
                 hist.clear();
-                hist_dt = dt;
-            }
-            let need = if case.time.scheme == crate::heat::Scheme::BackwardEuler { 2 } else { 3 };
-            if hist.len() == need {
-                let est = (0..n)
-                    .filter(|&i| !net.is_fixed(i))
-                    .map(|i| {
-                        let (y, h) = (p.temperature[i], &hist);
-                        match case.time.scheme {
-                            crate::heat::Scheme::BackwardEuler => 0.5 * (y - (2.0 * h[1][i] - h[0][i])).abs(),
-                            crate::heat::Scheme::CrankNicolson => (y - (3.0 * h[2][i] - 3.0 * h[1][i] + h[0][i])).abs() / 11.0,
-                            crate::heat::Scheme::Bdf2 => 2.0 / 7.0 * (y - (3.0 * h[2][i] - 3.0 * h[1][i] + h[0][i])).abs(),
-                        }
-                    })
-                    .fold(0.0, f64::max);
-                max_err_est = max_err_est.max(est);
-                hist.remove(0);
+                hist_t.clear();
             }
             hist.push(p.temperature.clone());
-        }
+            hist_t.push(t + dt);
+            if hist.len() > 3 {
+                hist.remove(0);
+                hist_t.remove(0);
+            }
+            break dt;
+        };
         t += dt;
         steps += 1;
         if steps % case.output.series_every as usize == 0 || t >= end * (1.0 - 1e-12) {
@@ -469,7 +591,11 @@ pub fn run_from(
                 max_resid,
                 max_iters,
                 hist: hist.clone(),
-                hist_dt: hist_dt.is_finite().then_some(hist_dt),
+                hist_dt: None,
+                hist_t: hist_t.clone(),
+                dt_next: control.is_some().then_some(dt_next),
+                rejected,
+                forced_at_dt_min: forced,
                 max_err_est,
                 next_snap,
                 series_lines,
@@ -520,6 +646,12 @@ pub fn run_from(
         "factorizations": factorizations,
         "max_radiation_iterations": max_iters,
         "max_local_error_estimate_K": max_err_est,
+        "time_step_control": if control.is_some() { "error" } else { "fixed" },
+        "heat_tolerance_K": control.map(|c| c.tolerance),
+        "steps_accepted": steps,
+        "steps_rejected": rejected,
+        "steps_above_tolerance_at_dt_min": forced,
+        "temperature_dependent_properties": net.properties().is_some(),
         "max_scaled_residual": max_resid,
         "seconds_assemble": t_assemble,
         "seconds_factorize": t_factor,
