@@ -287,7 +287,7 @@ fn run_case(case: &CaseArgs, value: toml::Value, out: Option<PathBuf>, quiet: bo
     let out = out.unwrap_or_else(|| PathBuf::from("out").join(stem));
     let mut sets = case.set.clone();
     sets.extend(extra);
-    let params = sinterdem::run::RunParams { base_dir: base_dir(&case.case), progress: !quiet, echo_log: true, plots: true };
+    let params = sinterdem::run::RunParams { base_dir: base_dir(&case.case), progress: !quiet, echo_log: true, plots: true, wall_limit: None };
     sinterdem::run::run(&value, &sets, &out, &params)?;
     Ok(())
 }

@@ -65,11 +65,14 @@ pub struct RunParams {
     pub echo_log: bool,
     /// Write PNG plots. Studies turn them off: a plot costs more than a pair run.
     pub plots: bool,
+    /// Wall-time budget [s] of a compact run: it stops with `completed = false` and the reason
+    /// in `stop_reason` once exceeded (None: unlimited).
+    pub wall_limit: Option<f64>,
 }
 
 impl Default for RunParams {
     fn default() -> Self {
-        RunParams { base_dir: PathBuf::from("."), progress: false, echo_log: false, plots: true }
+        RunParams { base_dir: PathBuf::from("."), progress: false, echo_log: false, plots: true, wall_limit: None }
     }
 }
 
@@ -165,6 +168,7 @@ pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunPar
         Kind::Compact => {
             let mut sim = crate::coupled::prepare(value, base, &mut logf)?;
             sim.settings.plots = params.plots;
+            sim.settings.wall_limit = params.wall_limit;
             crate::coupled::run(sim, out, params.progress, &mut logf)?
         }
         Kind::Pair => {

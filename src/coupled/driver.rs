@@ -140,10 +140,15 @@ pub fn run_from(
             }
         }
         let tic = Instant::now();
-        let rho_stop = sim.settings.stop_relative_density.filter(|&r| sim.relative_density() >= r);
+        let mut rho_stop = sim.settings.stop_relative_density.filter(|&r| sim.relative_density() >= r);
         if let Some(r) = rho_stop {
             log(&format!("t = {} s: relative density {:.4} reached time.stop_relative_density = {r}: the run ends here", sim.t, sim.relative_density()));
             stop_reason = Some(format!("relative density {r} reached"));
+        } else if let Some(limit) = sim.settings.wall_limit.filter(|&l| wall.elapsed().as_secs_f64() > l && sim.t < end) {
+            // the caller's wall-time budget (benchmarks): the run ends with its state summarised
+            log(&format!("t = {} s (step {}): the wall-time limit of {limit} s is reached: the run ends here", sim.t, sim.step));
+            stop_reason = Some(format!("wall-time limit of {limit} s reached"));
+            rho_stop = Some(sim.relative_density());
         }
         if sim.step.is_multiple_of(sim.settings.series_every) || sim.t >= end || rho_stop.is_some() {
             write_row(&sim, &mut series, dt_used)?;

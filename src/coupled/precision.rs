@@ -95,11 +95,11 @@ impl Outcome {
     }
 }
 
-fn run_one(value: &toml::Value, base: &Path, sets: &[String], dir: &Path, family: &str, label: &str) -> Outcome {
+fn run_one(value: &toml::Value, base: &Path, sets: &[String], dir: &Path, family: &str, label: &str, wall_limit: Option<f64>) -> Outcome {
     let mut all: Vec<String> =
         ["output.snapshots=0", "output.vtu=false", "output.hdf5=false", "output.checkpoint_every=0", "output.conductivity_at=[]"].map(String::from).to_vec();
     all.extend(sets.iter().cloned());
-    let params = crate::run::RunParams { base_dir: base.to_path_buf(), plots: false, ..Default::default() };
+    let params = crate::run::RunParams { base_dir: base.to_path_buf(), plots: false, wall_limit, ..Default::default() };
     let mut o = Outcome {
         family: family.into(),
         label: label.into(),
@@ -178,7 +178,11 @@ pub fn corner_packing(case: &toml::Value, base: &Path, edge: f64, height: f64, d
 }
 
 /// Runs the reference and the ladder on one case (`extra` overrides apply to every run, e.g. the
-/// corner packing) and returns the outcomes with errors and the Pareto front.
+/// corner packing) and returns the outcomes with errors and the Pareto front. A rung gets a
+/// wall-time budget of 5× the default settings' run (at least 60 s): beyond it, it is reported as
+/// stopped (strategy 1 with new contacts can take a hundred times longer, as in the paper).
+/// `partial(reference, runs so far)` is called after every run, so that a killed benchmark keeps
+/// what it measured.
 pub fn measure(
     name: &str,
     value: &toml::Value,
@@ -186,29 +190,35 @@ pub fn measure(
     extra: &[String],
     out: &Path,
     progress: &mut dyn FnMut(&str),
+    partial: &mut dyn FnMut(&Outcome, &[Outcome]) -> Result<(), Error>,
 ) -> Result<(Outcome, Vec<Outcome>), Error> {
     let work = out.join(format!("runs-{name}"));
     let mut sets = extra.to_vec();
     sets.extend(reference_sets());
     progress(&format!("{name}: reference ({})", reference_sets().join(" ")));
-    let reference = run_one(value, base, &sets, &work.join("reference"), "reference", "reference");
+    let reference = run_one(value, base, &sets, &work.join("reference"), "reference", "reference", None);
     if let Some(e) = &reference.error {
         return Err(crate::error::ModelError::new(format!("bench precision: the reference run of {name} failed: {e}")).into());
     }
-    let mut runs = Vec::new();
+    let mut runs: Vec<Outcome> = Vec::new();
+    let mut budget = None;
     for (k, v) in ladder().iter().enumerate() {
         progress(&format!("{name}: {} ({})", v.label, if v.sets.is_empty() { "no overrides".into() } else { v.sets.join(" ") }));
         let mut sets = extra.to_vec();
         sets.extend(v.sets.iter().cloned());
-        let mut o = run_one(value, base, &sets, &work.join(format!("{k:02}")), v.family, &v.label);
+        let mut o = run_one(value, base, &sets, &work.join(format!("{k:02}")), v.family, &v.label, budget);
+        if budget.is_none() {
+            budget = Some((5.0 * o.wall_seconds).max(60.0));
+        }
         for a in 0..3 {
             o.err_shrinkage[a] = rel(o.shrinkage[a], reference.shrinkage[a]);
         }
         o.err_neck_ratio = rel(o.neck_ratio, reference.neck_ratio);
         o.err_relative_density = rel(o.relative_density, reference.relative_density);
         runs.push(o);
+        mark_pareto(&mut runs);
+        partial(&reference, &runs)?;
     }
-    mark_pareto(&mut runs);
     let _ = std::fs::remove_dir_all(&work);
     Ok((reference, runs))
 }
@@ -345,8 +355,16 @@ pub fn bench_precision(copper: Option<&Path>, e14b: Option<&Path>, corner_edge: 
         let _ = writeln!(report, "# E14B corner: {n} particles (x, y < {corner_edge:e} m, z < {:e} m) in {}", 2.0 * corner_edge, corner.display());
         jobs.push(("e14b-corner".into(), value, base, vec![format!("particles.file=\"{}\"", abs.display())]));
     }
+    let csv_path = out.join("precision.csv");
     for (name, value, base, extra) in jobs {
-        let (reference, runs) = measure(&name, &value, &base, &extra, out, progress)?;
+        let done = all_csv.clone();
+        let mut partial = |reference: &Outcome, runs: &[Outcome]| -> Result<(), Error> {
+            let text = csv(&name, reference, runs);
+            let body = if done.is_empty() { text } else { format!("{done}{}", text.lines().skip(1).map(|l| format!("{l}\n")).collect::<String>()) };
+            crate::io::write_atomic(&csv_path, &body)?;
+            Ok(())
+        };
+        let (reference, runs) = measure(&name, &value, &base, &extra, out, progress, &mut partial)?;
         report.push_str(&table(&name, &reference, &runs));
         let text = csv(&name, &reference, &runs);
         if all_csv.is_empty() {
@@ -354,11 +372,11 @@ pub fn bench_precision(copper: Option<&Path>, e14b: Option<&Path>, corner_edge: 
         } else {
             all_csv.extend(text.lines().skip(1).map(|l| format!("{l}\n")));
         }
+        crate::io::write_atomic(&csv_path, &all_csv)?;
         let plot = diagram(&name, &runs);
         plot.save_png(&out.join(format!("precision-{name}.png")))?;
         plot.save_svg(&out.join(format!("precision-{name}.svg")))?;
     }
-    crate::io::write_atomic(&out.join("precision.csv"), &all_csv)?;
     let _ = writeln!(report, "# written: {}", out.join("precision.csv").display());
     Ok(report)
 }

@@ -57,6 +57,8 @@ pub struct Settings {
     pub histogram_at: Vec<f64>,
     /// Write the PNG plots at the end (the run API turns them off in studies).
     pub plots: bool,
+    /// Wall-time budget of the run [s] (set by the caller, e.g. a benchmark; None: unlimited).
+    pub wall_limit: Option<f64>,
 }
 
 impl Settings {
@@ -123,6 +125,7 @@ impl Settings {
             conductivity_at: case.output.conductivity_at.clone(),
             histogram_at: case.output.correction_histogram_at.clone(),
             plots: true,
+            wall_limit: None,
         })
     }
 }
