@@ -24,6 +24,7 @@ pub mod finite;
 pub mod heat;
 pub mod io;
 pub mod linsolve;
+pub mod logging;
 pub mod material;
 pub mod mechanics;
 pub mod models;

@@ -10,6 +10,12 @@ use std::process::ExitCode;
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Print only warnings and errors (no progress bar, no info lines).
+    #[arg(short, long, global = true)]
+    quiet: bool,
+    /// More detail in the log (-v debug, -vv trace); DIR/log.txt always gets every info line.
+    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
+    verbose: u8,
 }
 
 #[derive(Args, Clone)]
@@ -30,9 +36,6 @@ enum Command {
         /// Output directory (default: out/<case name>).
         #[arg(long)]
         out: Option<PathBuf>,
-        /// No progress bar.
-        #[arg(long)]
-        quiet: bool,
         /// Compact, heat and explicit_sinter runs: write DIR/checkpoint.json every N steps (same as --set output.checkpoint_every=N).
         #[arg(long, value_name = "N")]
         checkpoint_every: Option<u64>,
@@ -44,17 +47,11 @@ enum Command {
         /// Output directory (default: out/<case name>).
         #[arg(long)]
         out: Option<PathBuf>,
-        /// No progress bar.
-        #[arg(long)]
-        quiet: bool,
     },
     /// Continue an interrupted compact, heat or explicit_sinter run from DIR/checkpoint.json.
     Resume {
         /// The run's output directory.
         dir: PathBuf,
-        /// No progress bar.
-        #[arg(long)]
-        quiet: bool,
     },
     /// Validate a case file only (parse, ranges, scene construction).
     Check {
@@ -128,9 +125,6 @@ enum Command {
         /// Override a key of every run (repeatable), after the study's own overrides.
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
-        /// No progress bar.
-        #[arg(long)]
-        quiet: bool,
         /// SLURM partition (overrides slurm.partition).
         #[arg(long)]
         partition: Option<String>,
@@ -168,9 +162,6 @@ enum Command {
         /// Output directory.
         #[arg(long, default_value = "out/calibration")]
         out: PathBuf,
-        /// No progress lines.
-        #[arg(long)]
-        quiet: bool,
         /// Rewrite the file's data CSV with the bundled synthetic titanium data instead of fitting.
         #[arg(long, hide = true)]
         generate_synthetic: bool,
@@ -300,6 +291,7 @@ fn located(case: &CaseArgs, f: impl FnOnce() -> Result<(), Error>) -> Result<(),
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    sinterdem::logging::init(sinterdem::logging::Verbosity::from_flags(cli.quiet, cli.verbose));
     match real_main(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
@@ -310,20 +302,21 @@ fn main() -> ExitCode {
 }
 
 fn real_main(cli: Cli) -> Result<(), Error> {
+    let quiet = cli.quiet;
     match cli.command {
-        Command::Generate { case, out, quiet } => located(&case, || {
+        Command::Generate { case, out } => located(&case, || {
             let value = sinterdem::config::load_case(&case.case, &[])?;
             if sinterdem::run::Kind::of(&value)? != sinterdem::run::Kind::Generate {
                 return Err(sinterdem::ConfigError::invalid(format!("{}: kind must be \"generate\"", case.case.display())).into());
             }
             run_case(&case, value, out.clone(), quiet, vec![])
         }),
-        Command::Run { case, out, quiet, checkpoint_every } => located(&case, || {
+        Command::Run { case, out, checkpoint_every } => located(&case, || {
             let value = sinterdem::config::load_case(&case.case, &[])?;
             let extra = checkpoint_every.map(|n| format!("output.checkpoint_every={n}")).into_iter().collect();
             run_case(&case, value, out.clone(), quiet, extra)
         }),
-        Command::Resume { dir, quiet } => {
+        Command::Resume { dir } => {
             let params = sinterdem::run::RunParams { progress: !quiet, echo_log: true, ..Default::default() };
             sinterdem::run::resume(&dir, &params)?;
             Ok(())
@@ -350,26 +343,26 @@ fn real_main(cli: Cli) -> Result<(), Error> {
             if let Some(d) = diameter {
                 set.push(format!("pair.radius={:e}", d / 2.0));
             }
-            let opts = sinterdem::study::StudyOptions { out: Some(out), overrides: set, progress: true, ..Default::default() };
-            sinterdem::study::run_study(&study, &opts, &mut |m| eprintln!("{m}"))?;
+            let opts = sinterdem::study::StudyOptions { out: Some(out), overrides: set, progress: !quiet, ..Default::default() };
+            sinterdem::study::run_study(&study, &opts, &mut |m| tracing::info!("{m}"))?;
             Ok(())
         }
-        Command::Study { study, engine, jobs, out, wait, retry_failed, set, quiet, partition, time, account, cpus_per_task, chunk, sbatch } => {
+        Command::Study { study, engine, jobs, out, wait, retry_failed, set, partition, time, account, cpus_per_task, chunk, sbatch } => {
             let engine = match engine {
                 EngineArg::Local => sinterdem::study::Engine::Local,
                 EngineArg::Slurm => sinterdem::study::Engine::Slurm,
             };
             let slurm = sinterdem::study::slurm::SlurmOverrides { partition, time, account, cpus_per_task, chunk, extra: sbatch };
             let opts = sinterdem::study::StudyOptions { engine, jobs, out, wait, retry_failed, overrides: set, progress: !quiet, slurm };
-            let info = sinterdem::study::run_study(&study, &opts, &mut |m| eprintln!("{m}"))?;
+            let info = sinterdem::study::run_study(&study, &opts, &mut |m| tracing::info!("{m}"))?;
             if info.gathered && info.counts.failed > 0 {
-                eprintln!("{} of {} runs failed (see status and error in {})", info.counts.failed, info.counts.runs, info.dir.join("study.csv").display());
+                tracing::warn!("{} of {} runs failed (see status and error in {})", info.counts.failed, info.counts.runs, info.dir.join("study.csv").display());
             }
             Ok(())
         }
         Command::StudyTask { dir, batch, task, threads } => {
             let n = sinterdem::study::slurm::run_task(&dir, batch, task, threads)?;
-            eprintln!("study task {batch}/{task}: {n} runs executed");
+            tracing::info!("study task {batch}/{task}: {n} runs executed");
             Ok(())
         }
         Command::Neck { r1, r2, overlap, kappa, kappa2, conductance, factor, contact_conductance } => {
@@ -417,7 +410,7 @@ fn real_main(cli: Cli) -> Result<(), Error> {
             println!("{}", serde_json::to_string_pretty(&v).unwrap());
             Ok(())
         }),
-        Command::Calibrate { case, out, quiet, generate_synthetic, validate_compact } => {
+        Command::Calibrate { case, out, generate_synthetic, validate_compact } => {
             sinterdem::calibrate::run_file(&case.case, &case.set, &out, quiet, generate_synthetic, validate_compact)
         }
         Command::Keys { study } => {

@@ -10,6 +10,7 @@ use crate::config;
 use crate::error::{ConfigError, Error, IoError};
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 /// The kind of a case (`kind = "…"`, default `heat`).
@@ -117,27 +118,35 @@ pub fn resolve(case: &toml::Value, overrides: &[String]) -> Result<toml::Value, 
     Ok(v)
 }
 
-/// A log sink writing to `DIR/log.txt` (appending) and optionally to stderr.
+/// A run's log: every line goes to `DIR/log.txt` (appending), and with `echo` to the console as a
+/// `tracing` event (info; warn for lines starting with "warning: "), see [`crate::logging`].
+/// While it lives, `tracing` events of this thread are copied into the same `log.txt`.
 pub struct RunLog {
-    file: Option<std::fs::File>,
+    file: Option<Arc<Mutex<std::fs::File>>>,
     echo: bool,
+    _route: Option<crate::logging::RunFile>,
 }
 
 impl RunLog {
     /// Opens `dir/log.txt`; `append` keeps earlier lines (resume).
     pub fn open(dir: &Path, append: bool, echo: bool) -> RunLog {
         let path = dir.join("log.txt");
-        let file = std::fs::OpenOptions::new().create(true).write(true).append(append).truncate(!append).open(path).ok();
-        RunLog { file, echo }
+        let file = std::fs::OpenOptions::new().create(true).write(true).append(append).truncate(!append).open(path).ok().map(|f| Arc::new(Mutex::new(f)));
+        let route = file.clone().map(crate::logging::RunFile::enter);
+        RunLog { file, echo, _route: route }
     }
 
     /// Writes one line.
     pub fn line(&mut self, msg: &str) {
-        if self.echo {
-            eprintln!("{msg}");
+        if let Some(f) = self.file.as_ref() {
+            let mut g = f.lock().unwrap_or_else(|e| e.into_inner());
+            let _ = writeln!(g, "{msg}");
         }
-        if let Some(f) = self.file.as_mut() {
-            let _ = writeln!(f, "{msg}");
+        if self.echo {
+            match msg.strip_prefix("warning: ") {
+                Some(w) => tracing::warn!(target: "sinterdem::run", "{w}"),
+                None => tracing::info!(target: "sinterdem::run", "{msg}"),
+            }
         }
     }
 }

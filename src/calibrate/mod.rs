@@ -348,14 +348,14 @@ pub fn run_file(path: &Path, overrides: &[String], out: &Path, quiet: bool, gene
         let data = value.get("data").and_then(|d| d.as_str()).ok_or_else(|| ConfigError::invalid("data: needed to know where to write the synthetic data"))?;
         let target = base.join(data);
         synthetic::write_titanium_synthetic(&target)?;
-        eprintln!("synthetic titanium data written to {}", target.display());
+        tracing::info!("synthetic titanium data written to {}", target.display());
         return Ok(());
     }
     let mut setup = parse(&value, &base)?;
     setup.validate_compact = validate_compact;
     let mut log = |m: &str| {
         if !quiet {
-            eprintln!("{m}");
+            tracing::info!("{m}");
         }
     };
     run(setup, out, &mut log)?;

@@ -822,7 +822,7 @@ impl<M: SinterLaw> Sample<M> {
                 "heat_every: Δt_heat = {dt:.3e} s exceeds 0.1·min C_i/ΣK_ij = {:.3e} s (the fastest thermal time); lower coupling.heat_every",
                 0.1 * fastest
             );
-            eprintln!("warning: {msg}");
+            tracing::warn!("{msg}");
             self.warnings.push(msg);
         }
         net.set_topology(&pipes)?;
@@ -1314,6 +1314,13 @@ impl<M: SinterLaw> Machine<M> {
                 let path = sink.dir.join("checkpoint.json");
                 let json = serde_json::to_string(&ck).map_err(|e| IoError::new(&path, e))?;
                 crate::io::write_atomic(&path, &json)?;
+                tracing::debug!(
+                    "checkpoint at step {} ({:?}, pressure {}) written to {}",
+                    self.clock.steps,
+                    self.stage,
+                    self.pressure_index + 1,
+                    path.display()
+                );
                 if sink.stop_after.is_some_and(|k| self.clock.steps >= k) {
                     return Ok(false);
                 }
@@ -1446,7 +1453,7 @@ fn run_law<M: SinterLaw>(
 pub fn run_explicit(case: &ExplicitSinterCase, progress: bool) -> Result<ExplicitSinterRun, Error> {
     let mut log = |m: &str| {
         if progress {
-            eprintln!("{m}");
+            tracing::info!("{m}");
         }
     };
     run_explicit_with(case, None, None, &mut log).map(|r| r.expect("no stop without a checkpoint sink"))
@@ -1640,11 +1647,11 @@ pub fn summary_json(run: &ExplicitSinterRun) -> serde_json::Value {
 }
 
 /// Runs an `explicit_sinter` case and writes its outputs into `out_dir` (module docs); returns the
-/// summary (also `summary.json`). With `progress` the stage lines go to stderr.
+/// summary (also `summary.json`). With `progress` the stage lines are logged (`tracing`).
 pub fn run_explicit_case(case: &toml::Value, out_dir: &Path, progress: bool) -> Result<serde_json::Value, Error> {
     let mut log = |m: &str| {
         if progress {
-            eprintln!("{m}");
+            tracing::info!("{m}");
         }
     };
     run_explicit_from(case, out_dir, &mut log, None)

@@ -369,7 +369,7 @@ struct Progress {
 impl Progress {
     fn say(&self, msg: impl AsRef<str>) {
         if self.on {
-            eprintln!("[generate {:7.2} s] {}", self.t0.elapsed().as_secs_f64(), msg.as_ref());
+            tracing::info!("[generate {:7.2} s] {}", self.t0.elapsed().as_secs_f64(), msg.as_ref());
         }
     }
 }

@@ -4,8 +4,7 @@
 
 use super::store::{self, PlannedRun};
 use crate::error::{Error, SolveError};
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use std::io::IsTerminal;
+use indicatif::{ProgressBar, ProgressStyle};
 use std::path::Path;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -22,9 +21,9 @@ pub fn run(dir: &Path, plan: &[PlannedRun], todo: &[usize], jobs: usize, threads
     }
     let jobs = if jobs == 0 { default_jobs(threads) } else { jobs }.min(todo.len());
     log(&format!("local engine: {} runs, {jobs} at a time, {threads} thread{} each", todo.len(), if threads == 1 { "" } else { "s" }));
-    let on = progress && std::io::stderr().is_terminal() && std::env::var_os("CI").is_none();
+    let on = progress && crate::io::progress::bars_allowed();
     let bar = on.then(|| {
-        let b = ProgressBar::with_draw_target(Some(todo.len() as u64), ProgressDrawTarget::stderr());
+        let b = crate::io::progress::add_bar(ProgressBar::new(todo.len() as u64));
         b.set_style(
             ProgressStyle::with_template("{bar:40.cyan/blue} {pos}/{len} runs {msg} [elapsed {elapsed_precise}, ETA {eta_precise}]")
                 .unwrap_or_else(|_| ProgressStyle::default_bar()),

@@ -246,7 +246,7 @@ pub fn run_task(dir: &Path, batch: usize, task: usize, threads: usize) -> Result
         let run = plan.get(i).ok_or_else(|| ConfigError::invalid(format!("run {i} is not in {}", dir.join("plan.json").display())))?;
         if store::pending(dir, run, b.retry_failed) {
             let rec = pool.install(|| store::execute(dir, run));
-            eprintln!("run {i}: {}{}", rec.status, rec.error.map(|e| format!(": {e}")).unwrap_or_default());
+            tracing::info!("run {i}: {}{}", rec.status, rec.error.map(|e| format!(": {e}")).unwrap_or_default());
             n += 1;
         }
     }

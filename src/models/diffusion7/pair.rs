@@ -380,7 +380,7 @@ pub fn check_pair_case(case: &toml::Value) -> Result<(), Error> {
 /// Runs a pair case and writes `series.csv`, `summary.json` and `neck_shrinkage.png` into `out_dir`.
 pub fn run_pair_case(case: &toml::Value, out_dir: &Path, progress: bool) -> Result<PairSummary, Error> {
     let spec = parse_pair_case(case)?;
-    run_pair_spec(&spec, out_dir, progress, &mut |w| eprintln!("warning: {w}"))
+    run_pair_spec(&spec, out_dir, progress, &mut |w| tracing::warn!("{w}"))
 }
 
 /// Runs a parsed pair case and writes its outputs into `out_dir` (as [`run_pair_case`]); warnings
