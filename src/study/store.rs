@@ -143,7 +143,13 @@ pub fn execute(dir: &Path, run: &PlannedRun) -> RunRecord {
     let wall = Instant::now();
     let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| -> Result<run::RunSummary, Error> {
         let case = crate::config::load_case(&run.case_path, &[])?;
-        let params = RunParams { base_dir: run.case_path.parent().unwrap_or(Path::new("/")).to_path_buf(), progress: false, echo_log: false, plots: false, wall_limit: None };
+        let params = RunParams {
+            base_dir: run.case_path.parent().unwrap_or(Path::new("/")).to_path_buf(),
+            progress: false,
+            echo_log: false,
+            plots: false,
+            wall_limit: None,
+        };
         run::run(&case, &run.overrides, &out, &params)
     }));
     let (status, error, summary) = match result {
