@@ -69,7 +69,7 @@ pub(crate) fn write_snapshot(sim: &Simulation, snaps: &mut SnapshotWriter) -> Re
         contacts: &sim.contacts.pairs,
         contact_data: vec![("neck_radius_m", &neck), ("contact_shrinkage", &shrink), ("dl_bar_m", &sim.contacts.dl_bar)],
         particle_data: vec![],
-        particle_vectors: vec![("displacement_m", &disp)],
+        particle_vectors: vec![("displacement_m", &disp), ("velocity_m_per_s", &sim.velocity)],
         parameters: Some(crate::io::Parameters { case_toml: sim.source.0.clone(), materials_json }),
     })
 }

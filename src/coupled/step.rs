@@ -315,6 +315,9 @@ pub struct Simulation {
     /// The next step ends no later than this time [s] (a requested output time; the driver sets
     /// it before each step, ∞ for none): steps are shortened to land on it exactly.
     pub stop_at: f64,
+    /// Mean velocity of each particle over the last step, Δx/Δt [m/s] (output; zero before the
+    /// first step and right after a resume).
+    pub velocity: Vec<Vector3<f64>>,
     /// Accepted steps so far.
     pub step: u64,
     /// Rejected global steps (strategy 1).
@@ -397,6 +400,7 @@ impl Simulation {
             t: 0.0,
             dt: 0.0,
             stop_at: f64::INFINITY,
+            velocity: vec![Vector3::zeros(); n],
             step: 0,
             rejected: 0,
             heat: None,
@@ -533,6 +537,7 @@ impl Simulation {
             let shortened = dt < self.dt;
             let t0 = self.t;
             let t1 = t0 + dt;
+            let x_start = self.prep.scene.particles.position.clone();
             // 1. topology
             let tic = Instant::now();
             if self.settings.detect_new && self.step > 0 && self.step.is_multiple_of(self.settings.detect_every) {
@@ -727,6 +732,9 @@ impl Simulation {
             self.timing.correction += tic.elapsed().as_secs_f64();
             // 6. step control
             self.t = if t1 >= end * (1.0 - 1e-12) { end } else { t1 };
+            for ((v, x), x0) in self.velocity.iter_mut().zip(&self.prep.scene.particles.position).zip(&x_start) {
+                *v = (x - x0) / dt;
+            }
             let base = if shortened { self.dt } else { dt };
             self.step += 1;
             if let Some(prof) = &self.prep.isothermal {
