@@ -319,13 +319,28 @@ pub fn resume(dir: &Path, progress: bool, log: &mut dyn FnMut(&str)) -> Result<s
 /// Runs from the start or from a checkpoint; `stop_after_step` ends the run right after the
 /// checkpoint of that step (as if killed there; for tests) with `Ok(Value::Null)`.
 pub fn run_from(
-    mut prep: Prepared,
+    prep: Prepared,
     out: &Path,
     progress: bool,
     log: &mut dyn FnMut(&str),
     ck: Option<HeatCheckpoint>,
     stop_after_step: Option<usize>,
 ) -> Result<serde_json::Value, Error> {
+    run_returning_temperatures(prep, out, progress, log, ck, stop_after_step, false).map(|(s, _)| s)
+}
+
+/// [`run_from`] that also returns the particle temperatures [K] at the snapshot times [s] (with
+/// `collect`; the final state is always the last entry), for benchmarks and tests.
+pub fn run_returning_temperatures(
+    mut prep: Prepared,
+    out: &Path,
+    progress: bool,
+    log: &mut dyn FnMut(&str),
+    ck: Option<HeatCheckpoint>,
+    stop_after_step: Option<usize>,
+    collect: bool,
+) -> Result<(serde_json::Value, Vec<(f64, Vec<f64>)>), Error> {
+    let mut collected: Vec<(f64, Vec<f64>)> = Vec::new();
     let wall = Instant::now();
     io::ensure_dir(out)?;
     let case = &prep.case;
@@ -452,6 +467,9 @@ pub fn run_from(
     }
     let tiny = 1e-12 * end;
     while next_snap < snap_times.len() && snap_times[next_snap] <= t + 1e-12 * end {
+        if collect {
+            collected.push((t, p.temperature.clone()));
+        }
         write_snapshot(&mut snaps, t, steps, p, &prep.pipes)?;
         next_snap += 1;
     }
@@ -571,6 +589,9 @@ pub fn run_from(
             series_lines += 1;
         }
         while next_snap < snap_times.len() && snap_times[next_snap] <= t + 1e-9 * dt {
+            if collect {
+                collected.push((t, p.temperature.clone()));
+            }
             write_snapshot(&mut snaps, t, steps, p, &prep.pipes)?;
             next_snap += 1;
         }
@@ -616,7 +637,7 @@ pub fn run_from(
             io::write_atomic(&path, &json)?;
             if stop_after_step.is_some_and(|k| steps >= k) {
                 bar.finish();
-                return Ok(serde_json::Value::Null);
+                return Ok((serde_json::Value::Null, vec![(t, p.temperature.clone())]));
             }
         }
         bar.set(t, "");
@@ -668,5 +689,8 @@ pub fn run_from(
         "done: {steps} steps to t = {t} s in {:.3} s; mean T = {mean:.3} K (min {lo:.3}, max {hi:.3}); energy balance residual {balance:.2e} (relative)",
         wall.elapsed().as_secs_f64()
     ));
-    Ok(summary)
+    if collected.last().is_none_or(|c| c.0 != t) {
+        collected.push((t, p.temperature.clone()));
+    }
+    Ok((summary, collected))
 }
