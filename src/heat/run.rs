@@ -97,6 +97,7 @@ pub fn prepare_scene(value: toml::Value, base: &Path) -> Result<Prepared, Error>
     config::check("output.snapshots", case.output.snapshots)?;
     config::check("output.series_every", case.output.series_every)?;
     config::check("thermal.radiation_tolerance", case.thermal.radiation_tolerance)?;
+    config::check_opt("time.heat_tolerance", case.time.heat_tolerance)?;
     if case.output.snapshots.fract() != 0.0 || case.output.series_every.fract() != 0.0 {
         return Err(ConfigError::invalid("output.snapshots and output.series_every must be whole numbers").into());
     }
