@@ -111,7 +111,7 @@ fn steady_chain_with_linear_conductivity_matches_the_kirchhoff_transform() {
             assert!((v - exact).abs() < 1e-7, "{scheme:?} particle {k}: {v} vs {exact}");
         }
         // the constant-κ profile would be linear in k: the κ(T) profile differs visibly from it
-        let mid = temps[(n + 1) / 2];
+        let mid = temps[8]; // the middle of 17 particles
         assert!((mid - 800.0).abs() > 5.0, "{mid}");
     }
 }
