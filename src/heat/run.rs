@@ -647,7 +647,7 @@ pub fn run_returning_temperatures(
     let (mean, lo, hi) = stats(&p.temperature);
     let balance = if prep.isothermal.is_some() { 0.0 } else { energy_balance_rel(stored, heat_in, scale, stored0) };
     let stored_end = stored_of(&p.temperature, &net, &p.capacity);
-    let summary = json!({
+    let mut summary = json!({
         "kind": "heat",
         "final_time_s": t,
         "steps": steps,
@@ -669,7 +669,6 @@ pub fn run_returning_temperatures(
         "max_radiation_iterations": max_iters,
         "max_local_error_estimate_K": max_err_est,
         "time_step_control": if control.is_some() { "error" } else { "fixed" },
-        "heat_tolerance_K": control.map(|c| c.tolerance),
         "steps_accepted": steps,
         "steps_rejected": rejected,
         "steps_above_tolerance_at_dt_min": forced,
@@ -682,6 +681,9 @@ pub fn run_returning_temperatures(
         "hdf5": snaps.hdf5_enabled(),
         "skipped": if prep.isothermal.is_some() { vec!["heat solve (isothermal)", "neighbour search (static packing)", "diffusion", "mechanics"] } else { vec!["neighbour search after start (static packing)", "diffusion", "mechanics"] },
     });
+    if let Some(c) = &control {
+        summary["heat_tolerance_K"] = json!(c.tolerance);
+    }
     io::write_json(&out.join("summary.json"), &summary)?;
     if snaps.hdf5_enabled() {
         io::hdf5::finish(out)?;
