@@ -212,6 +212,19 @@ enum Bench {
         #[arg(long, default_value_t = 3)]
         repeat: usize,
     },
+    /// Work-precision of the heat step: fixed Δt against error-controlled Δt (time.heat_tolerance)
+    /// on the hot plate switched on at t = 0; prints the table and writes DIR/work_precision.csv.
+    HeatStep {
+        /// Output directory.
+        #[arg(long, default_value = "out/bench-heat-step")]
+        out: PathBuf,
+        /// FCC cells of the compact (x, y, z).
+        #[arg(long, num_args = 3, default_values_t = vec![4u32, 4, 8])]
+        cells: Vec<u32>,
+        /// Simulated end time [s].
+        #[arg(long, default_value_t = 20.0)]
+        end: f64,
+    },
     /// Packing generation time for given particle counts.
     Generate {
         /// Particle counts (repeatable).
@@ -423,6 +436,7 @@ fn real_main(cli: Cli) -> Result<(), Error> {
                 Ok(())
             }
             Bench::Heat { particles, repeat } => sinterdem::heat::bench::bench_heat(&particles, repeat.max(1)),
+            Bench::HeatStep { out, cells, end } => sinterdem::heat::bench::bench_heat_step(&out, [cells[0], cells[1], cells[2]], end).map(|_| ()),
             Bench::Mechanics { particles, cholesky_max } => {
                 println!("{}", sinterdem::mechanics::bench::bench_mechanics_with(&particles, cholesky_max)?);
                 Ok(())

@@ -429,7 +429,7 @@ impl Simulation {
             sim.skipped.push("heat solve (isothermal)");
         } else {
             let p = &mut sim.prep.scene.particles;
-            let net = HeatNetwork::new(p.capacity.clone(), sim.prep.sources.clone(), sim.prep.case.time.scheme, sim.prep.case.thermal.radiation_tolerance);
+            let net = crate::heat::run::network_for(&sim.prep.case, &sim.prep.sources, p, &sim.prep.scene.materials, &sim.prep.conductance);
             net.apply_fixed(0.0, &mut p.temperature);
             sim.heat = Some(net);
         }
@@ -505,6 +505,11 @@ impl Simulation {
 
     /// Pipe conductances from the current necks [W/K].
     pub(crate) fn conductances(&self) -> Result<Vec<f64>, ModelError> {
+        Ok(self.pipe_parts()?.iter().map(|p| p.pair).collect())
+    }
+
+    /// Halves and series conductance of every pipe at the materials' constant κ [W/K].
+    pub(crate) fn pipe_parts(&self) -> Result<Vec<crate::heat::PipeConductance>, ModelError> {
         let p = &self.prep.scene.particles;
         let law: &Conductance = &self.prep.conductance;
         let mats = &self.prep.scene.materials;
@@ -523,7 +528,7 @@ impl Simulation {
                     }
                 };
                 let (ki, kj) = (mats[p.material[i as usize] as usize].conductivity, mats[p.material[j as usize] as usize].conductivity);
-                Ok(law.pipe(ki, kj, ri, rj, a).pair)
+                Ok(law.pipe(ki, kj, ri, rj, a))
             })
             .collect()
     }
@@ -549,10 +554,12 @@ impl Simulation {
             let temps_old = self.prep.scene.particles.temperature.clone();
             let mut heat_info = None;
             if self.heat.is_some() {
-                let k = self.conductances()?;
+                let k = self.pipe_parts()?;
+                let control =
+                    crate::heat::run::step_control(&self.prep.case)?.map(|c| crate::heat::adaptive::StepControl { dt_min: 1e-6 * dt, dt_max: dt, ..c });
                 if let Some(net) = self.heat.as_mut() {
                     net.set_topology(&self.contacts.pairs)?;
-                    heat_info = Some(net.step(t0, dt, &mut self.prep.scene.particles.temperature, &k)?);
+                    heat_info = Some(crate::heat::adaptive::advance(net, t0, dt, &mut self.prep.scene.particles.temperature, &k, control)?.0);
                 }
                 if let Err(e) =
                     crate::finite::ensure_finite("heat", self.step + 1, t1, "particle", "temperature", self.prep.scene.particles.temperature.iter().copied())

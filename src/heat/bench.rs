@@ -90,3 +90,121 @@ pub fn bench_heat(sizes: &[usize], repeat: usize) -> Result<(), Error> {
     }
     Ok(())
 }
+
+/// One row of the work-precision table of [`bench_heat_step`].
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct StepRow {
+    /// "fixed" or "error".
+    pub control: String,
+    /// Δt [s] (fixed) or time.heat_tolerance [K] (error).
+    pub parameter: f64,
+    /// Accepted steps.
+    pub steps: usize,
+    /// Rejected steps.
+    pub rejected: usize,
+    /// max over the output times and particles of |T_i(t_k) − T_i,ref(t_k)| [K].
+    pub error_kelvin: f64,
+    /// Wall time of the run [s].
+    pub wall_s: f64,
+}
+
+/// Output times of the bench case (evenly spaced, t = 0 included).
+pub const STEP_BENCH_OUTPUTS: usize = 51;
+
+/// The bench case: cases/hot-plate.toml on `cells` (a titanium FCC compact), its plate switched
+/// on at t = 0 (held at 1273 K while the compact starts at 293.15 K), radiation and convection on
+/// top, BDF2, until `end` [s], temperatures recorded at [`STEP_BENCH_OUTPUTS`] evenly spaced times:
+/// a fast transient after the switch, then a slower approach.
+pub fn step_bench_case(cells: [u32; 3], end: f64) -> Result<toml::Value, Error> {
+    let sets: Vec<String> = vec![
+        format!("particles.cells=[{}, {}, {}]", cells[0], cells[1], cells[2]),
+        format!("output.snapshots={STEP_BENCH_OUTPUTS}"),
+        "output.vtu=false".into(),
+        "output.hdf5=false".into(),
+        "output.series_every=1000000".into(),
+        "thermal.fixed.0.profile={ constant = 1273.0 }".into(),
+        format!("time.end={end:e}"),
+    ];
+    let text = include_str!("../../cases/hot-plate.toml");
+    let mut v = toml::Value::Table(text.parse::<toml::Table>().map_err(|e| crate::error::ConfigError::invalid(format!("hot-plate.toml: {e}")))?);
+    for s in &sets {
+        crate::config::apply_override(&mut v, s)?;
+    }
+    Ok(v)
+}
+
+/// Runs a heat case with `sets` applied; returns (summary, temperatures at the output times, wall s).
+pub fn run_step_case(base: &toml::Value, sets: &[String], out: &std::path::Path) -> Result<(serde_json::Value, Vec<(f64, Vec<f64>)>, f64), Error> {
+    let mut v = base.clone();
+    for s in sets {
+        crate::config::apply_override(&mut v, s)?;
+    }
+    let prep = crate::heat::run::prepare(v, std::path::Path::new("."))?;
+    let t0 = Instant::now();
+    let (s, temps) = crate::heat::run::run_returning_temperatures(prep, out, false, &mut |_| {}, None, None, true)?;
+    Ok((s, temps, t0.elapsed().as_secs_f64()))
+}
+
+/// max over the common output times (within 1e-9 of the last time) and particles of |a − b| [K],
+/// and the number of common times.
+pub fn max_error(a: &[(f64, Vec<f64>)], b: &[(f64, Vec<f64>)]) -> (f64, usize) {
+    let scale = a.last().map_or(1.0, |x| x.0.abs()).max(1e-300);
+    let mut common = 0;
+    let mut err: f64 = 0.0;
+    for (ta, x) in a {
+        if let Some((_, y)) = b.iter().find(|(tb, _)| (ta - tb).abs() <= 1e-9 * scale) {
+            common += 1;
+            err = err.max(x.iter().zip(y).map(|(p, q)| (p - q).abs()).fold(0.0, f64::max));
+        }
+    }
+    (err, common)
+}
+
+/// `sinterdem bench heat-step`: work-precision of fixed Δt against error-controlled Δt
+/// (time.heat_tolerance) on [`step_bench_case`]; the reference is an error-controlled run at
+/// 1e-7 K. Prints the table and writes `out/work_precision.csv`.
+pub fn bench_heat_step(out: &std::path::Path, cells: [u32; 3], end: f64) -> Result<Vec<StepRow>, Error> {
+    crate::io::ensure_dir(out)?;
+    let base = step_bench_case(cells, end)?;
+    let scratch = out.join("runs");
+    let (_, reference, _) = run_step_case(&base, &["time.heat_tolerance=1e-7".into(), "time.dt=1e-7".into()], &scratch)?;
+    let mut rows = Vec::new();
+    let intervals = (STEP_BENCH_OUTPUTS - 1) as f64;
+    for k in 0..9 {
+        let dt = end / intervals / f64::powi(2.0, k);
+        let (s, t, wall) = run_step_case(&base, &[format!("time.dt={dt:e}")], &scratch)?;
+        rows.push(StepRow {
+            control: "fixed".into(),
+            parameter: dt,
+            steps: s["steps"].as_u64().unwrap_or(0) as usize,
+            rejected: 0,
+            error_kelvin: max_error(&t, &reference).0,
+            wall_s: wall,
+        });
+    }
+    for k in 0..7 {
+        let tol = 10f64.powi(1 - k);
+        let (s, t, wall) = run_step_case(&base, &[format!("time.heat_tolerance={tol:e}"), "time.dt=1e-7".into()], &scratch)?;
+        rows.push(StepRow {
+            control: "error".into(),
+            parameter: tol,
+            steps: s["steps_accepted"].as_u64().unwrap_or(0) as usize,
+            rejected: s["steps_rejected"].as_u64().unwrap_or(0) as usize,
+            error_kelvin: max_error(&t, &reference).0,
+            wall_s: wall,
+        });
+    }
+    let _ = std::fs::remove_dir_all(&scratch);
+    let mut csv = String::from("control,parameter,steps,rejected,error_K,wall_s\n");
+    println!("# heat step work-precision: hot plate (titanium FCC {cells:?}), plate at 1273 K from t = 0, BDF2, end {end} s");
+    println!(
+        "# parameter: Δt [s] (fixed) or time.heat_tolerance [K] (error); error: max |T − T_ref| over particles and {STEP_BENCH_OUTPUTS} output times, T_ref at 1e-7 K"
+    );
+    println!("{:>8} {:>10} {:>8} {:>9} {:>11} {:>9}", "control", "parameter", "steps", "rejected", "error_K", "wall_s");
+    for r in &rows {
+        println!("{:>8} {:>10.3e} {:>8} {:>9} {:>11.3e} {:>9.4}", r.control, r.parameter, r.steps, r.rejected, r.error_kelvin, r.wall_s);
+        csv.push_str(&format!("{},{:e},{},{},{:e},{:e}\n", r.control, r.parameter, r.steps, r.rejected, r.error_kelvin, r.wall_s));
+    }
+    crate::io::write_atomic(&out.join("work_precision.csv"), &csv)?;
+    Ok(rows)
+}

@@ -97,6 +97,7 @@ pub fn prepare_scene(value: toml::Value, base: &Path) -> Result<Prepared, Error>
     config::check("output.snapshots", case.output.snapshots)?;
     config::check("output.series_every", case.output.series_every)?;
     config::check("thermal.radiation_tolerance", case.thermal.radiation_tolerance)?;
+    config::check_opt("time.heat_tolerance", case.time.heat_tolerance)?;
     if case.output.snapshots.fract() != 0.0 || case.output.series_every.fract() != 0.0 {
         return Err(ConfigError::invalid("output.snapshots and output.series_every must be whole numbers").into());
     }
@@ -319,13 +320,28 @@ pub fn resume(dir: &Path, progress: bool, log: &mut dyn FnMut(&str)) -> Result<s
 /// Runs from the start or from a checkpoint; `stop_after_step` ends the run right after the
 /// checkpoint of that step (as if killed there; for tests) with `Ok(Value::Null)`.
 pub fn run_from(
-    mut prep: Prepared,
+    prep: Prepared,
     out: &Path,
     progress: bool,
     log: &mut dyn FnMut(&str),
     ck: Option<HeatCheckpoint>,
     stop_after_step: Option<usize>,
 ) -> Result<serde_json::Value, Error> {
+    run_returning_temperatures(prep, out, progress, log, ck, stop_after_step, false).map(|(s, _)| s)
+}
+
+/// [`run_from`] that also returns the particle temperatures [K] at the snapshot times [s] (with
+/// `collect`; the final state is always the last entry), for benchmarks and tests.
+pub fn run_returning_temperatures(
+    mut prep: Prepared,
+    out: &Path,
+    progress: bool,
+    log: &mut dyn FnMut(&str),
+    ck: Option<HeatCheckpoint>,
+    stop_after_step: Option<usize>,
+    collect: bool,
+) -> Result<(serde_json::Value, Vec<(f64, Vec<f64>)>), Error> {
+    let mut collected: Vec<(f64, Vec<f64>)> = Vec::new();
     let wall = Instant::now();
     io::ensure_dir(out)?;
     let case = &prep.case;
@@ -452,6 +468,9 @@ pub fn run_from(
     }
     let tiny = 1e-12 * end;
     while next_snap < snap_times.len() && snap_times[next_snap] <= t + 1e-12 * end {
+        if collect {
+            collected.push((t, p.temperature.clone()));
+        }
         write_snapshot(&mut snaps, t, steps, p, &prep.pipes)?;
         next_snap += 1;
     }
@@ -571,6 +590,9 @@ pub fn run_from(
             series_lines += 1;
         }
         while next_snap < snap_times.len() && snap_times[next_snap] <= t + 1e-9 * dt {
+            if collect {
+                collected.push((t, p.temperature.clone()));
+            }
             write_snapshot(&mut snaps, t, steps, p, &prep.pipes)?;
             next_snap += 1;
         }
@@ -616,7 +638,7 @@ pub fn run_from(
             io::write_atomic(&path, &json)?;
             if stop_after_step.is_some_and(|k| steps >= k) {
                 bar.finish();
-                return Ok(serde_json::Value::Null);
+                return Ok((serde_json::Value::Null, vec![(t, p.temperature.clone())]));
             }
         }
         bar.set(t, "");
@@ -625,7 +647,7 @@ pub fn run_from(
     let (mean, lo, hi) = stats(&p.temperature);
     let balance = if prep.isothermal.is_some() { 0.0 } else { energy_balance_rel(stored, heat_in, scale, stored0) };
     let stored_end = stored_of(&p.temperature, &net, &p.capacity);
-    let summary = json!({
+    let mut summary = json!({
         "kind": "heat",
         "final_time_s": t,
         "steps": steps,
@@ -647,7 +669,6 @@ pub fn run_from(
         "max_radiation_iterations": max_iters,
         "max_local_error_estimate_K": max_err_est,
         "time_step_control": if control.is_some() { "error" } else { "fixed" },
-        "heat_tolerance_K": control.map(|c| c.tolerance),
         "steps_accepted": steps,
         "steps_rejected": rejected,
         "steps_above_tolerance_at_dt_min": forced,
@@ -660,6 +681,9 @@ pub fn run_from(
         "hdf5": snaps.hdf5_enabled(),
         "skipped": if prep.isothermal.is_some() { vec!["heat solve (isothermal)", "neighbour search (static packing)", "diffusion", "mechanics"] } else { vec!["neighbour search after start (static packing)", "diffusion", "mechanics"] },
     });
+    if let Some(c) = &control {
+        summary["heat_tolerance_K"] = json!(c.tolerance);
+    }
     io::write_json(&out.join("summary.json"), &summary)?;
     if snaps.hdf5_enabled() {
         io::hdf5::finish(out)?;
@@ -668,5 +692,8 @@ pub fn run_from(
         "done: {steps} steps to t = {t} s in {:.3} s; mean T = {mean:.3} K (min {lo:.3}, max {hi:.3}); energy balance residual {balance:.2e} (relative)",
         wall.elapsed().as_secs_f64()
     ));
-    Ok(summary)
+    if collected.last().is_none_or(|c| c.0 != t) {
+        collected.push((t, p.temperature.clone()));
+    }
+    Ok((summary, collected))
 }
