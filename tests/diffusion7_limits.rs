@@ -29,6 +29,7 @@ fn spec(m: Material, r: f64, end: f64, eps: f64, rtol: f64) -> PairSpec {
         solver: SolverOptions { rtol, ..SolverOptions::default() },
         series_every: 1,
         plot: false,
+        normal_force: 0.0,
     }
 }
 

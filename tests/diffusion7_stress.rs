@@ -24,6 +24,7 @@ fn spec(a: Material, b: Material, ra: f64, rb: f64, temp: PairTemperature, end: 
         solver: SolverOptions { rtol, ..SolverOptions::default() },
         series_every: 1,
         plot: false,
+        normal_force: 0.0,
     }
 }
 

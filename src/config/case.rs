@@ -34,6 +34,29 @@ pub struct Case {
     pub solver: Option<crate::models::diffusion7::advance::SolverOptions>,
     /// Bonded mechanics (`kind = "compact"`).
     pub mechanics: Option<MechanicsSpec>,
+    /// Applied load: hot pressing or isostatic pressure (`kind = "compact"`; docs/pressure.md).
+    pub load: Option<LoadSpec>,
+}
+
+/// An applied mechanical load on the compact (docs/pressure.md): a compressive stress following
+/// a profile in time, on one face (`uniaxial`, the opposite principal plane held) or on every
+/// outer face (`isostatic`).
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct LoadSpec {
+    /// "none", "uniaxial" (hot pressing) or "isostatic".
+    pub mode: String,
+    /// Load axis of `uniaxial`: "x", "y" or "z" (default "z"); the load acts on the far face.
+    pub axis: Option<String>,
+    /// Constant compressive stress [Pa] (exactly one of `stress`, `stress_table`).
+    pub stress: Option<f64>,
+    /// Piecewise-linear stress history `[[time s, stress Pa], …]`, times strictly increasing;
+    /// the first value before the first row, the last after the last row.
+    pub stress_table: Option<Vec<[f64; 2]>>,
+    /// Largest mean normal stress |F_n|/(π a²) a contact passes to its diffusion model [Pa]
+    /// (docs/pressure.md (P5): the flow stress above which a neck yields plastically; default:
+    /// no limit).
+    pub contact_stress_limit: Option<f64>,
 }
 
 /// New contacts and their initial 7-DOF state.

@@ -84,6 +84,15 @@ pub static TABLE: &[Range] = &[
     o("contacts.eta", 0.0, 1.0, "1", "initial cone parameter eta of a new contact (I2)"),
     c("mechanics.rtol", 1e-15, 1e-2, "1", "Newton tolerance of the bonded solve: scaled residual relative to the scaled load"),
     c("mechanics.plane_margin", 1.0, 2.0, "1", "a particle touches a principal plane when its centre is within margin * r"),
+    c("load.stress", 0.0, 1e9, "Pa", "compact runs: applied compressive stress (also every stress of load.stress_table; docs/pressure.md)"),
+    p(
+        "load.contact_stress_limit",
+        0.0,
+        1e11,
+        "Pa",
+        "compact runs: largest mean normal stress F_n/(pi a^2) a contact passes to its diffusion model (docs/pressure.md (P5))",
+    ),
+    c("load.stress_table.time", 0.0, 1e9, "s", "compact runs: times of the load.stress_table rows, strictly increasing"),
     // materials
     p("materials.*.density", 0.0, 1e5, "kg/m^3", "mass density rho"),
     p("materials.*.heat_capacity", 0.0, 1e5, "J/(kg K)", "specific heat capacity c"),

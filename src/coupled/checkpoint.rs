@@ -59,6 +59,9 @@ pub struct Checkpoint {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub heat_history: Option<(Vec<f64>, f64)>,
     pub output: OutputState,
+    /// The applied load's state (docs/pressure.md); absent for runs without a load.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub load: Option<super::load::LoadCheckpoint>,
 }
 
 /// Format tag of compact checkpoints.
@@ -92,6 +95,7 @@ impl Simulation {
             substeps: self.contacts.substeps.clone(),
             heat_history: self.heat.as_ref().and_then(|h| h.history().cloned()),
             output,
+            load: self.load.as_ref().map(|l| l.to_checkpoint()),
         }
     }
 
@@ -125,6 +129,9 @@ impl Simulation {
         sim.heat_scale = ck.heat_scale;
         sim.warnings = ck.warnings.clone();
         sim.limited_corrections = ck.limited_corrections;
+        if let (Some(l), Some(c)) = (sim.load.as_mut(), ck.load.as_ref()) {
+            l.restore(c);
+        }
         log(&format!("resumed from the checkpoint at t = {} s (step {}, {} contacts)", sim.t, sim.step, sim.contacts.len()));
         Ok((sim, ck.output.clone()))
     }

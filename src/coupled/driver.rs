@@ -23,6 +23,14 @@ const SERIES_HEADER: &[&str] = &[
     "max_temperature_K",
     "subdivided_fraction",
     "rhs_evaluations",
+    "applied_stress_Pa",
+    "sigma_xx_Pa",
+    "sigma_yy_Pa",
+    "sigma_zz_Pa",
+    "sigma_yz_Pa",
+    "sigma_xz_Pa",
+    "sigma_xy_Pa",
+    "normal_force_mean_N",
 ];
 
 /// Runs a compact simulation to its end time, writing series, snapshots, checkpoints and the summary.
@@ -96,6 +104,7 @@ pub fn run_from(
         let sh = sim.shrinkage();
         let (mean, t_lo, t_hi) = sim.temperature_stats(&sim.isolated_particles());
         let frac = sim.contacts.substeps.iter().filter(|&&s| s > 1).count() as f64 / sim.contacts.len().max(1) as f64;
+        let sg = sim.macroscopic_stress();
         series.row(&[
             sim.t,
             dt,
@@ -111,6 +120,14 @@ pub fn run_from(
             t_hi,
             frac,
             sim.ode.rhs as f64,
+            sim.applied_stress(),
+            sg[0],
+            sg[1],
+            sg[2],
+            sg[3],
+            sg[4],
+            sg[5],
+            sim.mean_normal_force(),
         ])
     };
     if !resumed {
@@ -234,6 +251,17 @@ pub fn run_from(
             "max_final_residual": sim.mechanics.max_residual,
             "rtol": sim.settings.mechanics.rtol,
         },
+        "load": sim.load.as_ref().map(|l| json!({
+            "mode": format!("{:?}", l.settings.mode),
+            "applied_stress_Pa": sim.applied_stress(),
+            "peak_stress_Pa": l.settings.stress.max(),
+            "distribution_solves": l.solves,
+        })),
+        "stress_tensor_Pa": {
+            "xx": sim.macroscopic_stress()[0], "yy": sim.macroscopic_stress()[1], "zz": sim.macroscopic_stress()[2],
+            "yz": sim.macroscopic_stress()[3], "xz": sim.macroscopic_stress()[4], "xy": sim.macroscopic_stress()[5],
+        },
+        "normal_force_mean_N": sim.mean_normal_force(),
         "skipped": sim.skipped,
         "warnings": sim.warnings,
         "threads": rayon::current_num_threads(),

@@ -58,6 +58,7 @@ pub(crate) fn write_snapshot(sim: &Simulation, snaps: &mut SnapshotWriter) -> Re
     let p = &sim.prep.scene.particles;
     let neck: Vec<f64> = sim.contacts.state.iter().map(|c| c.y[0]).collect();
     let shrink: Vec<f64> = sim.contacts.state.iter().map(|c| c.shrinkage()).collect();
+    let normal: Vec<f64> = sim.contacts.state.iter().map(|c| c.normal_force).collect();
     let disp: Vec<nalgebra::Vector3<f64>> = p.position.iter().zip(&sim.x0).map(|(x, x0)| x - x0).collect();
     let materials_json = serde_json::to_string_pretty(&sim.d7_materials).unwrap_or_default();
     snaps.write(&Snapshot {
@@ -67,7 +68,7 @@ pub(crate) fn write_snapshot(sim: &Simulation, snaps: &mut SnapshotWriter) -> Re
         radius: &p.radius,
         temperature: &p.temperature,
         contacts: &sim.contacts.pairs,
-        contact_data: vec![("neck_radius_m", &neck), ("contact_shrinkage", &shrink), ("dl_bar_m", &sim.contacts.dl_bar)],
+        contact_data: vec![("neck_radius_m", &neck), ("contact_shrinkage", &shrink), ("dl_bar_m", &sim.contacts.dl_bar), ("normal_force_N", &normal)],
         particle_data: vec![],
         particle_vectors: vec![("displacement_m", &disp), ("velocity_m_per_s", &sim.velocity)],
         parameters: Some(crate::io::Parameters { case_toml: sim.source.0.clone(), materials_json }),

@@ -6,7 +6,7 @@ use crate::config::{self, case::Case};
 use crate::error::{ConfigError, Error, ModelError};
 use crate::heat::run::Prepared;
 use crate::heat::{Conductance, HeatNetwork};
-use crate::mechanics::{BondedSystem, Constraints, LinearSolver, MechParams, StepInput};
+use crate::mechanics::{BondedSystem, Constraints, LinearSolver, MechParams, NodalLoad, StepInput};
 use crate::models::diffusion7::{self as d7, Contact7, PairMaterials, PathFactors, SolverOptions, TemperaturePath};
 use crate::models::ode::OdeStats;
 use nalgebra::Vector3;
@@ -59,6 +59,8 @@ pub struct Settings {
     pub plots: bool,
     /// Wall-time budget of the run [s] (set by the caller, e.g. a benchmark; None: unlimited).
     pub wall_limit: Option<f64>,
+    /// Applied load (`[load]`, docs/pressure.md); None: no load.
+    pub load: Option<super::load::LoadSettings>,
 }
 
 impl Settings {
@@ -126,6 +128,7 @@ impl Settings {
             histogram_at: case.output.correction_histogram_at.clone(),
             plots: true,
             wall_limit: None,
+            load: super::load::LoadSettings::from_spec(case.load.as_ref())?,
         })
     }
 }
@@ -233,7 +236,13 @@ impl MechanicsStage {
     }
 
     /// Solves the step: displacement increments per particle and the axial approach ξ per contact.
-    fn solve(&mut self, p: &crate::particles::Particles, contacts: &Contacts, approach: &[f64]) -> Result<(Vec<Vector3<f64>>, Vec<f64>), Error> {
+    fn solve(
+        &mut self,
+        p: &crate::particles::Particles,
+        contacts: &Contacts,
+        approach: &[f64],
+        external: Option<&[NodalLoad]>,
+    ) -> Result<(Vec<Vector3<f64>>, Vec<f64>), Error> {
         let sys = self.sys.as_mut().ok_or_else(|| ModelError::new("mechanics: the bonded system was not built"))?;
         if self.bonds != contacts.len() {
             sys.set_topology(&contacts.pairs)?;
@@ -248,13 +257,59 @@ impl MechanicsStage {
             .zip(&contacts.pairs)
             .map(|((c, &a), &[i, j])| d7::load_increment(a, 0.0, c.r_mean(), sys.link_elastic(i, j)[0]))
             .collect();
-        let out = sys.step(&StepInput { positions: &p.position, radii: &p.radius, y4_y7: &y4_y7, load: &load, external: None })?;
+        let inp = StepInput { positions: &p.position, radii: &p.radius, y4_y7: &y4_y7, load: &load, external };
+        let out = step_or_refactor(sys, &inp)?;
         for (r, d) in self.rotation.iter_mut().zip(&out.dtheta) {
             *r += d;
         }
-        self.newton_iterations += out.info.newton_iterations as u64;
-        self.factorizations += out.info.factorizations as u64;
-        let (pr, i) = (&mut self.profile, &out.info);
+        self.count(&out.info);
+        Ok((out.du, out.xi))
+    }
+
+    /// The load distribution of docs/pressure.md (P3): the bonded equilibrium under the nodal
+    /// forces `loads` alone (no sintering loads), at the current geometry; returns per contact the
+    /// axial force (compressive positive) [N] and the force on A exerted by B (global axes) [N].
+    /// Positions and rotations are not changed.
+    fn distribute(&mut self, p: &crate::particles::Particles, contacts: &Contacts, loads: &[NodalLoad]) -> Result<(Vec<f64>, Vec<Vector3<f64>>), Error> {
+        let sys = self.sys.as_mut().ok_or_else(|| ModelError::new("mechanics: the bonded system was not built"))?;
+        if self.bonds != contacts.len() {
+            sys.set_topology(&contacts.pairs)?;
+            self.bonds = contacts.len();
+        }
+        let y4_y7: Vec<[f64; 2]> = contacts.state.iter().map(|c| [c.y_prev[3], c.y_prev[6]]).collect();
+        let zero = vec![0.0; contacts.len()];
+        let out = step_or_refactor(sys, &StepInput { positions: &p.position, radii: &p.radius, y4_y7: &y4_y7, load: &zero, external: Some(loads) })?;
+        let r_scale = p.radius.iter().sum::<f64>() / p.len().max(1) as f64;
+        let mut normal = Vec::with_capacity(contacts.len());
+        let mut force = Vec::with_capacity(contacts.len());
+        for (k, &[a, b]) in contacts.pairs.iter().enumerate() {
+            let (a, b) = (a as usize, b as usize);
+            let [y4, y7] = y4_y7[k];
+            let g = crate::mechanics::BondGeometry::new(&p.position[a], &p.position[b], y4, y7)?;
+            let [e, nu] = sys.link_elastic(a as u32, b as u32);
+            let kl = crate::mechanics::link_stiffness(e, nu, 0.5 * (p.radius[a] + p.radius[b]));
+            let mut y = nalgebra::SMatrix::<f64, 12, 1>::zeros();
+            for d in 0..3 {
+                y[d] = out.du[a][d];
+                y[3 + d] = out.dtheta[a][d] * r_scale;
+                y[6 + d] = out.du[b][d];
+                y[9 + d] = out.dtheta[b][d] * r_scale;
+            }
+            let fl = crate::mechanics::bond::link_forces(&g, &kl, r_scale, &y);
+            // local [F1, F2, F3] with F3 > 0 compression; the link pushes A by −Rᵀ·F_local
+            let rot = crate::mechanics::frame(&g.e3);
+            normal.push(fl[2]);
+            force.push(-(rot.transpose() * Vector3::new(fl[0], fl[1], fl[2])));
+        }
+        self.count(&out.info);
+        Ok((normal, force))
+    }
+
+    /// Adds a solve's counters and times to the stage's totals.
+    fn count(&mut self, out_info: &crate::mechanics::MechInfo) {
+        self.newton_iterations += out_info.newton_iterations as u64;
+        self.factorizations += out_info.factorizations as u64;
+        let (pr, i) = (&mut self.profile, out_info);
         pr.topology_changes += i.topology_rebuilt as u64;
         pr.cg_iterations += i.pcg_iterations as u64;
         pr.analysis_s += i.analysis_seconds;
@@ -263,8 +318,20 @@ impl MechanicsStage {
         pr.factor_s += i.factor_seconds;
         pr.solve_s += i.solve_seconds;
         pr.total_s += i.total_seconds;
-        self.max_residual = self.max_residual.max(out.info.residuals.last().copied().unwrap_or(0.0));
-        Ok((out.du, out.xi))
+        self.max_residual = self.max_residual.max(out_info.residuals.last().copied().unwrap_or(0.0));
+    }
+}
+
+/// One bonded step; a stale factor that fails to converge (a SolveError, which ends a run) is
+/// dropped and the step repeated once with a fresh analysis and factorisation (seen under an
+/// applied load, docs/pressure.md). Runs that converge are not affected.
+fn step_or_refactor(sys: &mut BondedSystem, inp: &StepInput) -> Result<crate::mechanics::MechStep, Error> {
+    match sys.step(inp) {
+        Err(Error::Solve(_)) => {
+            sys.drop_factor();
+            sys.step(inp)
+        }
+        r => r,
     }
 }
 
@@ -346,6 +413,8 @@ pub struct Simulation {
     pub skipped: Vec<&'static str>,
     /// The case as run (overrides applied) and its directory, for checkpoints.
     pub source: (String, std::path::PathBuf),
+    /// The applied load and its distribution over the contacts (docs/pressure.md); None: no load.
+    pub load: Option<super::load::LoadState>,
 }
 
 fn dist(p: &crate::particles::Particles, i: u32, j: u32) -> f64 {
@@ -418,6 +487,7 @@ impl Simulation {
             limited_corrections: 0,
             skipped: Vec::new(),
             source: (String::new(), std::path::PathBuf::new()),
+            load: None,
             prep,
         };
         sim.extent0 = sim.extents();
@@ -448,6 +518,21 @@ impl Simulation {
                 }
                 log("materials differ in E or ν: each bond takes its own particles' constants (two half-links in series)");
             }
+        }
+        if let Some(ls) = sim.settings.load.clone() {
+            if n == 2 {
+                return Err(ConfigError::inconsistent(
+                    "load",
+                    "an applied load needs the bonded mechanics, which a two-particle compact skips; for a loaded pair use kind = \"pair\" with load.force (N)",
+                )
+                .into());
+            }
+            log(&format!(
+                "applied load: {:?}, peak stress {:.4e} Pa, on the particles of the far layer(s); contact normal forces from the load distribution (docs/pressure.md)",
+                ls.mode,
+                ls.stress.max()
+            ));
+            sim.load = Some(super::load::LoadState::new(ls, n));
         }
         if !sim.settings.detect_new {
             log("contacts.detect_new = false: the neighbour search runs once, at the start");
@@ -549,6 +634,10 @@ impl Simulation {
                 self.add_new_contacts(log)?;
             }
             self.timing.detection += tic.elapsed().as_secs_f64();
+            // 1b. applied load: the contacts' normal forces at t0 (docs/pressure.md (P3))
+            let tic = Instant::now();
+            self.update_load_forces(t0)?;
+            self.timing.mechanics += tic.elapsed().as_secs_f64();
             // 2. heat
             let tic = Instant::now();
             let temps_old = self.prep.scene.particles.temperature.clone();
@@ -665,7 +754,9 @@ impl Simulation {
             let xi: Vec<f64> = if n_particles == 2 {
                 approach.clone()
             } else {
-                let (du, xi) = self.mechanics.solve(&self.prep.scene.particles, &self.contacts, &approach)?;
+                // the applied load enters as its increment over the step (docs/pressure.md (P2))
+                let external = self.load_increment(t1);
+                let (du, xi) = self.mechanics.solve(&self.prep.scene.particles, &self.contacts, &approach, external.as_deref())?;
                 for (x, d) in self.prep.scene.particles.position.iter_mut().zip(&du) {
                     *x += d;
                 }
@@ -701,7 +792,9 @@ impl Simulation {
                         b: &self.d7_materials[self.prep.scene.particles.material[j as usize] as usize],
                         factors,
                     };
-                    let r = d7::rates(&c.y, &pm.params_at(temp_c), temp_c)?;
+                    let mut kc = pm.params_at(temp_c).at(temp_c)?;
+                    kc.normal_force = c.normal_force;
+                    let r = d7::rates_with(&c.y, &kc)?;
                     (r[3], r[6])
                 };
                 let corr = d7::correct_y4_y7(prev, star, rates_star, xi[k], r_sum);
@@ -894,6 +987,87 @@ impl Simulation {
         if let Some(net) = self.heat.as_mut() {
             net.reset_history();
         }
+    }
+
+    /// The nodal forces of the applied load at time `t` [s] with the current extents (P1) [N].
+    fn load_forces_at(&self, t: f64) -> Option<Vec<Vector3<f64>>> {
+        let ls = self.load.as_ref()?;
+        let sigma = ls.settings.stress.at(t);
+        let free = !self.settings.mechanics.constrain_planes;
+        Some(super::load::nodal_forces(ls.settings.mode, sigma, &self.extents(), &self.prep.scene.particles.radius, &self.far_layer, &self.near_layer, free))
+    }
+
+    /// (P2): the increment of the applied nodal forces over the step ending at `t1`, recorded as
+    /// applied; None when there is no load or the increment is zero.
+    fn load_increment(&mut self, t1: f64) -> Option<Vec<NodalLoad>> {
+        let target = self.load_forces_at(t1)?;
+        let ls = self.load.as_mut()?;
+        let inc: Vec<Vector3<f64>> = target.iter().zip(&ls.applied).map(|(t, a)| t - a).collect();
+        ls.applied = target;
+        super::load::as_nodal_loads(&inc)
+    }
+
+    /// (P3): sets every contact's normal force from the load distribution at `t0` [s]: solved
+    /// afresh when contacts appeared, at the first loaded step and every
+    /// [`super::load::REDISTRIBUTE_EVERY`] steps, otherwise the last solve scaled by the total
+    /// applied force. Without a load (or at zero stress) every normal force is exactly 0.
+    fn update_load_forces(&mut self, t0: f64) -> Result<(), Error> {
+        let Some(f) = self.load_forces_at(t0) else { return Ok(()) };
+        let total = super::load::total_force(&f);
+        let m = self.contacts.len();
+        let step = self.step;
+        let Some(ls) = self.load.as_ref() else { return Ok(()) };
+        if total == 0.0 {
+            self.contacts.state.iter_mut().for_each(|c| c.normal_force = 0.0);
+            return Ok(());
+        }
+        let resolve = ls.ref_total == 0.0 || ls.ref_contacts != m || step >= ls.ref_step + super::load::REDISTRIBUTE_EVERY;
+        if resolve {
+            let Some(loads) = super::load::as_nodal_loads(&f) else { return Ok(()) };
+            let (normal, force) = self.mechanics.distribute(&self.prep.scene.particles, &self.contacts, &loads)?;
+            crate::finite::ensure_finite("load distribution", step + 1, t0, "contact", "normal force", normal.iter().copied())?;
+            let Some(ls) = self.load.as_mut() else { return Ok(()) };
+            ls.contact_normal = normal;
+            ls.contact_force = force;
+            ls.ref_total = total;
+            ls.ref_contacts = m;
+            ls.ref_step = step;
+            ls.solves += 1;
+        }
+        let Some(ls) = self.load.as_ref() else { return Ok(()) };
+        let scale = total / ls.ref_total;
+        let lim = ls.settings.contact_stress_limit;
+        for (c, &nf) in self.contacts.state.iter_mut().zip(&ls.contact_normal) {
+            // (P5): compression only, at most the flow stress over the neck area π a² of the
+            // step's start
+            let cap = lim * std::f64::consts::PI * c.y[0] * c.y[0];
+            c.normal_force = (nf * scale).clamp(0.0, cap);
+        }
+        Ok(())
+    }
+
+    /// The applied stress σ(t) at the current time [Pa] (0 without a load).
+    pub fn applied_stress(&self) -> f64 {
+        self.load.as_ref().map_or(0.0, |l| l.settings.stress.at(self.t))
+    }
+
+    /// (P4): the macroscopic stress `[xx, yy, zz, yz, xz, xy]` [Pa] (tension positive) of the
+    /// contact forces of the applied load at the current time, over the box volume of (S6).
+    pub fn macroscopic_stress(&self) -> [f64; 6] {
+        let Some(ls) = self.load.as_ref() else { return [0.0; 6] };
+        if ls.ref_total == 0.0 {
+            return [0.0; 6];
+        }
+        let Some(f) = self.load_forces_at(self.t) else { return [0.0; 6] };
+        let scale = super::load::total_force(&f) / ls.ref_total;
+        let e = self.extents();
+        let n = ls.contact_force.len().min(self.contacts.len());
+        super::load::macroscopic_stress(&self.contacts.pairs[..n], &ls.contact_force[..n], scale, &self.prep.scene.particles.position, e.x * e.y * e.z)
+    }
+
+    /// Mean normal force of the contacts in the last step [N] (compressive positive).
+    pub fn mean_normal_force(&self) -> f64 {
+        self.contacts.state.iter().map(|c| c.normal_force).sum::<f64>() / self.contacts.len().max(1) as f64
     }
 
     /// Mean neck ratio y1/R_min over contacts [1].

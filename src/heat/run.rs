@@ -56,9 +56,13 @@ pub fn prepare(value: toml::Value, base: &Path) -> Result<Prepared, Error> {
     if let Some(k) = c.kind.as_deref().filter(|k| *k != "heat") {
         return Err(ConfigError::invalid(format!("kind = \"{k}\" is not a heat case")).into());
     }
-    for (present, key) in
-        [(c.contacts.is_some(), "contacts"), (c.model.is_some(), "model"), (c.solver.is_some(), "solver"), (c.mechanics.is_some(), "mechanics")]
-    {
+    for (present, key) in [
+        (c.contacts.is_some(), "contacts"),
+        (c.model.is_some(), "model"),
+        (c.solver.is_some(), "solver"),
+        (c.mechanics.is_some(), "mechanics"),
+        (c.load.is_some(), "load"),
+    ] {
         if present {
             return Err(ConfigError::inconsistent(key, "this section belongs to kind = \"compact\" cases; a heat case has a static packing").into());
         }

@@ -176,6 +176,8 @@ where
     pts.push(t1);
     let mut y = contact.y;
     let mut h = contact.h_last;
+    // the contact's normal force (M11), constant over the interval (0: the unloaded model)
+    let force = contact.normal_force;
     for w in pts.windows(2) {
         let (a, b) = (w[0], w[1]);
         if b <= a {
@@ -197,12 +199,14 @@ where
             on_step(t, yy, temp.at(t));
         };
         y = if ta == tb {
-            let k = params.at(ta).map_err(ctx)?;
+            let mut k = params.at(ta).map_err(ctx)?;
+            k.normal_force = force;
             let mut f = |_tau: f64, yy: &[f64; 7]| rates_with(yy, &k);
             integrate(&mut f, a - tc, b - tc, y, &mut h, &ctl, stats, &mut cb).map_err(ctx)?
         } else {
             let mut f = |tau: f64, yy: &[f64; 7]| {
-                let k = params.at(temp.at(tau + tc))?;
+                let mut k = params.at(temp.at(tau + tc))?;
+                k.normal_force = force;
                 rates_with(yy, &k)
             };
             integrate(&mut f, a - tc, b - tc, y, &mut h, &ctl, stats, &mut cb).map_err(ctx)?

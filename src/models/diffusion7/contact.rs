@@ -27,6 +27,11 @@ pub struct Contact7 {
     pub h_last: f64,
     /// Unit vector from A to B of the step (for ξ (C1)).
     pub e3: [f64; 3],
+    /// Mechanical normal force on the grain boundary [N], compressive positive: the axial force
+    /// of the bond under an applied load (docs/pressure.md (P3)); enters the GB potentials by
+    /// (M11). 0 without a load (then the model is exactly the unloaded one).
+    #[serde(default)]
+    pub normal_force: f64,
 }
 
 impl Contact7 {
@@ -34,7 +39,7 @@ impl Contact7 {
     /// created at `t_c` [s], with (I1)–(I4) and the given ε, η.
     pub fn new(r_a: f64, r_b: f64, d_ab: f64, t_c: f64, eps: f64, eta: f64) -> Result<Contact7, ModelError> {
         let y = initial_state(r_a, r_b, d_ab, eps, eta)?;
-        Ok(Contact7 { y, y_prev: y, l0: y[3] + y[6], r0: [r_a, r_b], t_created: t_c, h_last: 0.0, e3: [0.0, 0.0, 1.0] })
+        Ok(Contact7 { y, y_prev: y, l0: y[3] + y[6], r0: [r_a, r_b], t_created: t_c, h_last: 0.0, e3: [0.0, 0.0, 1.0], normal_force: 0.0 })
     }
 
     /// Mean radius R_m = (R_A + R_B)/2 of the initial radii (F3) [m].

@@ -1,5 +1,6 @@
 //! Chemical potentials (M2), (M3), the twelve volume fluxes (M4), (M5), the region balances (M7)
-//! and the ODE (M8) of the 7-DOF model; conservation and dissipation (M10).
+//! and the ODE (M8) of the 7-DOF model; conservation and dissipation (M10); the stress term of
+//! the GB potentials under a mechanical normal force (M11)–(M13).
 
 use super::geometry::{Side, SideDerivs, sides, violation_error};
 use super::material::{Coeffs, ContactParams};
@@ -15,7 +16,7 @@ pub struct Evaluation {
     pub derivs: [SideDerivs; 2],
     /// ∂V/∂y_i of the pair (M1) [m²].
     pub dv: [f64; 7],
-    /// Chemical potentials μ_1..μ_7 (M3) [J].
+    /// Chemical potentials μ_1..μ_7 (M3), with the stress term (M11) under a normal force [J].
     pub mu: [f64; 7],
     /// Fluxes per side, paths I..VI (M5) [m³/s]; `J > 0` from source to sink as in Table 1.
     pub flux: [[f64; 6]; 2],
@@ -23,7 +24,8 @@ pub struct Evaluation {
     pub q: [f64; 7],
     /// dy/dt (M8) [m/s].
     pub dydt: [f64; 7],
-    /// d𝒢/dt = Σ μ_i Q_i / Ω (M10) [W].
+    /// d𝒢/dt = Σ μ_i Q_i / Ω (M10) [W]; under a normal force F_n this is dΨ/dt of the free
+    /// energy with the load's potential, Ψ = 𝒢 + F_n·(y4 + y7) (M12).
     pub dg_dt: f64,
 }
 
@@ -39,8 +41,14 @@ pub fn evaluate(y: &[f64; 7], k: &Coeffs) -> Result<Evaluation, ModelError> {
     // (M3)
     let mu1 = om * (k.gamma_s[0] * da.da[0] + k.gamma_s[1] * db.da[0] + k.gamma_gb * 2.0 * PI * a) / dv[0];
     let side_mu = |g: f64, d: &SideDerivs| [om * g * d.da[1] / d.dv[1], om * g * d.ratio_c, om * g * d.da[3] / d.dv[3]];
-    let ma = side_mu(k.gamma_s[0], &da);
-    let mb = side_mu(k.gamma_s[1], &db);
+    let mut ma = side_mu(k.gamma_s[0], &da);
+    let mut mb = side_mu(k.gamma_s[1], &db);
+    // (M11): a normal force F_n (compressive > 0) adds the work of the load per volume removed
+    // from each GB, Ω·F_n/(∂V/∂y4) and Ω·F_n/(∂V/∂y7); guarded so that F_n = 0 adds nothing at all
+    if k.normal_force != 0.0 {
+        ma[2] += om * k.normal_force / dv[3];
+        mb[2] += om * k.normal_force / dv[6];
+    }
     let mu = [mu1, ma[0], ma[1], ma[2], mb[0], mb[1], mb[2]];
     // (M5): paths I..VI for each side
     let fl = |s: usize, sd: &Side, m: &[f64; 3]| {

@@ -292,6 +292,7 @@ impl ContactParams {
             k_b_neck: [0.0; 2],
             k_s_cap: [0.0; 2],
             k_b_cap: [0.0; 2],
+            normal_force: 0.0,
         };
         let mut gb = [0.0; 2];
         for s in 0..2 {
@@ -342,4 +343,9 @@ pub struct Coeffs {
     pub k_s_cap: [f64; 2],
     /// 2π·f_l·D_b·n_b/(k_B T λ_p) [m²/(J s)].
     pub k_b_cap: [f64; 2],
+    /// Mechanical normal force F_n on the grain boundary [N], compressive positive (an applied
+    /// load carried by the contact, docs/pressure.md): shifts the GB potentials μ4, μ7 by
+    /// Ω·F_n/(∂V/∂y4), Ω·F_n/(∂V/∂y7) (docs/diffusion7.md (M11)). 0 in [`ContactParams::at`]; the
+    /// caller sets it per contact (`Contact7::normal_force`).
+    pub normal_force: f64,
 }

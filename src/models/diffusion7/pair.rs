@@ -34,6 +34,16 @@ struct CaseFile {
     output: OutputSection,
     #[serde(default)]
     materials: Vec<toml::Value>,
+    #[serde(default)]
+    load: Option<LoadSection>,
+}
+
+/// `[load]`: a constant mechanical normal force on the pair's grain boundary (docs/pressure.md).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LoadSection {
+    /// F_n [N], compressive positive (pushes the centres together), negative: tension.
+    force: f64,
 }
 
 /// `[pair]`: the two spheres and the run length.
@@ -131,6 +141,9 @@ pub struct PairSpec {
     pub solver: SolverOptions,
     pub series_every: usize,
     pub plot: bool,
+    /// Constant normal force on the grain boundary [N], compressive positive (`load.force`;
+    /// docs/diffusion7.md (M11)); 0 without a `[load]` section.
+    pub normal_force: f64,
 }
 
 /// The ramp of docs/diffusion7.md §9: heat from `start` to `peak` at `heat` K/s, hold `hold` s, cool at `cool` K/s
@@ -257,6 +270,10 @@ pub fn parse_pair_case(case: &toml::Value) -> Result<PairSpec, Error> {
         solver: f.solver,
         series_every: series_every as usize,
         plot: f.output.plot,
+        normal_force: match &f.load {
+            Some(l) => check("load.force", l.force)?,
+            None => 0.0,
+        },
     };
     spec.new_contact()?;
     Ok(spec)
@@ -266,7 +283,9 @@ impl PairSpec {
     /// The contact at t = 0 (I1)–(I4).
     pub fn new_contact(&self) -> Result<Contact7, ModelError> {
         let d_ab = (self.radius_a + self.radius_b) * (1.0 - self.overlap);
-        Contact7::new(self.radius_a, self.radius_b, d_ab, 0.0, self.neck_epsilon, self.cone_eta)
+        let mut c = Contact7::new(self.radius_a, self.radius_b, d_ab, 0.0, self.neck_epsilon, self.cone_eta)?;
+        c.normal_force = self.normal_force;
+        Ok(c)
     }
 
     /// Materials and factors of the contact.

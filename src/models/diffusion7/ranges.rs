@@ -11,6 +11,7 @@ pub static RANGES: &[Range] = &[
     c("pair.neck_epsilon", 1e-4, 0.1, "1", "initial neck excess eps of (I2)"),
     o("pair.cone_eta", 0.0, 1.0, "1", "initial cone parameter eta of (I2)"),
     p("pair.end_time", 0.0, 1e9, "s", "simulated time (default: end of the heating profile)"),
+    c("load.force", -1e3, 1e3, "N", "pair: constant normal force on the grain boundary, compressive positive (docs/pressure.md)"),
     // temperature history (ramp form; constant, schedule and table are the alternatives)
     c("temperature.constant", 1.0, 1e4, "K", "constant contact temperature"),
     c("temperature.start_temperature", 1.0, 1e4, "K", "ramp: temperature at t = 0 (heating branch truncated below it)"),
