@@ -85,11 +85,28 @@ pub struct ContactsSpec {
     /// distance) or "seven_dof" (y1).
     #[serde(default = "vc")]
     pub neck: String,
+    /// Initial 7-DOF state of a contact created during the run (docs/coupled.md "New contacts"):
+    /// "seed" (default, (I1)–(I4)) or "volume_conserving" (the neck of the overlap at detection).
+    #[serde(default = "seed")]
+    pub new_contact_state: String,
+    /// Surface gap, relative to the mean radius, below which a pair counts as touching in the
+    /// searches after the start (default: `gap_tolerance`; 0: only overlapping pairs) [1].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub new_contact_gap: Option<f64>,
 }
 
 impl Default for ContactsSpec {
     fn default() -> Self {
-        ContactsSpec { detect_new: true, detect_every: 5.0, gap_tolerance: gap(), epsilon: eps(), eta: eta(), neck: vc() }
+        ContactsSpec {
+            detect_new: true,
+            detect_every: 5.0,
+            gap_tolerance: gap(),
+            epsilon: eps(),
+            eta: eta(),
+            neck: vc(),
+            new_contact_state: seed(),
+            new_contact_gap: None,
+        }
     }
 }
 
@@ -104,6 +121,9 @@ fn eta() -> f64 {
 }
 fn vc() -> String {
     "volume_conserving".into()
+}
+fn seed() -> String {
+    "seed".into()
 }
 
 /// Bonded quasi-static mechanics settings.

@@ -80,6 +80,7 @@ pub static TABLE: &[Range] = &[
     // contacts and mechanics of compact runs
     c("contacts.detect_every", 1.0, 1e9, "1", "neighbour search every this many steps"),
     c("contacts.gap_tolerance", 0.0, 0.1, "1", "surface gap, relative to the mean radius, below which a pair counts as touching"),
+    c("contacts.new_contact_gap", 0.0, 0.1, "1", "gap_tolerance of the searches after the start (default: gap_tolerance; 0: overlapping pairs only)"),
     c("contacts.epsilon", 1e-4, 0.1, "1", "initial neck excess epsilon of a new contact (I2)"),
     o("contacts.eta", 0.0, 1.0, "1", "initial cone parameter eta of a new contact (I2)"),
     c("mechanics.rtol", 1e-15, 1e-2, "1", "Newton tolerance of the bonded solve: scaled residual relative to the scaled load"),

@@ -23,6 +23,32 @@ pub enum NeckSource {
     SevenDof,
 }
 
+/// Initial 7-DOF state of a contact created during the run (docs/coupled.md "New contacts").
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NewContactState {
+    /// (I1)–(I4): neck `r_c + ε·min(R_A, R_B)`, as every contact of the green body.
+    Seed,
+    /// Neck = the volume-conserving neck of the overlap at detection (crate::neck, the heat
+    /// model's (H9)–(H15)), at least `ε·min(R_A, R_B)`.
+    VolumeConserving,
+}
+
+impl NewContactState {
+    /// The case-file names, in the order of the documentation.
+    pub const NAMES: [&'static str; 2] = ["seed", "volume_conserving"];
+
+    pub fn parse(s: &str) -> Result<NewContactState, ConfigError> {
+        match s {
+            "seed" => Ok(NewContactState::Seed),
+            "volume_conserving" => Ok(NewContactState::VolumeConserving),
+            o => Err(ConfigError::invalid(format!(
+                "contacts.new_contact_state = \"{o}\": expected one of {} (docs/coupled.md \"New contacts\")",
+                NewContactState::NAMES.map(|n| format!("\"{n}\"")).join(", ")
+            ))),
+        }
+    }
+}
+
 /// Step-control and contact settings of a compact run, validated.
 #[derive(Debug, Clone)]
 pub struct Settings {
@@ -41,6 +67,10 @@ pub struct Settings {
     pub detect_every: u64,
     /// Gap [m] below which a pair counts as touching.
     pub gap: f64,
+    /// Gap [m] below which a pair counts as touching in the searches after the start.
+    pub new_gap: f64,
+    /// Initial state of the contacts created after the start.
+    pub new_state: NewContactState,
     pub epsilon: f64,
     pub eta: f64,
     pub neck: NeckSource,
@@ -114,6 +144,11 @@ impl Settings {
             detect_new: c.detect_new,
             detect_every: every as u64,
             gap: config::check("contacts.gap_tolerance", c.gap_tolerance)?,
+            new_gap: match c.new_contact_gap {
+                Some(g) => config::check("contacts.new_contact_gap", g)?,
+                None => c.gap_tolerance,
+            },
+            new_state: NewContactState::parse(&c.new_contact_state)?,
             epsilon: config::check("contacts.epsilon", c.epsilon)?,
             eta: config::check("contacts.eta", c.eta)?,
             neck,
@@ -421,6 +456,16 @@ fn dist(p: &crate::particles::Particles, i: u32, j: u32) -> f64 {
     (p.position[j as usize] - p.position[i as usize]).norm()
 }
 
+/// Initial neck radius [m] of a contact created with `contacts.new_contact_state =
+/// "volume_conserving"` between spheres of radii `r_i`, `r_j` [m] at centre distance `d` [m]: the
+/// volume-conserving neck of the overlap `h = r_i + r_j − d` (crate::neck, the neck the heat model
+/// gives the same pair), at least `ε·min(r_i, r_j)`, the seed neck of a touching pair (the 7-DOF
+/// model needs a finite neck, (I2); below an overlap of about ε²·r/2 the seed is larger).
+pub fn new_contact_neck(r_i: f64, r_j: f64, d: f64, eps: f64) -> Result<f64, ModelError> {
+    let a = crate::neck::solve(r_i, r_j, r_i + r_j - d)?.a;
+    Ok(a.max(eps * r_i.min(r_j)))
+}
+
 impl Simulation {
     /// Builds a compact simulation from a prepared case.
     pub fn new(prep: Prepared, log: &mut dyn FnMut(&str)) -> Result<Simulation, Error> {
@@ -562,28 +607,52 @@ impl Simulation {
     }
 
     /// Stage 1: contacts for newly touching pairs, with their initial 7-DOF state at time `t`.
-    fn add_new_contacts(&mut self, log: &mut dyn FnMut(&str)) -> Result<usize, Error> {
+    /// At the start (`step == 0`) pairs within `contacts.gap_tolerance` get the seed state
+    /// (I1)–(I4); afterwards pairs within `contacts.new_contact_gap` get the state of
+    /// `contacts.new_contact_state` (docs/coupled.md "New contacts"). Returns the number added.
+    pub fn add_new_contacts(&mut self, log: &mut dyn FnMut(&str)) -> Result<usize, Error> {
         let p = &self.prep.scene.particles;
-        let found = crate::contacts::detect::touching_pairs(&p.position, &p.radius, self.settings.gap * p.mean_radius());
+        let during_run = self.step > 0;
+        let gap = if during_run { self.settings.new_gap } else { self.settings.gap };
+        let state = if during_run { self.settings.new_state } else { NewContactState::Seed };
+        let found = crate::contacts::detect::touching_pairs(&p.position, &p.radius, gap * p.mean_radius());
         let existing: std::collections::HashSet<(u32, u32)> = self.contacts.pairs.iter().map(|&[i, j]| (i, j)).collect();
         let mut added = 0;
+        // overlap at detection relative to the smaller radius (log only)
+        let mut overlaps = Vec::new();
         for (i, j) in found {
             if existing.contains(&(i, j)) {
                 continue;
             }
             let (ri, rj) = (p.radius[i as usize], p.radius[j as usize]);
+            let d_now = dist(p, i, j);
+            overlaps.push((ri + rj - d_now) / ri.min(rj));
             // a pair within the gap tolerance starts as touching (I1 needs d ≤ R_A + R_B)
-            let d = dist(p, i, j).min(ri + rj);
-            let c = Contact7::new(ri, rj, d, self.t, self.settings.epsilon, self.settings.eta)
-                .map_err(|e| e.with_context(format!("new contact between particles {i} and {j} at t = {} s", self.t)))?;
+            let d = d_now.min(ri + rj);
+            let ctx = |e: ModelError| e.with_context(format!("new contact between particles {i} and {j} at t = {} s", self.t));
+            let c = match state {
+                NewContactState::Seed => Contact7::new(ri, rj, d, self.t, self.settings.epsilon, self.settings.eta).map_err(ctx)?,
+                NewContactState::VolumeConserving => {
+                    let a0 = new_contact_neck(ri, rj, d_now, self.settings.epsilon).map_err(ctx)?;
+                    Contact7::with_neck(ri, rj, d, self.t, a0, self.settings.eta).map_err(ctx)?
+                }
+            };
             self.contacts.pairs.push([i, j]);
             self.contacts.state.push(c);
             self.contacts.dl_bar.push(0.0);
             self.contacts.substeps.push(0);
             added += 1;
         }
-        if added > 0 && self.step > 0 {
-            log(&format!("t = {:.6e} s: {added} new contacts ({} in all)", self.t, self.contacts.len()));
+        if added > 0 && during_run {
+            overlaps.sort_by(f64::total_cmp);
+            let apart = overlaps.iter().filter(|&&h| h <= 0.0).count();
+            log(&format!(
+                "t = {:.6e} s: {added} new contacts ({} in all); overlap at detection h/R_min median {:.3e}, max {:.3e}, {apart} within the gap tolerance without overlap",
+                self.t,
+                self.contacts.len(),
+                overlaps[overlaps.len() / 2],
+                overlaps[overlaps.len() - 1]
+            ));
         }
         Ok(added)
     }

@@ -42,6 +42,13 @@ impl Contact7 {
         Ok(Contact7 { y, y_prev: y, l0: y[3] + y[6], r0: [r_a, r_b], t_created: t_c, h_last: 0.0, e3: [0.0, 0.0, 1.0], normal_force: 0.0 })
     }
 
+    /// A new contact as [`Contact7::new`] but with the initial neck radius `a0` [m] given instead of
+    /// (I2)'s `r_c + ε·min(R_A, R_B)` ((I1), (I3), (I4) unchanged; [`initial_state_with_neck`]).
+    pub fn with_neck(r_a: f64, r_b: f64, d_ab: f64, t_c: f64, a0: f64, eta: f64) -> Result<Contact7, ModelError> {
+        let y = initial_state_with_neck(r_a, r_b, d_ab, a0, eta)?;
+        Ok(Contact7 { y, y_prev: y, l0: y[3] + y[6], r0: [r_a, r_b], t_created: t_c, h_last: 0.0, e3: [0.0, 0.0, 1.0] })
+    }
+
     /// Mean radius R_m = (R_A + R_B)/2 of the initial radii (F3) [m].
     pub fn r_mean(&self) -> f64 {
         0.5 * (self.r0[0] + self.r0[1])
@@ -73,6 +80,36 @@ impl Contact7 {
 /// (0…1). Halves η until (A1)–(A4) hold (at most 60 times).
 pub fn initial_state(r_a: f64, r_b: f64, d_ab: f64, eps: f64, eta: f64) -> Result<[f64; 7], ModelError> {
     let ctx = || format!("R_A = {r_a} m, R_B = {r_b} m, d_AB = {d_ab} m, eps = {eps}, eta = {eta}");
+    check_pair(r_a, r_b, d_ab, eta, &ctx)?;
+    if !((1e-4..=0.1).contains(&eps)) {
+        return Err(ModelError::new("initial state: eps must lie in [1e-4, 0.1] (I4)").with_context(ctx()));
+    }
+    let (d_a, d_b, r_c) = radical_plane(r_a, r_b, d_ab);
+    // (I2)
+    let a0 = r_c + eps * r_a.min(r_b);
+    cone_state(r_a, r_b, d_a, d_b, a0, eta, &ctx)
+}
+
+/// (I1), (I3), (I4) with the initial neck radius `a0` [m] given (`r_c ≤ a0 < min(R_A, R_B)`, with
+/// `r_c` the radius of the spheres' intersection circle) instead of (I2)'s `r_c + ε·min(R_A, R_B)`:
+/// the start of a contact created with the volume-conserving neck of its overlap
+/// (`contacts.new_contact_state`, docs/coupled.md "New contacts"). Halves η as [`initial_state`].
+pub fn initial_state_with_neck(r_a: f64, r_b: f64, d_ab: f64, a0: f64, eta: f64) -> Result<[f64; 7], ModelError> {
+    let ctx = || format!("R_A = {r_a} m, R_B = {r_b} m, d_AB = {d_ab} m, a0 = {a0} m, eta = {eta}");
+    check_pair(r_a, r_b, d_ab, eta, &ctx)?;
+    let (d_a, d_b, r_c) = radical_plane(r_a, r_b, d_ab);
+    if !(a0.is_finite() && a0 > 0.0 && a0 >= r_c * (1.0 - 1e-12) && a0 < r_a.min(r_b)) {
+        return Err(ModelError::new(format!(
+            "initial state: the neck radius a0 must lie in [r_c, min(R_A, R_B)) = [{r_c:e}, {:e}) m and be positive (r_c: radius of the spheres' intersection circle)",
+            r_a.min(r_b)
+        ))
+        .with_context(ctx()));
+    }
+    cone_state(r_a, r_b, d_a, d_b, a0.max(r_c), eta, &ctx)
+}
+
+/// Radii, centre distance and η of an initial state, checked.
+fn check_pair(r_a: f64, r_b: f64, d_ab: f64, eta: f64, ctx: &dyn Fn() -> String) -> Result<(), ModelError> {
     if !(r_a > 0.0 && r_b > 0.0 && r_a.is_finite() && r_b.is_finite()) {
         return Err(ModelError::new("initial state: radii must be positive and finite").with_context(ctx()));
     }
@@ -82,19 +119,23 @@ pub fn initial_state(r_a: f64, r_b: f64, d_ab: f64, eps: f64, eta: f64) -> Resul
         )
         .with_context(ctx()));
     }
-    if !((1e-4..=0.1).contains(&eps)) {
-        return Err(ModelError::new("initial state: eps must lie in [1e-4, 0.1] (I4)").with_context(ctx()));
-    }
     if !(eta > 0.0 && eta < 1.0) {
         return Err(ModelError::new("initial state: eta must lie in (0, 1) (I4)").with_context(ctx()));
     }
-    // (I1)
+    Ok(())
+}
+
+/// (I1) and the intersection-circle radius r_c of (I2): `(d_A, d_B, r_c)` [m].
+fn radical_plane(r_a: f64, r_b: f64, d_ab: f64) -> (f64, f64, f64) {
     let d_a = (d_ab * d_ab + r_a * r_a - r_b * r_b) / (2.0 * d_ab);
     // the same formula for B (= d_AB − d_A up to round-off) keeps equal pairs exactly symmetric
     let d_b = (d_ab * d_ab + r_b * r_b - r_a * r_a) / (2.0 * d_ab);
-    // (I2)
     let r_c = (r_a * r_a - d_a * d_a).max(0.0).sqrt();
-    let a0 = r_c + eps * r_a.min(r_b);
+    (d_a, d_b, r_c)
+}
+
+/// (I2)'s cone h0 = (1 + η)·a0 and (I3), halving η until (A1)–(A4) hold (at most 60 times).
+fn cone_state(r_a: f64, r_b: f64, d_a: f64, d_b: f64, a0: f64, eta: f64, ctx: &dyn Fn() -> String) -> Result<[f64; 7], ModelError> {
     let mut eta = eta;
     for _ in 0..60 {
         let h0 = (1.0 + eta) * a0;
