@@ -46,7 +46,7 @@ impl Contact7 {
     /// (I2)'s `r_c + ε·min(R_A, R_B)` ((I1), (I3), (I4) unchanged; [`initial_state_with_neck`]).
     pub fn with_neck(r_a: f64, r_b: f64, d_ab: f64, t_c: f64, a0: f64, eta: f64) -> Result<Contact7, ModelError> {
         let y = initial_state_with_neck(r_a, r_b, d_ab, a0, eta)?;
-        Ok(Contact7 { y, y_prev: y, l0: y[3] + y[6], r0: [r_a, r_b], t_created: t_c, h_last: 0.0, e3: [0.0, 0.0, 1.0] })
+        Ok(Contact7 { y, y_prev: y, l0: y[3] + y[6], r0: [r_a, r_b], t_created: t_c, h_last: 0.0, e3: [0.0, 0.0, 1.0], normal_force: 0.0 })
     }
 
     /// Mean radius R_m = (R_A + R_B)/2 of the initial radii (F3) [m].
