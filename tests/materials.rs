@@ -122,9 +122,17 @@ fn series_elastic_constants_are_harmonic_means_of_e_and_g() {
 #[test]
 fn mixed_material_bonds_use_their_own_poisson_ratio() {
     // only ν shapes the bonded response (E cancels with the load F5), so a packing whose second
-    // material has another ν must differ from both uniform packings and lie between them
+    // material has another ν must differ from both uniform packings and lie between them; new
+    // contacts are searched every step (as before `detect_every` defaulted to 5), so that the three
+    // runs see their contact-formation events at the same times
     let dir = tmp("mixed");
     let p = packing(&dir, 1.6e-4);
+    let fixed = |v: toml::Value| {
+        let mut v = v;
+        v.as_table_mut().unwrap().insert("contacts".into(), toml::Value::Table(toml::toml! { detect_every = 1 }));
+        v
+    };
+    let case = |p: &Path, a: &str, b: &str| fixed(case(p, a, b));
     let nu = |a: f64, b: f64| case(&p, &format!("{PRESET_A}\npoisson_ratio = {a}"), &format!("{PRESET_B}\npoisson_ratio = {b}"));
     let lo = shrink(&dir, "lo", &nu(0.1, 0.1));
     let hi = shrink(&dir, "hi", &nu(0.45, 0.45));

@@ -256,7 +256,7 @@ pub fn run_from(
             "applied_stress_Pa": sim.applied_stress(),
             "peak_stress_Pa": l.settings.stress.max(),
             "distribution_solves": l.solves,
-        })),
+        })).unwrap_or_else(|| json!({"mode": "none"})),
         "stress_tensor_Pa": {
             "xx": sim.macroscopic_stress()[0], "yy": sim.macroscopic_stress()[1], "zz": sim.macroscopic_stress()[2],
             "yz": sim.macroscopic_stress()[3], "xz": sim.macroscopic_stress()[4], "xy": sim.macroscopic_stress()[5],
