@@ -157,17 +157,19 @@ pub fn run_from(
             }
         }
         let tic = Instant::now();
-        let mut rho_stop = sim.settings.stop_relative_density.filter(|&r| sim.relative_density() >= r);
-        if let Some(r) = rho_stop {
+        // the run ends after this step: the relative density asked for, or the caller's wall-time
+        // budget (benchmarks) is reached; the state so far is summarised
+        let mut stop_now = false;
+        if let Some(r) = sim.settings.stop_relative_density.filter(|&r| sim.relative_density() >= r) {
             log(&format!("t = {} s: relative density {:.4} reached time.stop_relative_density = {r}: the run ends here", sim.t, sim.relative_density()));
             stop_reason = Some(format!("relative density {r} reached"));
+            stop_now = true;
         } else if let Some(limit) = sim.settings.wall_limit.filter(|&l| wall.elapsed().as_secs_f64() > l && sim.t < end) {
-            // the caller's wall-time budget (benchmarks): the run ends with its state summarised
             log(&format!("t = {} s (step {}): the wall-time limit of {limit} s is reached: the run ends here", sim.t, sim.step));
             stop_reason = Some(format!("wall-time limit of {limit} s reached"));
-            rho_stop = Some(sim.relative_density());
+            stop_now = true;
         }
-        if sim.step.is_multiple_of(sim.settings.series_every) || sim.t >= end || rho_stop.is_some() {
+        if sim.step.is_multiple_of(sim.settings.series_every) || sim.t >= end || stop_now {
             write_row(&sim, &mut series, dt_used)?;
             series_lines += 1;
         }
@@ -193,7 +195,7 @@ pub fn run_from(
             }
         }
         sim.timing.output += tic.elapsed().as_secs_f64();
-        if rho_stop.is_some() {
+        if stop_now {
             break;
         }
         bar.set(sim.t, &format!("step {}, Δt = {:.3e} s, contacts {}", sim.step, sim.dt, sim.contacts.len()));

@@ -223,11 +223,12 @@ pub fn measure(
     Ok((reference, runs))
 }
 
-/// CSV text of the outcomes of one case (plain header, units in the names).
-pub fn csv(case: &str, reference: &Outcome, runs: &[Outcome]) -> String {
-    let mut s = String::from(
-        "case,family,settings,wall_s,steps,factorizations,shrinkage_x,shrinkage_y,shrinkage_z,neck_ratio,relative_density,err_shrinkage_x,err_shrinkage_y,err_shrinkage_z,err_shrinkage_max,err_neck_ratio,err_relative_density,pareto,error\n",
-    );
+/// Header of `precision.csv` (plain, units in the names).
+pub const CSV_HEADER: &str = "case,family,settings,wall_s,steps,factorizations,shrinkage_x,shrinkage_y,shrinkage_z,neck_ratio,relative_density,err_shrinkage_x,err_shrinkage_y,err_shrinkage_z,err_shrinkage_max,err_neck_ratio,err_relative_density,pareto,error\n";
+
+/// CSV rows (no header, [`CSV_HEADER`]) of the outcomes of one case.
+pub fn csv_rows(case: &str, reference: &Outcome, runs: &[Outcome]) -> String {
+    let mut s = String::new();
     for o in std::iter::once(reference).chain(runs) {
         let _ = writeln!(
             s,
@@ -342,7 +343,7 @@ pub fn table(case: &str, reference: &Outcome, runs: &[Outcome]) -> String {
 pub fn bench_precision(copper: Option<&Path>, e14b: Option<&Path>, corner_edge: f64, out: &Path, progress: &mut dyn FnMut(&str)) -> Result<String, Error> {
     crate::io::ensure_dir(out)?;
     let mut report = format!("# sinterdem bench precision ({} rayon threads)\n", rayon::current_num_threads());
-    let mut all_csv = String::new();
+    let mut all_csv = String::from(CSV_HEADER);
     let mut jobs: Vec<(String, toml::Value, PathBuf, Vec<String>)> = Vec::new();
     if let Some(c) = copper {
         jobs.push(("copper".into(), crate::config::load_case(c, &[])?, c.parent().unwrap_or(Path::new(".")).to_path_buf(), vec![]));
@@ -357,22 +358,14 @@ pub fn bench_precision(copper: Option<&Path>, e14b: Option<&Path>, corner_edge: 
     }
     let csv_path = out.join("precision.csv");
     for (name, value, base, extra) in jobs {
-        let done = all_csv.clone();
+        // the earlier cases' rows plus this case's so far, rewritten after every run
         let mut partial = |reference: &Outcome, runs: &[Outcome]| -> Result<(), Error> {
-            let text = csv(&name, reference, runs);
-            let body = if done.is_empty() { text } else { format!("{done}{}", text.lines().skip(1).map(|l| format!("{l}\n")).collect::<String>()) };
-            crate::io::write_atomic(&csv_path, &body)?;
+            crate::io::write_atomic(&csv_path, &format!("{all_csv}{}", csv_rows(&name, reference, runs)))?;
             Ok(())
         };
         let (reference, runs) = measure(&name, &value, &base, &extra, out, progress, &mut partial)?;
         report.push_str(&table(&name, &reference, &runs));
-        let text = csv(&name, &reference, &runs);
-        if all_csv.is_empty() {
-            all_csv = text;
-        } else {
-            all_csv.extend(text.lines().skip(1).map(|l| format!("{l}\n")));
-        }
-        crate::io::write_atomic(&csv_path, &all_csv)?;
+        all_csv.push_str(&csv_rows(&name, &reference, &runs));
         let plot = diagram(&name, &runs);
         plot.save_png(&out.join(format!("precision-{name}.png")))?;
         plot.save_svg(&out.join(format!("precision-{name}.svg")))?;
