@@ -70,19 +70,25 @@ pub fn ladder() -> Vec<Variant> {
 /// The measured outcome of one run.
 #[derive(Debug, Clone)]
 pub struct Outcome {
+    /// The knob of the ladder and the rung's label.
     pub family: String,
     pub label: String,
+    /// Wall time of the run [s].
     pub wall_seconds: f64,
+    /// Accepted global steps and numeric factorisations [1].
     pub steps: u64,
     pub factorizations: u64,
-    /// Shrinkage per axis, mean neck ratio, relative density at the end.
+    /// Shrinkage per axis (docs/coupled.md (S6) box), mean neck ratio y1/R, relative density
+    /// (S6) at the end [1].
     pub shrinkage: [f64; 3],
     pub neck_ratio: f64,
     pub relative_density: f64,
-    /// Relative errors against the reference (filled after the reference is known).
+    /// Relative errors |v − v_ref|/|v_ref| against the reference [1] (filled after the reference
+    /// is known).
     pub err_shrinkage: [f64; 3],
     pub err_neck_ratio: f64,
     pub err_relative_density: f64,
+    /// No other run of the case is both faster and more accurate (largest shrinkage error).
     pub pareto: bool,
     /// Failure message, if the run failed.
     pub error: Option<String>,
