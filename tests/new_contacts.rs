@@ -15,8 +15,12 @@ const RB: f64 = 30e-6;
 const RC: f64 = 20e-6;
 const XB: f64 = 80e-6;
 
+/// A fresh directory per call: tests run in parallel and several build the same scene, so the
+/// name carries a call counter besides the process id (else one test removes another's files).
 fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("sinterdem-{name}-{}", std::process::id()));
+    static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let k = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let d = std::env::temp_dir().join(format!("sinterdem-{name}-{}-{k}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     d
