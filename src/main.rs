@@ -246,6 +246,9 @@ enum Bench {
         /// Steps timed per size.
         #[arg(long, default_value_t = 3)]
         steps: u64,
+        /// Override a key of every run (repeatable), e.g. --set mechanics.warm_start=false.
+        #[arg(long = "set")]
+        set: Vec<String>,
     },
     /// Run time against error of the coupled loop: the copper compact and a corner of the E14B
     /// packing over a ladder of settings against a tight reference (CSV + PNG, docs/coupled.md).
@@ -441,9 +444,9 @@ fn real_main(cli: Cli) -> Result<(), Error> {
                 println!("{}", sinterdem::mechanics::bench::bench_mechanics_with(&particles, cholesky_max)?);
                 Ok(())
             }
-            Bench::Coupled { case, particles, steps } => {
+            Bench::Coupled { case, particles, steps, set } => {
                 let c = (case != "none").then(|| PathBuf::from(&case));
-                println!("{}", sinterdem::coupled::bench_coupled(c.as_deref(), &particles, steps)?);
+                println!("{}", sinterdem::coupled::bench_coupled(c.as_deref(), &particles, steps, &set)?);
                 Ok(())
             }
             Bench::Precision { copper, e14b, corner_edge, out } => {

@@ -147,9 +147,10 @@ fn resumed_run_is_bit_identical() {
     {
         assert_eq!(s_full[key], s_res[key], "{key}");
     }
-    // the mechanics met its tolerance at every step
+    // the mechanics met its tolerance at every step (a step whose warm start (B12) already met it
+    // needs no Newton iteration)
     let m = &s_full["mechanics"];
-    assert!(m["newton_iterations"].as_u64().unwrap() >= s_full["steps"].as_u64().unwrap());
+    assert!(m["newton_iterations"].as_u64().unwrap() > 0);
     assert!(m["max_final_residual"].as_f64().unwrap() <= m["rtol"].as_f64().unwrap());
     let a = std::fs::read_to_string(full.join("series.csv")).unwrap();
     let b = std::fs::read_to_string(part.join("series.csv")).unwrap();

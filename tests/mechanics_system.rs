@@ -348,3 +348,73 @@ fn unconverged_pcg_is_a_solve_error_with_history() {
         other => panic!("expected SolveError, got {other}"),
     }
 }
+
+/// docs/mechanics.md (B12): the warm start is the Galerkin projection onto the last solutions.
+/// A load that is a multiple of the last one is solved by the projection alone (residual at
+/// round-off, no Newton iteration, the same answer as a cold solve); a new load pattern starts
+/// below ‖b‖ and ends at the same tolerance and answer as a cold solve, with fewer CG iterations
+/// (AMG) than from zero; a dropped factor (checkpoints) forgets the history; 1 and 2 threads agree.
+#[test]
+fn warm_start_projects_onto_the_last_solutions() {
+    let (pos, rad, pairs, y) = fcc_packing(2000, 5);
+    let n = pos.len();
+    let cons = Constraints::principal_planes(&pos, &rad, 0.01).unwrap();
+    let loads = |seed: u64| -> Vec<f64> {
+        let mut s = seed;
+        pairs
+            .iter()
+            .map(|&[i, j]| {
+                let rm = 0.5 * (rad[i as usize] + rad[j as usize]);
+                load_increment(1e-4 * rm * rng(&mut s), 1e-4 * rm * rng(&mut s), rm, E)
+            })
+            .collect()
+    };
+    let (l1, l3) = (loads(3), loads(11));
+    let l2: Vec<f64> = l1.iter().map(|v| 2.5 * v).collect();
+    // a load between the two patterns: mostly in the span of the history, not entirely
+    let l4: Vec<f64> = l1.iter().zip(&l3).enumerate().map(|(k, (a, b))| 0.7 * a + 0.4 * b + if k % 7 == 0 { 0.2 * a } else { 0.0 }).collect();
+    let rtol = 1e-8;
+    for solver in [LinearSolver::Cholesky, LinearSolver::Amg] {
+        let run = |warm: bool, threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| {
+                let p = MechParams { warm_start: warm, rtol, reuse_factor: true, ..params(solver) };
+                let mut sys = BondedSystem::new(n, p, cons.clone()).unwrap();
+                sys.set_topology(&pairs).unwrap();
+                let mut outs = Vec::new();
+                for l in [&l1, &l2, &l3, &l4] {
+                    outs.push(sys.step(&StepInput { positions: &pos, radii: &rad, y4_y7: &y, load: l, external: None }).unwrap());
+                }
+                sys.drop_factor();
+                outs.push(sys.step(&StepInput { positions: &pos, radii: &rad, y4_y7: &y, load: &l4, external: None }).unwrap());
+                outs
+            })
+        };
+        let cold = run(false, 2);
+        let warm = run(true, 2);
+        let scale = cold[3].du.iter().map(|d| d.norm()).fold(0.0, f64::max);
+        for (k, (c, w)) in cold.iter().zip(&warm).enumerate() {
+            let diff = c.du.iter().zip(&w.du).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
+            assert!(diff < 1e-6 * scale, "{solver:?} step {k}: warm vs cold {diff:e} of {scale:e}");
+            assert!(w.info.residuals.last().copied().unwrap_or(w.info.warm_start) <= rtol, "{solver:?} step {k}: {:?}", w.info);
+        }
+        // step 1: no history; step 2: 2.5 × step 1, solved by the projection alone (its residual
+        // is step 1's: round-off after Cholesky, within rtol after AMG-CG)
+        assert_eq!(warm[0].info.warm_start, 0.0);
+        let floor = if solver == LinearSolver::Cholesky { 1e-12 } else { rtol };
+        assert!(warm[1].info.warm_start <= floor, "{solver:?}: {:e}", warm[1].info.warm_start);
+        assert_eq!(warm[1].info.newton_iterations, 0);
+        // step 3: an unrelated pattern (its projection may be discarded: residual not below ‖b‖);
+        // step 4: a mixture of the last two patterns plus a part outside their span
+        assert!(warm[2].info.warm_start > 0.0, "{solver:?}: {:e}", warm[2].info.warm_start);
+        assert!(warm[3].info.warm_start < 0.2, "{solver:?}: {:e}", warm[3].info.warm_start);
+        if solver == LinearSolver::Amg {
+            assert!(warm[3].info.pcg_iterations < cold[3].info.pcg_iterations, "{} vs {}", warm[3].info.pcg_iterations, cold[3].info.pcg_iterations);
+        }
+        // after drop_factor the history is gone: the step equals the cold one bit for bit
+        assert_eq!(warm[4].info.warm_start, 0.0);
+        assert!(warm[4].du == cold[4].du, "{solver:?}: a dropped history must give the cold result");
+        let one = run(true, 1);
+        assert!(one.iter().zip(&warm).all(|(a, b)| a.du == b.du), "{solver:?}: 1 vs 2 threads differ");
+    }
+}

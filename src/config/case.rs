@@ -147,6 +147,10 @@ pub struct MechanicsSpec {
     /// rtol·‖SΔF‖₂ (docs/mechanics.md (B10)) [1].
     #[serde(default = "mech_rtol")]
     pub rtol: f64,
+    /// Start each bonded solve from the Galerkin projection onto the last two solutions
+    /// (docs/mechanics.md (B12)) instead of from zero (default true).
+    #[serde(default = "yes")]
+    pub warm_start: bool,
 }
 
 /// Default Newton tolerance of compact runs: 1e-6. `sinterdem bench precision` (copper compact,
@@ -158,7 +162,7 @@ fn mech_rtol() -> f64 {
 
 impl Default for MechanicsSpec {
     fn default() -> Self {
-        MechanicsSpec { constrain_planes: true, plane_margin: margin(), solver: auto(), reuse_factor: true, rtol: mech_rtol() }
+        MechanicsSpec { constrain_planes: true, plane_margin: margin(), solver: auto(), reuse_factor: true, rtol: mech_rtol(), warm_start: true }
     }
 }
 

@@ -30,7 +30,7 @@ pub mod solve;
 
 pub use bond::{BondGeometry, element_matrix, frame, h_matrix, kinematics, link_stiffness, skew};
 pub use constraints::{Constraints, TopologyReport, dof};
-pub use solve::{AMG_ABOVE_EQUATIONS, AMG_ABOVE_EQUATIONS_FRESH, LinearSolver, MechInfo, MechParams, SolverUsed};
+pub use solve::{AMG_ABOVE_EQUATIONS, AMG_ABOVE_EQUATIONS_FRESH, LinearSolver, MechInfo, MechParams, SolverUsed, WARM_START_DEPTH};
 
 use crate::error::{ConfigError, Error, ModelError, SolveError};
 pub use assembly::{BlockMatrix, Incidence};
@@ -112,6 +112,8 @@ pub struct BondedSystem {
     amg_fresh_iterations: usize,
     /// Per-particle (E [Pa], ν [1]) when particles differ in material; None: `params` for all.
     elastic: Option<Vec<[f64; 2]>>,
+    /// The last solutions (newest last) for the warm start (B12); emptied by [`Self::drop_factor`].
+    history: Vec<Vec<f64>>,
 }
 
 impl BondedSystem {
@@ -135,6 +137,7 @@ impl BondedSystem {
             amg: None,
             amg_fresh_iterations: 0,
             elastic: None,
+            history: Vec::new(),
         })
     }
 
@@ -228,6 +231,7 @@ impl BondedSystem {
         self.chol_current = false;
         self.refresh = false;
         self.amg = None;
+        self.history.clear();
     }
 
     /// Replaces the constraints (same length); the next step redoes the topology analysis.
@@ -293,6 +297,12 @@ impl BondedSystem {
         let Some(rep) = self.report.as_ref() else { unreachable!() };
         let b_norm = cg::dot(&rhs, &rhs).sqrt();
         let mut x = vec![0.0; 6 * n];
+        if b_norm > 0.0 && rep.n_eq > 0 && self.params.warm_start && !self.history.is_empty() {
+            let t0 = Instant::now();
+            let op = amg::FineOp { blocks: &blocks, pairs: &self.pairs, inc: &self.inc, fixed: &rep.fixed };
+            info.warm_start = warm_start(&op, &self.history, &rhs, b_norm, &mut x);
+            info.solve_seconds += t0.elapsed().as_secs_f64();
+        }
         if b_norm > 0.0 && rep.n_eq > 0 {
             let solver = match self.params.solver {
                 LinearSolver::Auto if rep.n_eq > if self.params.reuse_factor { AMG_ABOVE_EQUATIONS } else { AMG_ABOVE_EQUATIONS_FRESH } => LinearSolver::Amg,
@@ -306,6 +316,12 @@ impl BondedSystem {
             }
         }
 
+        if self.params.warm_start && b_norm > 0.0 {
+            if self.history.len() == WARM_START_DEPTH {
+                self.history.remove(0);
+            }
+            self.history.push(x.clone());
+        }
         let du: Vec<Vector3<f64>> = x.chunks(6).map(|c| Vector3::new(c[0], c[1], c[2])).collect();
         let dtheta: Vec<Vector3<f64>> = x.chunks(6).map(|c| Vector3::new(c[3], c[4], c[5]) / r_scale).collect();
         let xi: Vec<f64> = self.pairs.iter().zip(&geom).map(|(&[a, b], g)| (du[a as usize] - du[b as usize]).dot(&g.e3)).collect();
@@ -454,10 +470,13 @@ impl BondedSystem {
             self.refresh = false;
         }
         let mut r = b.to_vec();
-        if x.iter().any(|&v| v != 0.0) {
-            op.residual(b, b_norm, x, &mut r);
-        }
         let mut rel = 1.0;
+        if x.iter().any(|&v| v != 0.0) {
+            rel = op.residual(b, b_norm, x, &mut r);
+            if rel <= self.params.rtol {
+                return Ok(());
+            }
+        }
         let mut red = vec![0.0; rep.n_eq];
         while info.newton_iterations < self.params.max_newton {
             for (d, &e) in rep.eq.iter().enumerate() {
@@ -499,8 +518,10 @@ impl BondedSystem {
         let t0 = Instant::now();
         let prec = cg::BlockJacobi::new(&blocks.diag, &rep.fixed)?;
         info.factor_seconds += t0.elapsed().as_secs_f64();
-        let mut r = b.to_vec();
-        let mut rel = 1.0f64;
+        let (mut r, mut rel) = initial_residual(&op, b, b_norm, x);
+        if rel <= self.params.rtol {
+            return Ok(());
+        }
         let mut dx = vec![0.0; x.len()];
         while info.newton_iterations < self.params.max_newton {
             // inner tolerance so that the outer residual lands below rtol·‖b‖ with a margin
@@ -558,8 +579,10 @@ impl BondedSystem {
             }
         }
         info.factor_seconds += t0.elapsed().as_secs_f64();
-        let mut r = b.to_vec();
-        let mut rel = 1.0f64;
+        let (mut r, mut rel) = initial_residual(&fine, b, b_norm, x);
+        if rel <= self.params.rtol {
+            return Ok(());
+        }
         let mut dx = vec![0.0; x.len()];
         while info.newton_iterations < self.params.max_newton {
             let inner = (0.5 * self.params.rtol / rel).min(0.1);
@@ -696,6 +719,70 @@ fn stale_factor_cg(
         Err(_) => info.pcg_iterations += STALE_CG_MAX_ITER,
     }
     Ok(None)
+}
+
+/// `(b − K x, ‖b − K x‖₂/‖b‖₂)`; no product when `x` is zero.
+fn initial_residual(op: &amg::FineOp, b: &[f64], b_norm: f64, x: &[f64]) -> (Vec<f64>, f64) {
+    let mut r = b.to_vec();
+    if x.iter().all(|&v| v == 0.0) {
+        return (r, 1.0);
+    }
+    let rel = op.residual(b, b_norm, x, &mut r);
+    (r, rel)
+}
+
+/// The warm start (docs/mechanics.md (B12)): the Galerkin projection of `K x = b` onto the span of
+/// the earlier solutions `history` (fixed DOF of the current topology zeroed), `x₀ = V c` with
+/// `(VᵀKV) c = Vᵀb`, the K-norm-optimal start in that span. The directions are made
+/// K-orthonormal newest first; one that keeps less than 1e-12 of its K-norm² after
+/// orthogonalisation (parallel to those kept) is dropped. Writes `x` and returns the relative
+/// residual ‖b − K x₀‖₂/‖b‖₂ (1 and `x = 0` when no direction lowers it).
+fn warm_start(op: &amg::FineOp, history: &[Vec<f64>], b: &[f64], b_norm: f64, x: &mut [f64]) -> f64 {
+    let n = b.len();
+    let mut basis: Vec<(Vec<f64>, Vec<f64>)> = Vec::with_capacity(history.len());
+    for h in history.iter().rev() {
+        let mut v = h.clone();
+        for (i, m) in op.fixed.iter().enumerate() {
+            for k in 0..6 {
+                if m & (1 << k) != 0 {
+                    v[6 * i + k] = 0.0;
+                }
+            }
+        }
+        let mut kv = vec![0.0; n];
+        op.matvec(&v, &mut kv);
+        let vkv0 = cg::dot(&v, &kv);
+        for (u, ku) in &basis {
+            let c = cg::dot(&v, ku);
+            v.par_iter_mut().zip(u.par_iter()).for_each(|(vi, ui)| *vi -= c * ui);
+            kv.par_iter_mut().zip(ku.par_iter()).for_each(|(vi, ui)| *vi -= c * ui);
+        }
+        let vkv = cg::dot(&v, &kv);
+        if !(vkv.is_finite() && vkv > 1e-12 * vkv0) {
+            continue;
+        }
+        let s = 1.0 / vkv.sqrt();
+        v.par_iter_mut().for_each(|vi| *vi *= s);
+        kv.par_iter_mut().for_each(|vi| *vi *= s);
+        basis.push((v, kv));
+    }
+    x.iter_mut().for_each(|v| *v = 0.0);
+    if basis.is_empty() {
+        return 1.0;
+    }
+    // K-orthonormal basis: x₀ = Σ (uᵢ·b) uᵢ, r₀ = b − Σ (uᵢ·b) K uᵢ
+    let mut r = b.to_vec();
+    for (u, ku) in &basis {
+        let c = cg::dot(u, b);
+        x.par_iter_mut().zip(u.par_iter()).for_each(|(xi, ui)| *xi += c * ui);
+        r.par_iter_mut().zip(ku.par_iter()).for_each(|(ri, ki)| *ri -= c * ki);
+    }
+    let rel = cg::dot(&r, &r).sqrt() / b_norm;
+    if !(rel.is_finite() && rel < 1.0) {
+        x.iter_mut().for_each(|v| *v = 0.0);
+        return 1.0;
+    }
+    rel
 }
 
 fn not_finite(info: &MechInfo) -> SolveError {

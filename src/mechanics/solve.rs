@@ -83,7 +83,13 @@ pub struct MechParams {
     pub stale_factor_cg: bool,
     /// The AMG preconditioner.
     pub amg: super::amg::AmgParams,
+    /// Start each step from the Galerkin projection of the current system onto the last
+    /// [`WARM_START_DEPTH`] solutions (docs/mechanics.md (B12)) instead of from zero [flag].
+    pub warm_start: bool,
 }
+
+/// Solutions of earlier steps kept for the warm start [1].
+pub const WARM_START_DEPTH: usize = 2;
 
 impl Default for MechParams {
     fn default() -> Self {
@@ -98,6 +104,7 @@ impl Default for MechParams {
             pcg_max_iter: 50_000,
             stale_factor_cg: false,
             amg: Default::default(),
+            warm_start: false,
         }
     }
 }
@@ -169,6 +176,8 @@ pub struct MechInfo {
     pub components: usize,
     pub rattlers: usize,
     pub pinned: usize,
+    /// Relative residual ‖b − K x₀‖₂/‖b‖₂ of the warm start (B12) [1]; 0 without one.
+    pub warm_start: f64,
     /// True when the topology analysis (components, pattern, symbolic factorisation) ran in this step.
     pub topology_rebuilt: bool,
     /// Wall times [s]: topology analysis, symbolic factorisation, assembly (geometry, element
