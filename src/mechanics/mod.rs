@@ -114,6 +114,8 @@ pub struct BondedSystem {
     elastic: Option<Vec<[f64; 2]>>,
     /// The last solutions (newest last) for the warm start (B12); emptied by [`Self::drop_factor`].
     history: Vec<Vec<f64>>,
+    /// The residual `b − K x₀` of this step's warm start, handed to the solver.
+    warm_residual: Option<Vec<f64>>,
 }
 
 impl BondedSystem {
@@ -138,6 +140,7 @@ impl BondedSystem {
             amg_fresh_iterations: 0,
             elastic: None,
             history: Vec::new(),
+            warm_residual: None,
         })
     }
 
@@ -297,18 +300,24 @@ impl BondedSystem {
         let Some(rep) = self.report.as_ref() else { unreachable!() };
         let b_norm = cg::dot(&rhs, &rhs).sqrt();
         let mut x = vec![0.0; 6 * n];
-        if b_norm > 0.0 && rep.n_eq > 0 && self.params.warm_start && !self.history.is_empty() {
+        let solver = match self.params.solver {
+            LinearSolver::Auto if rep.n_eq > if self.params.reuse_factor { AMG_ABOVE_EQUATIONS } else { AMG_ABOVE_EQUATIONS_FRESH } => LinearSolver::Amg,
+            LinearSolver::Auto => LinearSolver::Cholesky,
+            s => s,
+        };
+        // the warm start (B12) serves the CG-based solvers; a Cholesky step is a direct solve (with
+        // a reused factor, it saved 17 % of the Newton iterations of the copper compact and cost as
+        // much time as it saved, docs/mechanics.md)
+        let warm = self.params.warm_start && matches!(solver, LinearSolver::Amg | LinearSolver::Pcg);
+        if b_norm > 0.0 && rep.n_eq > 0 && warm && !self.history.is_empty() {
             let t0 = Instant::now();
             let op = amg::FineOp { blocks: &blocks, pairs: &self.pairs, inc: &self.inc, fixed: &rep.fixed };
-            info.warm_start = warm_start(&op, &self.history, &rhs, b_norm, &mut x);
+            let (rel, r) = warm_start(&op, &self.history, &rhs, b_norm, &mut x);
+            info.warm_start = rel;
+            self.warm_residual = r;
             info.solve_seconds += t0.elapsed().as_secs_f64();
         }
         if b_norm > 0.0 && rep.n_eq > 0 {
-            let solver = match self.params.solver {
-                LinearSolver::Auto if rep.n_eq > if self.params.reuse_factor { AMG_ABOVE_EQUATIONS } else { AMG_ABOVE_EQUATIONS_FRESH } => LinearSolver::Amg,
-                LinearSolver::Auto => LinearSolver::Cholesky,
-                s => s,
-            };
             match solver {
                 LinearSolver::Pcg => self.newton_pcg(&blocks, &rhs, b_norm, &mut x, &mut info)?,
                 LinearSolver::Amg => self.newton_amg(inp.positions, r_scale, &blocks, &rhs, b_norm, &mut x, &mut info)?,
@@ -316,7 +325,8 @@ impl BondedSystem {
             }
         }
 
-        if self.params.warm_start && b_norm > 0.0 {
+        self.warm_residual = None;
+        if warm && b_norm > 0.0 {
             if self.history.len() == WARM_START_DEPTH {
                 self.history.remove(0);
             }
@@ -423,6 +433,7 @@ impl BondedSystem {
         if stale_usable && (self.params.stale_factor_cg || !self.chol_current) {
             // CG on the current stiffness, preconditioned by the last factor (possibly of an
             // older topology: DOF that were not in it get their block-Jacobi inverse)
+            self.warm_residual = None;
             let Some(chol) = self.chol.as_mut() else { unreachable!() };
             if let Some(iterations) = stale_factor_cg(chol, &self.chol_eq, &op, &rep.eq, blocks, b, b_norm, self.params.rtol, x, info)? {
                 if iterations > STALE_CG_REFRESH {
@@ -469,13 +480,9 @@ impl BondedSystem {
             fresh = true;
             self.refresh = false;
         }
-        let mut r = b.to_vec();
-        let mut rel = 1.0;
-        if x.iter().any(|&v| v != 0.0) {
-            rel = op.residual(b, b_norm, x, &mut r);
-            if rel <= self.params.rtol {
-                return Ok(());
-            }
+        let (mut r, mut rel) = initial_residual(&op, b, b_norm, x, self.warm_residual.take());
+        if rel <= self.params.rtol {
+            return Ok(());
         }
         let mut red = vec![0.0; rep.n_eq];
         while info.newton_iterations < self.params.max_newton {
@@ -518,7 +525,7 @@ impl BondedSystem {
         let t0 = Instant::now();
         let prec = cg::BlockJacobi::new(&blocks.diag, &rep.fixed)?;
         info.factor_seconds += t0.elapsed().as_secs_f64();
-        let (mut r, mut rel) = initial_residual(&op, b, b_norm, x);
+        let (mut r, mut rel) = initial_residual(&op, b, b_norm, x, self.warm_residual.take());
         if rel <= self.params.rtol {
             return Ok(());
         }
@@ -579,7 +586,7 @@ impl BondedSystem {
             }
         }
         info.factor_seconds += t0.elapsed().as_secs_f64();
-        let (mut r, mut rel) = initial_residual(&fine, b, b_norm, x);
+        let (mut r, mut rel) = initial_residual(&fine, b, b_norm, x, self.warm_residual.take());
         if rel <= self.params.rtol {
             return Ok(());
         }
@@ -721,8 +728,13 @@ fn stale_factor_cg(
     Ok(None)
 }
 
-/// `(b − K x, ‖b − K x‖₂/‖b‖₂)`; no product when `x` is zero.
-fn initial_residual(op: &amg::FineOp, b: &[f64], b_norm: f64, x: &[f64]) -> (Vec<f64>, f64) {
+/// `(b − K x, ‖b − K x‖₂/‖b‖₂)`: `known` when the warm start computed it, no product when `x`
+/// is zero.
+fn initial_residual(op: &amg::FineOp, b: &[f64], b_norm: f64, x: &[f64], known: Option<Vec<f64>>) -> (Vec<f64>, f64) {
+    if let Some(r) = known {
+        let rel = cg::dot(&r, &r).sqrt() / b_norm;
+        return (r, rel);
+    }
     let mut r = b.to_vec();
     if x.iter().all(|&v| v == 0.0) {
         return (r, 1.0);
@@ -736,8 +748,8 @@ fn initial_residual(op: &amg::FineOp, b: &[f64], b_norm: f64, x: &[f64]) -> (Vec
 /// `(VᵀKV) c = Vᵀb`, the K-norm-optimal start in that span. The directions are made
 /// K-orthonormal newest first; one that keeps less than 1e-12 of its K-norm² after
 /// orthogonalisation (parallel to those kept) is dropped. Writes `x` and returns the relative
-/// residual ‖b − K x₀‖₂/‖b‖₂ (1 and `x = 0` when no direction lowers it).
-fn warm_start(op: &amg::FineOp, history: &[Vec<f64>], b: &[f64], b_norm: f64, x: &mut [f64]) -> f64 {
+/// residual ‖b − K x₀‖₂/‖b‖₂ with the residual (1, None and `x = 0` when no direction lowers it).
+fn warm_start(op: &amg::FineOp, history: &[Vec<f64>], b: &[f64], b_norm: f64, x: &mut [f64]) -> (f64, Option<Vec<f64>>) {
     let n = b.len();
     let mut basis: Vec<(Vec<f64>, Vec<f64>)> = Vec::with_capacity(history.len());
     for h in history.iter().rev() {
@@ -768,7 +780,7 @@ fn warm_start(op: &amg::FineOp, history: &[Vec<f64>], b: &[f64], b_norm: f64, x:
     }
     x.iter_mut().for_each(|v| *v = 0.0);
     if basis.is_empty() {
-        return 1.0;
+        return (1.0, None);
     }
     // K-orthonormal basis: x₀ = Σ (uᵢ·b) uᵢ, r₀ = b − Σ (uᵢ·b) K uᵢ
     let mut r = b.to_vec();
@@ -780,9 +792,9 @@ fn warm_start(op: &amg::FineOp, history: &[Vec<f64>], b: &[f64], b_norm: f64, x:
     let rel = cg::dot(&r, &r).sqrt() / b_norm;
     if !(rel.is_finite() && rel < 1.0) {
         x.iter_mut().for_each(|v| *v = 0.0);
-        return 1.0;
+        return (1.0, None);
     }
-    rel
+    (rel, Some(r))
 }
 
 fn not_finite(info: &MechInfo) -> SolveError {

@@ -83,8 +83,9 @@ pub struct MechParams {
     pub stale_factor_cg: bool,
     /// The AMG preconditioner.
     pub amg: super::amg::AmgParams,
-    /// Start each step from the Galerkin projection of the current system onto the last
-    /// [`WARM_START_DEPTH`] solutions (docs/mechanics.md (B12)) instead of from zero [flag].
+    /// CG-based solvers (AMG, PCG): start each step from the Galerkin projection of the current
+    /// system onto the last [`WARM_START_DEPTH`] solutions (docs/mechanics.md (B12)) instead of
+    /// from zero [flag]. Cholesky steps do not use it.
     pub warm_start: bool,
 }
 
