@@ -117,7 +117,11 @@ fn check_validates_calibration_files_without_running() {
         (OK.into(), format!("{HEAD}{ROW}E2,abc,\"start 1273 K, hold 5 min\",0.4,0.01,,\n"), &["data.csv line 3, column 2 (diameter_m)", "not a number"]),
         (OK.into(), format!("{HEAD}E1,6.4e-5,\"start 1273 K, hold 5 fortnights\",0.4,0.01,,\n"), &["data.csv line 2, column 3 (schedule)", "fortnights"]),
         // parameters
-        (OK.replace("beta.q_gb", "beta.q_gbx"), data.clone(), &["parameters[1].key = \"beta.q_gbx\"", "valid keys: alpha.atomic_volume", "model.path_factor_gb"]),
+        (
+            OK.replace("beta.q_gb", "beta.q_gbx"),
+            data.clone(),
+            &["parameters[1].key = \"beta.q_gbx\"", "valid keys: alpha.atomic_volume", "model.path_factor_gb"],
+        ),
         (OK.replace("min = 190.0e3", "min = 270.0e3"), data.clone(), &["parameters[1].min (beta.q_gb)", "not below max"]),
         (
             OK.replace("key = \"beta.q_gb\"\nmin = 190.0e3\nmax = 260.0e3", "key = \"beta.q_gb\"\nmin = 0.0\nmax = 260.0e3\nlog = true"),
@@ -138,7 +142,11 @@ fn check_validates_calibration_files_without_running() {
         (format!("{OK}[compact.slurm]\nchunk = 0\n"), data.clone(), &["compact.slurm.chunk = 0 is out of range"]),
         (format!("{OK}[compact.slurm]\nqueue = \"x\"\n"), data.clone(), &["queue"]),
         (format!("{OK}overrides = [\"time.dt=-1\"]\n"), data.clone(), &["time.dt = -1 is out of range"]),
-        (OK.replace("case = \"compact.toml\"", "case = \"model.toml\""), data.clone(), &["model.path_factor_gb = 0.3", "path_factor_gb = 0.25", "[path_factors]"]),
+        (
+            OK.replace("case = \"compact.toml\"", "case = \"model.toml\""),
+            data.clone(),
+            &["model.path_factor_gb = 0.3", "path_factor_gb = 0.25", "[path_factors]"],
+        ),
         (OK.replace("[compact]\ncase = \"compact.toml\"\n", ""), data.clone(), &["model = \"compact\" needs [compact] case"]),
     ];
     for (i, (calib, d, want)) in bad.iter().enumerate() {
