@@ -186,6 +186,9 @@ struct Calib<'a> {
     fd_step: f64,
     /// Label of the cost evaluations' batches.
     label: &'static str,
+    /// Run the forward-difference points with each new cost evaluation (trust region on a model
+    /// whose batches cost latency; see [`super::model::ForwardModel::speculative_jacobian`]).
+    speculative: bool,
     /// Last (u, r, J) of the local phase.
     cache: Mutex<Cached>,
     fatal: &'a Fatal,
@@ -199,7 +202,7 @@ impl Calib<'_> {
         {
             return Ok(r.clone());
         }
-        let r = if self.ev.model.speculative_jacobian() {
+        let r = if self.speculative {
             // the point and its forward-difference points in one batch
             let mut pts = vec![clamped(u)];
             pts.extend(fd_points(u, self.fd_step, false));
@@ -397,7 +400,9 @@ pub fn optimise(ev: &Evaluator, u0: &[f64], s: &Settings, log: &mut dyn FnMut(&s
     let mut local_history = Vec::new();
     if s.local_iterations > 0 {
         let fatal = Fatal::default();
-        let problem = Calib { ev, fd_step: s.fd_step, label: "local", cache: Mutex::new(None), fatal: &fatal };
+        // Nelder-Mead uses no Jacobian: nothing to run ahead for it
+        let speculative = s.local == LocalMethod::TrustRegion && ev.model.speculative_jacobian();
+        let problem = Calib { ev, fd_step: s.fd_step, label: "local", speculative, cache: Mutex::new(None), fatal: &fatal };
         let (best, history, iters, stop) = match s.local {
             LocalMethod::TrustRegion => {
                 let tr = TrustRegion::new(Steihaug::new().with_max_iters(10 * n as u64 + 10))
