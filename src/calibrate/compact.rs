@@ -362,7 +362,7 @@ impl CompactModel {
         let each = |f: &dyn Fn(usize, &Experiment) -> toml::Value| -> Vec<toml::Value> {
             points.iter().enumerate().flat_map(|(i, _)| ex.iter().map(move |e| (i, e))).map(|(i, e)| f(i, e)).collect()
         };
-        let mut params = vec![study_param("title", "run", each(&|i, e| toml::Value::String(format!("set {i}, {}", e.id))))];
+        let mut params = vec![study_param("title", "label", each(&|i, e| toml::Value::String(format!("set {i}, {}", e.id))))];
         for (j, (p, key)) in self.problem.params.iter().zip(&self.keys).enumerate() {
             params.push(study_param(key, &p.key, each(&|i, _| float(points[i].values[j]))));
         }

@@ -212,7 +212,7 @@ pub fn parse(value: &toml::Value, base: &Path) -> Result<Setup, Error> {
     let mut factor_table = f.path_factors.clone().unwrap_or_default();
     if let Some(inc) = &f.include {
         let path = base.join(inc);
-        let text = std::fs::read_to_string(&path).map_err(|e| IoError::new(&path, e))?;
+        let text = crate::io::read_input(&path)?;
         let t: toml::Table = text.parse().map_err(|e: toml::de::Error| ConfigError::invalid(format!("{}: {}", path.display(), e.message())))?;
         for k in t.keys() {
             if k != "materials" && k != "model" {
