@@ -53,7 +53,7 @@ enum Command {
         /// The run's output directory.
         dir: PathBuf,
     },
-    /// Validate a case file only (parse, ranges, scene construction).
+    /// Validate a case file (parse, ranges, scene construction) or a calibration file (its data, parameters and packing), without running.
     Check {
         #[command(flatten)]
         case: CaseArgs,
@@ -369,7 +369,7 @@ fn real_main(cli: Cli) -> Result<(), Error> {
                 EngineArg::Slurm => sinterdem::study::Engine::Slurm,
             };
             let slurm = sinterdem::study::slurm::SlurmOverrides { partition, time, account, cpus_per_task, chunk, extra: sbatch };
-            let opts = sinterdem::study::StudyOptions { engine, jobs, out, wait, retry_failed, overrides: set, progress: !quiet, slurm };
+            let opts = sinterdem::study::StudyOptions { engine, jobs, out, wait, retry_failed, overrides: set, progress: !quiet, slurm, plots: true };
             let info = sinterdem::study::run_study(&study, &opts, &mut |m| tracing::info!("{m}"))?;
             if info.gathered && info.counts.failed > 0 {
                 tracing::warn!("{} of {} runs failed (see status and error in {})", info.counts.failed, info.counts.runs, info.dir.join("study.csv").display());
@@ -427,7 +427,7 @@ fn real_main(cli: Cli) -> Result<(), Error> {
             Ok(())
         }),
         Command::Calibrate { case, out, generate_synthetic, validate_compact } => {
-            sinterdem::calibrate::run_file(&case.case, &case.set, &out, quiet, generate_synthetic, validate_compact)
+            located(&case, || sinterdem::calibrate::run_file(&case.case, &case.set, &out, quiet, generate_synthetic, validate_compact))
         }
         Command::Keys { study } => {
             print!("{}", if study { sinterdem::study::spec::markdown() } else { sinterdem::config::ranges::markdown() });

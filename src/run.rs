@@ -38,6 +38,11 @@ impl Kind {
             "compact" => Kind::Compact,
             "explicit_sinter" => Kind::ExplicitSinter,
             "generate" => Kind::Generate,
+            "calibration" => {
+                return Err(ConfigError::invalid(
+                    "kind = \"calibration\": a calibration file, not a case: fit it with `sinterdem calibrate FILE --out DIR`, validate it with `sinterdem check FILE`",
+                ));
+            }
             k => return Err(ConfigError::invalid(format!("kind = \"{k}\": expected heat, compact, pair, generate or explicit_sinter"))),
         })
     }
@@ -238,8 +243,16 @@ pub fn resume(dir: &Path, params: &RunParams) -> Result<RunSummary, Error> {
     Ok(RunSummary { kind, wall_seconds: wall.elapsed().as_secs_f64(), summary })
 }
 
-/// Validates a case without running it; returns a one-line description.
+/// Validates a case (or a calibration file, recognised by [`crate::calibrate::is_calibration`])
+/// without running it; returns a one-line description.
 pub fn check(case: &toml::Value, overrides: &[String], base: &Path) -> Result<String, Error> {
+    if crate::calibrate::is_calibration(case) {
+        let mut value = case.clone();
+        for o in overrides {
+            config::apply_override(&mut value, o)?;
+        }
+        return crate::calibrate::check(&value, base);
+    }
     let mut case = case.clone();
     config::expand_includes(&mut case, base)?;
     let value = resolve(&case, overrides)?;

@@ -142,8 +142,8 @@ fn parse_err(dir: &Path, calib_text: &str, data: Option<&str>) -> String {
     parse(&v, dir).unwrap_err().to_string()
 }
 
-/// Bad rows name file, line and column; unknown keys list the valid ones; model = "compact" and
-/// bad ranges are refused with key, value, range and unit.
+/// Bad rows name file, line and column; unknown keys list the valid ones; model = "compact"
+/// without a packing, an unknown model and bad ranges are refused with key, value, range and unit.
 #[test]
 fn bad_input_is_rejected_with_file_line_column_and_key() {
     let dir = tmp("bad");
@@ -164,7 +164,9 @@ fn bad_input_is_rejected_with_file_line_column_and_key() {
         "{e}"
     );
     let e = parse_err(&dir, &format!("model = \"compact\"\n{ok}"), None);
-    assert!(e.contains("model") && e.contains("not yet supported"), "{e}");
+    assert!(e.contains("model = \"compact\" needs [compact] case"), "{e}");
+    let e = parse_err(&dir, &format!("model = \"packing\"\n{ok}"), None);
+    assert!(e.contains("model = \"packing\": expected \"pair\" or \"compact\""), "{e}");
     let e = parse_err(&dir, &format!("{ok}\n[optimiser]\nswarm_size = 0\n"), None);
     assert!(e.contains("optimiser.swarm_size = 0 is out of range"), "{e}");
     let e = parse_err(&dir, &ok.replace("min = 1.0e-4", "min = -1.0"), None);

@@ -8,7 +8,7 @@
 //! sigma (one standard deviation, same unit). Every error names the file, line and column.
 
 use crate::config::ranges::lookup;
-use crate::error::{ConfigError, Error, IoError};
+use crate::error::{ConfigError, Error};
 use crate::profile::Profile;
 use std::collections::HashMap;
 use std::path::Path;
@@ -112,7 +112,7 @@ impl Table {
 
 fn read_table(path: &Path, expected: &[&str]) -> Result<Table, Error> {
     let file = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|e| IoError::new(path, e))?;
+    let text = crate::io::read_input(path)?;
     let mut rd = csv::ReaderBuilder::new().has_headers(true).comment(Some(b'#')).flexible(false).trim(csv::Trim::All).from_reader(text.as_bytes());
     let csv_err = |e: csv::Error| -> ConfigError {
         let line = e.position().map(|p| format!(" line {}", p.line())).unwrap_or_default();

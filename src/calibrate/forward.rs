@@ -2,18 +2,18 @@
 //! spheres of the experiment's diameter under its own schedule (as a `kind = "pair"` case with
 //! `overlap = 0`), integrated in-process and in parallel over experiments (rayon). The outputs are
 //! the neck ratio y1/R [1] and the shrinkage ΔL/L0 = (L0 − y4 − y7)/L0 [1] at every series time and
-//! at the end of the schedule. Each run is sequential and the results are collected in experiment
-//! order, so an evaluation is bit-identical for any thread count.
+//! at the end of the schedule. A batch of parameter sets runs in parallel over (set, experiment);
+//! each run is sequential and the results are collected in order, so an evaluation is
+//! bit-identical for any thread count.
 
 use super::data::Experiment;
-use super::params::{Parameter, apply};
-use crate::error::ModelError;
+use super::model::{ForwardModel, Point, Predictions, Problem};
+use crate::error::{Error, ModelError};
 use crate::models::diffusion7::advance::{PairMaterials, SolverOptions, TemperaturePath, advance};
 use crate::models::diffusion7::contact::Contact7;
 use crate::models::diffusion7::{Material, PathFactors};
 use crate::models::ode::OdeStats;
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Initial pair geometry (`[pair]` of the calibration file; defaults as in pair cases).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -51,19 +51,12 @@ pub struct Prediction {
     pub steps: u64,
 }
 
-/// The forward model: experiments, starting material and factors, fitted parameters, solver.
+/// The pair forward model: every experiment as one 7-DOF pair run, in-process.
 #[derive(Debug)]
-pub struct Forward {
-    pub experiments: Vec<Experiment>,
-    pub material: Material,
-    pub factors: PathFactors,
-    pub params: Vec<Parameter>,
+pub struct PairModel {
+    pub problem: Problem,
     pub solver: SolverOptions,
     pub geometry: PairGeometry,
-    /// Forward evaluations so far (one = all experiments run once).
-    evaluations: AtomicU64,
-    /// Pair runs that failed (ModelError) so far.
-    failures: AtomicU64,
 }
 
 /// Runs one experiment with `material` and `factors`.
@@ -94,50 +87,29 @@ pub fn run_experiment(e: &Experiment, material: &Material, factors: PathFactors,
     Ok(Prediction { series, end, steps: stats.steps })
 }
 
-impl Forward {
-    pub fn new(
-        experiments: Vec<Experiment>,
-        material: Material,
-        factors: PathFactors,
-        params: Vec<Parameter>,
-        solver: SolverOptions,
-        geometry: PairGeometry,
-    ) -> Forward {
-        Forward { experiments, material, factors, params, solver, geometry, evaluations: AtomicU64::new(0), failures: AtomicU64::new(0) }
+impl ForwardModel for PairModel {
+    fn problem(&self) -> &Problem {
+        &self.problem
     }
 
-    /// Material and factors at parameter values [SI].
-    pub fn configured(&self, values: &[f64]) -> (Material, PathFactors) {
-        apply(&self.params, &self.material, &self.factors, values)
+    fn name(&self) -> &'static str {
+        "pair"
     }
 
-    /// Values [SI] at unit coordinates.
-    pub fn values(&self, u: &[f64]) -> Vec<f64> {
-        self.params.iter().zip(u).map(|(p, u)| p.value(*u)).collect()
-    }
-
-    /// Runs every experiment at parameter values [SI] (parallel over experiments).
-    pub fn predict(&self, values: &[f64]) -> Vec<Result<Prediction, ModelError>> {
-        self.evaluations.fetch_add(1, Ordering::Relaxed);
-        let (m, f) = self.configured(values);
-        let out: Vec<Result<Prediction, ModelError>> = if let Err(e) = m.validate().and(f.validate()) {
-            self.experiments.iter().map(|_| Err(ModelError::new(format!("parameter set rejected: {e}")))).collect()
-        } else {
-            self.experiments.par_iter().map(|e| run_experiment(e, &m, f, &self.solver, &self.geometry)).collect()
-        };
-        let failed = out.iter().filter(|r| r.is_err()).count() as u64;
-        self.failures.fetch_add(failed, Ordering::Relaxed);
-        out
-    }
-
-    /// Forward evaluations so far.
-    pub fn evaluations(&self) -> u64 {
-        self.evaluations.load(Ordering::Relaxed)
-    }
-
-    /// Failed pair runs so far.
-    pub fn failures(&self) -> u64 {
-        self.failures.load(Ordering::Relaxed)
+    /// Every (set, experiment) pair of the batch in parallel (rayon), collected in order: each
+    /// run is sequential, so the result is bit-identical for any thread count.
+    fn run_batch(&self, _batch: usize, _label: &str, points: &[Point]) -> Result<(Vec<Predictions>, usize), Error> {
+        let ne = self.problem.experiments.len();
+        let flat: Vec<Result<Prediction, ModelError>> = (0..points.len() * ne)
+            .into_par_iter()
+            .map(|k| {
+                let (p, e) = (&points[k / ne], &self.problem.experiments[k % ne]);
+                run_experiment(e, &p.material, p.factors, &self.solver, &self.geometry)
+            })
+            .collect();
+        let mut it = flat.into_iter();
+        let out: Vec<Predictions> = points.iter().map(|_| it.by_ref().take(ne).collect()).collect();
+        Ok((out, points.len() * ne))
     }
 }
 

@@ -3,30 +3,35 @@
 //!
 //! - [`data`]: the measured-data CSV files (file/line/column errors);
 //! - [`params`]: the fitted parameters `PHASE.FIELD` / `model.FIELD`, bounds, log space;
-//! - [`forward`]: the forward model, one 7-DOF pair run per experiment, parallel over experiments;
+//! - [`model`]: what the optimisers see of a forward model: batches of parameter sets, a memo;
+//! - [`forward`]: the pair forward model, one 7-DOF pair run per experiment, in parallel;
+//! - [`compact`]: the packing forward model (`model = "compact"`), each optimiser generation one
+//!   study of the study engine (local or SLURM); and `--validate-compact`;
 //! - [`loss`]: χ² of the normalised residuals, failed runs as a penalty;
-//! - [`optimise`]: argmin's particle swarm, then a Gauss–Newton trust region;
+//! - [`optimise`]: argmin's particle swarm, then a Gauss–Newton trust region or Nelder–Mead;
 //! - [`report`]: σ and correlations from (JᵀWJ)⁻¹, `calibration.json`, `material.toml`,
 //!   `residuals.csv`, PNGs;
 //! - [`synthetic`]: the bundled synthetic titanium data set (perturbed β phase, seeded noise).
 //!
-//! Only `model = "pair"` is implemented; `"compact"` (each experiment on a packing) is refused.
+//! [`check`] validates a calibration file without fitting (`sinterdem check CALIB.toml`).
 
 pub mod compact;
 pub mod data;
 pub mod forward;
 pub mod loss;
+pub mod model;
 pub mod optimise;
 pub mod params;
 pub mod report;
 pub mod synthetic;
 
 use crate::config::ranges::{Range, c, o, p};
-use crate::config::{check, from_value};
+use crate::config::{check as check_range, from_value};
 use crate::error::{ConfigError, Error, IoError};
 use crate::models::diffusion7::{Material, PathFactors, SolverOptions};
 use data::Experiment;
-use forward::{Forward, PairGeometry};
+use forward::{PairGeometry, PairModel};
+use model::{Evaluator, ForwardModel, Problem};
 use params::{Parameter, ParameterEntry};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -35,10 +40,24 @@ use std::path::{Path, PathBuf};
 pub static RANGES: &[Range] = &[
     c("optimiser.swarm_size", 1.0, 1e4, "1", "calibration: particles of the swarm (global phase)"),
     c("optimiser.swarm_iterations", 0.0, 1e5, "1", "calibration: swarm iterations (0: local phase only, from the starting material)"),
-    c("optimiser.local_iterations", 0.0, 1e5, "1", "calibration: largest number of trust-region (Gauss-Newton) iterations"),
+    c("optimiser.local_iterations", 0.0, 1e5, "1", "calibration: largest number of local iterations (trust region or Nelder-Mead)"),
     o("optimiser.tolerance", 0.0, 1.0, "1", "calibration: relative decrease of chi2 below which a local iteration counts as stalled"),
     c("optimiser.stall", 1.0, 1e3, "1", "calibration: stalled local iterations in a row that end the fit"),
     p("optimiser.fd_step", 0.0, 0.1, "1", "calibration: finite-difference step of the Jacobian in unit coordinates of the parameter ranges"),
+    p(
+        "optimiser.simplex_scale",
+        0.0,
+        1.0,
+        "1",
+        "calibration, local = \"nelder_mead\": edge of the initial simplex in unit coordinates of the parameter ranges",
+    ),
+    p(
+        "optimiser.simplex_tolerance",
+        0.0,
+        1e6,
+        "1",
+        "calibration, local = \"nelder_mead\": standard deviation of chi2 over the simplex below which the local phase stops",
+    ),
     p("data.diameter_m", 0.0, 2e-2, "m", "calibration data: mean particle diameter of an experiment"),
     c("data.neck_ratio", 0.0, 1.0, "1", "calibration data: measured neck ratio y1/R"),
     p("data.neck_ratio_sigma", 0.0, 1.0, "1", "calibration data: one standard deviation of the neck ratio"),
@@ -58,6 +77,9 @@ fn default_seed() -> u64 {
 #[derive(Debug, Clone, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct OptimiserSection {
+    local: Option<String>,
+    simplex_scale: Option<f64>,
+    simplex_tolerance: Option<f64>,
     swarm_size: Option<f64>,
     swarm_iterations: Option<f64>,
     local_iterations: Option<f64>,
@@ -78,6 +100,9 @@ struct PairSection {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct CalibFile {
+    /// Optional `kind = "calibration"` (what `sinterdem check` recognises; see [`is_calibration`]).
+    #[serde(default)]
+    kind: Option<String>,
     #[serde(default)]
     title: Option<String>,
     #[serde(default)]
@@ -100,19 +125,48 @@ struct CalibFile {
     optimiser: OptimiserSection,
     #[serde(default)]
     solver: SolverOptions,
+    /// Starting path factors (the keys of `[model]` of pair cases), checked below.
     #[serde(default)]
-    path_factors: PathFactors,
+    path_factors: Option<toml::Table>,
     #[serde(default)]
     pair: PairSection,
-    /// The packing for `--validate-compact`.
+    /// The packing of `model = "compact"` and of `--validate-compact`.
     #[serde(default)]
     compact: compact::CompactSection,
+}
+
+/// The forward model of a calibration (`model = …`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ModelKind {
+    /// Every experiment as a two-particle run, in-process (`pair`, default).
+    Pair,
+    /// Every experiment on the packing of `[compact]`, each generation a study (`compact`).
+    Compact,
+}
+
+impl ModelKind {
+    pub fn name(self) -> &'static str {
+        match self {
+            ModelKind::Pair => "pair",
+            ModelKind::Compact => "compact",
+        }
+    }
+}
+
+/// Whether a parsed TOML file is a calibration file rather than a case: `kind = "calibration"`,
+/// or no `kind` and the calibration keys `data` and `parameters` (no case kind has either).
+pub fn is_calibration(value: &toml::Value) -> bool {
+    match value.get("kind") {
+        Some(k) => k.as_str() == Some("calibration"),
+        None => value.get("data").is_some() && value.get("parameters").is_some(),
+    }
 }
 
 /// A validated calibration.
 #[derive(Debug)]
 pub struct Setup {
     pub title: String,
+    pub model: ModelKind,
     pub data_path: PathBuf,
     pub series_path: Option<PathBuf>,
     pub experiments: Vec<Experiment>,
@@ -122,7 +176,7 @@ pub struct Setup {
     pub settings: optimise::Settings,
     pub solver: SolverOptions,
     pub geometry: PairGeometry,
-    /// `[compact]`: the packing of `--validate-compact`.
+    /// `[compact]`: the packing of `model = "compact"` and of `--validate-compact`.
     pub compact: compact::CompactSection,
     /// The calibration file's folder (relative paths).
     pub base: PathBuf,
@@ -145,21 +199,20 @@ fn materials_of(list: Vec<toml::Value>, at: &str) -> Result<Vec<Material>, Confi
 /// Parses and validates a calibration file (`base`: its directory, for relative paths); reads the data.
 pub fn parse(value: &toml::Value, base: &Path) -> Result<Setup, Error> {
     let f: CalibFile = from_value(value.clone(), "")?;
-    match f.model.as_str() {
-        "pair" => {}
-        "compact" => {
-            return Err(ConfigError::inconsistent(
-                "model",
-                "\"compact\" (each experiment run on a packing) is not yet supported; use model = \"pair\" and check the pair-calibrated material on a compact case",
-            )
-            .into());
-        }
-        m => return Err(ConfigError::invalid(format!("model = \"{m}\": expected \"pair\" (or, later, \"compact\")")).into()),
+    if let Some(k) = f.kind.as_deref().filter(|k| *k != "calibration") {
+        return Err(ConfigError::invalid(format!("kind = \"{k}\": a calibration file has kind = \"calibration\" (or none)")).into());
     }
+    let model = match f.model.as_str() {
+        "pair" => ModelKind::Pair,
+        "compact" => ModelKind::Compact,
+        m => return Err(ConfigError::invalid(format!("model = \"{m}\": expected \"pair\" or \"compact\"")).into()),
+    };
     let mut defined = materials_of(f.materials, "")?;
+    // path factors: [path_factors] as written, then the keys it lacks from an included [model]
+    let mut factor_table = f.path_factors.clone().unwrap_or_default();
     if let Some(inc) = &f.include {
         let path = base.join(inc);
-        let text = std::fs::read_to_string(&path).map_err(|e| IoError::new(&path, e))?;
+        let text = crate::io::read_input(&path)?;
         let t: toml::Table = text.parse().map_err(|e: toml::de::Error| ConfigError::invalid(format!("{}: {}", path.display(), e.message())))?;
         for k in t.keys() {
             if k != "materials" && k != "model" {
@@ -171,7 +224,14 @@ pub fn parse(value: &toml::Value, base: &Path) -> Result<Setup, Error> {
         }
         let list = t.get("materials").and_then(|m| m.as_array()).cloned().unwrap_or_default();
         defined.extend(materials_of(list, &format!("{inc}: "))?);
+        if let Some(m) = t.get("model") {
+            from_value::<PathFactors>(m.clone(), "model").map_err(|e| ConfigError::invalid(format!("include = \"{inc}\": {e}")))?;
+            for (k, v) in m.as_table().into_iter().flatten() {
+                factor_table.entry(k.clone()).or_insert_with(|| v.clone());
+            }
+        }
     }
+    let factors: PathFactors = from_value(toml::Value::Table(factor_table), "path_factors")?;
     let material = match defined.iter().find(|m| m.name == f.material) {
         Some(m) => m.clone(),
         None => Material::builtin(&f.material).map_err(|e| match e {
@@ -179,7 +239,7 @@ pub fn parse(value: &toml::Value, base: &Path) -> Result<Setup, Error> {
             o => o,
         })?,
     };
-    f.path_factors.validate().map_err(|e| match e {
+    factors.validate().map_err(|e| match e {
         ConfigError::OutOfRange { key, value, range, unit } => ConfigError::OutOfRange { key: key.replace("model.", "path_factors."), value, range, unit },
         o => o,
     })?;
@@ -191,8 +251,16 @@ pub fn parse(value: &toml::Value, base: &Path) -> Result<Setup, Error> {
     let params = params::parse_parameters(&entries, &material)?;
     let o = &f.optimiser;
     let d = optimise::Settings::default();
-    let get = |k: &str, v: Option<f64>, dflt: f64| -> Result<f64, ConfigError> { check(&format!("optimiser.{k}"), v.unwrap_or(dflt)) };
+    let get = |k: &str, v: Option<f64>, dflt: f64| -> Result<f64, ConfigError> { check_range(&format!("optimiser.{k}"), v.unwrap_or(dflt)) };
+    let local = match o.local.as_deref().unwrap_or("trust_region") {
+        "trust_region" => optimise::LocalMethod::TrustRegion,
+        "nelder_mead" => optimise::LocalMethod::NelderMead,
+        m => return Err(ConfigError::invalid(format!("optimiser.local = \"{m}\": expected \"trust_region\" (default) or \"nelder_mead\"")).into()),
+    };
     let settings = optimise::Settings {
+        local,
+        simplex_scale: get("simplex_scale", o.simplex_scale, d.simplex_scale)?,
+        simplex_tolerance: get("simplex_tolerance", o.simplex_tolerance, d.simplex_tolerance)?,
         swarm_size: get("swarm_size", o.swarm_size, d.swarm_size as f64)? as usize,
         swarm_iterations: get("swarm_iterations", o.swarm_iterations, d.swarm_iterations as f64)? as u64,
         local_iterations: get("local_iterations", o.local_iterations, d.local_iterations as f64)? as u64,
@@ -203,9 +271,9 @@ pub fn parse(value: &toml::Value, base: &Path) -> Result<Setup, Error> {
     };
     let g = PairGeometry::default();
     let geometry = PairGeometry {
-        overlap: check("pair.overlap", f.pair.overlap.unwrap_or(g.overlap))?,
-        neck_epsilon: check("pair.neck_epsilon", f.pair.neck_epsilon.unwrap_or(g.neck_epsilon))?,
-        cone_eta: check("pair.cone_eta", f.pair.cone_eta.unwrap_or(g.cone_eta))?,
+        overlap: check_range("pair.overlap", f.pair.overlap.unwrap_or(g.overlap))?,
+        neck_epsilon: check_range("pair.neck_epsilon", f.pair.neck_epsilon.unwrap_or(g.neck_epsilon))?,
+        cone_eta: check_range("pair.cone_eta", f.pair.cone_eta.unwrap_or(g.cone_eta))?,
     };
     let data_path = base.join(&f.data);
     let mut experiments = data::read_experiments(&data_path)?;
@@ -214,13 +282,21 @@ pub fn parse(value: &toml::Value, base: &Path) -> Result<Setup, Error> {
         data::read_series(sp, &mut experiments)?;
     }
     data::check_counts(&experiments, &data_path.display().to_string())?;
+    if model == ModelKind::Compact {
+        // the packing fits the chosen experiments; its case and engine must be valid
+        let chosen = f.compact.chosen(&experiments)?;
+        experiments = chosen.into_iter().map(|i| experiments[i].clone()).collect();
+        f.compact.engine_settings()?;
+        compact::fit_case(&f.compact, base, &material, &factors)?;
+    }
     Ok(Setup {
         title: f.title.or(f.description).unwrap_or_else(|| "calibration".into()),
+        model,
         data_path,
         series_path,
         experiments,
         material,
-        factors: f.path_factors,
+        factors,
         params,
         settings,
         solver: f.solver,
@@ -235,27 +311,51 @@ pub fn parse(value: &toml::Value, base: &Path) -> Result<Setup, Error> {
 pub fn run(setup: Setup, out: &Path, log: &mut dyn FnMut(&str)) -> Result<report::CalibrationReport, Error> {
     let start = std::time::Instant::now();
     std::fs::create_dir_all(out).map_err(|e| IoError::new(out, e))?;
-    let Setup { title, data_path, series_path, experiments, material, factors, params, settings, solver, geometry, compact, base, validate_compact } = setup;
+    let Setup { title, model, data_path, series_path, experiments, material, factors, params, settings, solver, geometry, compact, base, validate_compact } =
+        setup;
     let nvals: usize = experiments.iter().map(|e| e.count()).sum();
+    let problem = Problem { experiments, material, factors, params };
+    let pair_model;
+    let compact_model;
+    let fwd: &dyn ForwardModel = match model {
+        ModelKind::Pair => {
+            pair_model = PairModel { problem, solver, geometry };
+            &pair_model
+        }
+        ModelKind::Compact => {
+            compact_model = compact::CompactModel::new(&compact, &base, problem, out)?;
+            &compact_model
+        }
+    };
+    let ev = Evaluator::new(fwd);
+    let pb = ev.problem();
     log(&format!(
-        "calibrating {} parameters against {nvals} values of {} experiments ({} rayon threads)",
-        params.len(),
-        experiments.len(),
+        "calibrating {} parameters against {nvals} values of {} experiments, model = \"{}\" ({} rayon threads)",
+        pb.params.len(),
+        pb.experiments.len(),
+        model.name(),
         rayon::current_num_threads()
     ));
-    let fwd = Forward::new(experiments, material, factors, params, solver, geometry);
-    let u0: Vec<f64> = fwd.params.iter().map(|p| p.unit_of(p.get(&fwd.material, &fwd.factors)).clamp(0.0, 1.0)).collect();
-    let opt = optimise::optimise(&fwd, &u0, &settings, log)?;
-    let values = fwd.values(&opt.u);
-    let preds = fwd.predict(&values);
-    let res = loss::residuals(&fwd.experiments, &preds);
+    if model == ModelKind::Compact {
+        log(&format!(
+            "each generation is one study in {} (engine {}): the sets of a generation × {} experiments",
+            out.join("compact-fit").display(),
+            compact.engine.as_deref().unwrap_or("local"),
+            pb.experiments.len()
+        ));
+    }
+    let u0: Vec<f64> = pb.params.iter().map(|p| p.unit_of(p.get(&pb.material, &pb.factors)).clamp(0.0, 1.0)).collect();
+    let opt = optimise::optimise(&ev, &u0, &settings, log)?;
+    let values = pb.values(&opt.u);
+    let preds = ev.predict(std::slice::from_ref(&opt.u), "optimum")?.remove(0);
+    let res = loss::residuals(&pb.experiments, &preds);
     let r: Vec<f64> = res.iter().map(|x| x.residual).collect();
     let chi2 = loss::chi2(&r);
-    let n = fwd.params.len();
+    let n = pb.params.len();
     let dof = nvals as i64 - n as i64;
     let reduced = if dof > 0 { chi2 / dof as f64 } else { f64::NAN };
-    let ju = optimise::jacobian(&fwd, &opt.u, settings.fd_step, None);
-    let spans: Vec<f64> = fwd
+    let ju = optimise::jacobian(&ev, &opt.u, settings.fd_step, None, "covariance")?;
+    let spans: Vec<f64> = pb
         .params
         .iter()
         .map(|p| {
@@ -270,22 +370,25 @@ pub fn run(setup: Setup, out: &Path, log: &mut dyn FnMut(&str)) -> Result<report
     if dof <= 0 {
         warnings.push(format!("{nvals} measured values for {n} parameters: no degrees of freedom, sigma is not meaningful"));
     }
-    let (parameters, correlation) = report::parameter_reports(&fwd, &values, &opt.u, &unc, &mut warnings);
-    let failed: Vec<&str> = preds.iter().zip(&fwd.experiments).filter(|(p, _)| p.is_err()).map(|(_, e)| e.id.as_str()).collect();
+    let (parameters, correlation) = report::parameter_reports(pb, &values, &opt.u, &unc, &mut warnings);
+    let failed: Vec<&str> = preds.iter().zip(&pb.experiments).filter(|(p, _)| p.is_err()).map(|(_, e)| e.id.as_str()).collect();
     if !failed.is_empty() {
         warnings.push(format!("the runs of {} fail at the optimum (penalty residuals): see experiments[].error", failed.join(", ")));
     }
-    let (m_fit, f_fit) = fwd.configured(&values);
-    let experiments_report = report::experiment_reports(&fwd.experiments, &preds, &res);
-    let evaluations = fwd.evaluations();
+    let (m_fit, f_fit) = pb.configured(&values);
+    let experiments_report = report::experiment_reports(&pb.experiments, &preds, &res);
+    let evaluations = ev.evaluations();
+    let batches = ev.batches();
+    let runs: usize = batches.iter().map(|b| b.runs).sum();
+    let runs_executed: usize = batches.iter().map(|b| b.executed).sum();
     let rep = report::CalibrationReport {
         title: title.clone(),
         data: data_path.display().to_string(),
         series: series_path.as_ref().map(|p| p.display().to_string()),
-        model: "pair".into(),
-        material: fwd.material.name.clone(),
+        model: model.name().into(),
+        material: pb.material.name.clone(),
         seed: settings.seed,
-        parameter_order: fwd.params.iter().map(|p| p.key.clone()).collect(),
+        parameter_order: pb.params.iter().map(|p| p.key.clone()).collect(),
         parameters,
         correlation,
         chi2,
@@ -295,12 +398,16 @@ pub fn run(setup: Setup, out: &Path, log: &mut dyn FnMut(&str)) -> Result<report
         sigma_scaled: reduced > 1.0,
         chi2_after_global: opt.chi2_global,
         swarm_iterations: opt.swarm_iterations,
+        local_method: settings.local.name().into(),
         local_iterations: opt.local_iterations,
         local_stop: opt.local_stop.clone(),
         local_chi2_history: opt.local_history.clone(),
         evaluations,
-        pair_runs: evaluations * fwd.experiments.len() as u64,
-        failed_runs: fwd.failures(),
+        pair_runs: if model == ModelKind::Pair { runs as u64 } else { 0 },
+        runs: runs as u64,
+        runs_executed: runs_executed as u64,
+        failed_runs: ev.failures(),
+        batches,
         wall_seconds: start.elapsed().as_secs_f64(),
         threads: rayon::current_num_threads(),
         experiments: experiments_report,
@@ -311,20 +418,23 @@ pub fn run(setup: Setup, out: &Path, log: &mut dyn FnMut(&str)) -> Result<report
     std::fs::write(&json_path, text + "\n").map_err(|e| IoError::new(&json_path, e))?;
     let mut m_out = m_fit.clone();
     m_out.source =
-        format!("calibrated by sinterdem calibrate ({title}; data {}; chi2/dof = {reduced:.4}), starting from: {}", data_path.display(), fwd.material.source);
-    let fitted_model = fwd.params.iter().any(|p| matches!(p.target, params::Target::Model { .. }));
+        format!("calibrated by sinterdem calibrate ({title}; data {}; chi2/dof = {reduced:.4}), starting from: {}", data_path.display(), pb.material.source);
+    let fitted_model = pb.params.iter().any(|p| matches!(p.target, params::Target::Model { .. }));
     let mut header = format!("Calibrated material written by `sinterdem calibrate` ({title}).\nchi2 = {chi2:.6}, dof = {dof}, chi2/dof = {reduced:.4}\n");
-    for (p, v) in fwd.params.iter().zip(&values) {
+    for (p, v) in pb.params.iter().zip(&values) {
         let s = rep.parameters.get(&p.key).and_then(|x| x.get("sigma")).and_then(|x| x.as_f64()).unwrap_or(f64::NAN);
         header.push_str(&format!("{} = {v:e} +- {s:.3e} {}\n", p.key, p.unit));
     }
     header.push_str("Use: paste into a pair case (material = the name below), or include the file where a case accepts a material file.");
     report::write_material(&out.join("material.toml"), &m_out, fitted_model.then_some(&f_fit), &header)?;
-    report::write_residuals(&out.join("residuals.csv"), &fwd.experiments, &res)?;
-    report::write_plots(out, &fwd.experiments, &res)?;
+    report::write_residuals(&out.join("residuals.csv"), &pb.experiments, &res)?;
+    report::write_plots(out, &pb.experiments, &res)?;
     log(&format!(
-        "chi2 = {chi2:.6}, dof = {dof}, chi2/dof = {reduced:.4}; {evaluations} evaluations ({} pair runs) in {:.2} s; results in {}",
-        rep.pair_runs,
+        "chi2 = {chi2:.6}, dof = {dof}, chi2/dof = {reduced:.4}; {evaluations} evaluations in {} batches ({} {} runs, {} run now) in {:.2} s; results in {}",
+        rep.batches.len(),
+        rep.runs,
+        model.name(),
+        rep.runs_executed,
         rep.wall_seconds,
         out.display()
     ));
@@ -332,10 +442,50 @@ pub fn run(setup: Setup, out: &Path, log: &mut dyn FnMut(&str)) -> Result<report
         log(&format!("warning: {w}"));
     }
     if validate_compact {
-        let path = compact::validate(&compact, &base, &m_out, &fwd.experiments, &preds, out, log)?;
+        let path = compact::validate(&compact, &base, &m_out, &f_fit, &pb.factors, &pb.experiments, &preds, out, log)?;
         log(&format!("compact validation: {}", path.display()));
     }
     Ok(rep)
+}
+
+/// Validates a calibration file without fitting (`sinterdem check CALIB.toml`): the file, its data
+/// files (file, line, column in errors), the parameters against the material, the optimiser, and
+/// the `[compact]` section when it names a case: the derived compact case with the first chosen
+/// experiment's schedule is checked like any case (scene built, nothing run). Returns a one-line
+/// description.
+pub fn check(value: &toml::Value, base: &Path) -> Result<String, Error> {
+    let setup = parse(value, base)?;
+    let mut packing = String::new();
+    if let Some(rel) = &setup.compact.case {
+        let sec = &setup.compact;
+        let case_path = base.join(rel);
+        sec.engine_settings()?;
+        let chosen = sec.chosen(&setup.experiments)?;
+        let (mut case, _) = match setup.model {
+            ModelKind::Compact => compact::fit_case(sec, base, &setup.material, &setup.factors)?,
+            ModelKind::Pair => compact::derived_case(&case_path, &setup.material, &setup.factors, &setup.factors, &sec.overrides)?,
+        };
+        let e = &setup.experiments[chosen[0]];
+        let at = |err: ConfigError| ConfigError::invalid(format!("[compact] case = {} with experiment {}'s schedule: {err}", case_path.display(), e.id));
+        crate::config::apply_override(&mut case, &format!("thermal.furnace.profile.schedule={}", toml::Value::String(e.schedule.clone()))).map_err(at)?;
+        crate::config::apply_override(&mut case, &format!("time.end={:?}", e.profile.duration())).map_err(at)?;
+        let what = crate::run::check(&case, &[], case_path.parent().unwrap_or(Path::new("."))).map_err(|err| match err {
+            Error::Config(c) => Error::Config(at(c)),
+            other => other,
+        })?;
+        packing = format!("; [compact] {} ({what}), {} experiment(s)", case_path.display(), chosen.len());
+    }
+    Ok(format!(
+        "calibration file, model = \"{}\", {} parameter{} ({}), {} experiment{} with {} measured values, local = \"{}\"{packing}",
+        setup.model.name(),
+        setup.params.len(),
+        if setup.params.len() == 1 { "" } else { "s" },
+        setup.params.iter().map(|p| p.key.as_str()).collect::<Vec<_>>().join(", "),
+        setup.experiments.len(),
+        if setup.experiments.len() == 1 { "" } else { "s" },
+        setup.experiments.iter().map(|e| e.count()).sum::<usize>(),
+        setup.settings.local.name()
+    ))
 }
 
 /// `sinterdem calibrate CALIB.toml --out DIR [--set k=v]`: parse, fit, write. With `generate_synthetic`
@@ -352,6 +502,19 @@ pub fn run_file(path: &Path, overrides: &[String], out: &Path, quiet: bool, gene
         return Ok(());
     }
     let mut setup = parse(&value, &base)?;
+    if validate_compact {
+        if setup.model == ModelKind::Compact {
+            return Err(ConfigError::inconsistent(
+                "model",
+                "\"compact\" already fits on the packing (its values are in calibration.json); --validate-compact is for a pair fit",
+            )
+            .into());
+        }
+        // fail before the fit, not after it
+        let case_path = setup.compact.case_path(&base, "--validate-compact")?;
+        setup.compact.chosen(&setup.experiments)?;
+        compact::derived_case(&case_path, &setup.material, &setup.factors, &setup.factors, &setup.compact.overrides)?;
+    }
     setup.validate_compact = validate_compact;
     let mut log = |m: &str| {
         if !quiet {

@@ -13,8 +13,9 @@
 //! linearised `value·ln10·σ_θ`, its `sigma_log10` is σ_θ.
 
 use super::data::Experiment;
-use super::forward::{Forward, Prediction};
+use super::forward::Prediction;
 use super::loss::{Quantity, Residual};
+use super::model::{BatchInfo, Problem};
 use crate::error::{Error, IoError, ModelError};
 use crate::models::diffusion7::{Material, PathFactors};
 use crate::plot::{Plot, Series};
@@ -144,15 +145,26 @@ pub struct CalibrationReport {
     pub sigma_scaled: bool,
     pub chi2_after_global: f64,
     pub swarm_iterations: u64,
+    /// `trust_region` or `nelder_mead`.
+    pub local_method: String,
     pub local_iterations: u64,
     pub local_stop: String,
     /// χ² at the start of the local phase and after each of its iterations (a rejected trust-region
     /// step repeats the value).
     pub local_chi2_history: Vec<f64>,
-    /// Forward-model evaluations (each runs every experiment once) and pair runs.
+    /// Parameter sets evaluated (each runs every experiment once; a set is run at most once).
     pub evaluations: u64,
+    /// Pair runs (`model = "pair"`; 0 for a packing fit).
     pub pair_runs: u64,
+    /// Runs of all batches (sets × experiments), and those computed by this invocation (a packing
+    /// fit re-run into the same directory reuses the finished runs of its study store).
+    pub runs: u64,
+    pub runs_executed: u64,
     pub failed_runs: u64,
+    /// Every batch sent to the forward model, in order: one optimiser generation each (the
+    /// swarm's particles of one iteration, a Jacobian's points, …); a packing fit's batch `k` is
+    /// the study `compact-fit/gen-k-LABEL/`.
+    pub batches: Vec<BatchInfo>,
     pub wall_seconds: f64,
     pub threads: usize,
     pub experiments: Vec<ExperimentReport>,
@@ -161,7 +173,7 @@ pub struct CalibrationReport {
 
 /// Parameter reports, warnings and correlation at the optimum.
 pub fn parameter_reports(
-    fwd: &Forward,
+    fwd: &Problem,
     values: &[f64],
     u: &[f64],
     unc: &Uncertainty,

@@ -50,8 +50,16 @@ pub fn position(text: &str, span: Option<std::ops::Range<usize>>) -> String {
 /// (or its only material), and the entry's own keys win. `base` is the folder relative paths
 /// start from (the case file's). Applies to every kind; a calibration's `material.toml` is such
 /// a file.
+///
+/// A material file may also hold `[model]` (path factors, written by a calibration that fitted
+/// them). Its keys become the case's `[model]` keys (a calibration file's `[path_factors]`) unless
+/// the case sets that key itself: the case's own value wins, and `--set` after it. Two included
+/// files that set one key to different values are refused: a run has one set of path factors.
+/// Kinds without path factors (`generate`, `explicit_sinter`) ignore an included `[model]`.
 pub fn expand_includes(root: &mut toml::Value, base: &Path) -> Result<(), ConfigError> {
     let Some(list) = root.get_mut("materials").and_then(|m| m.as_array_mut()) else { return Ok(()) };
+    // (include key, file, its [model])
+    let mut models: Vec<(String, String, toml::Table)> = Vec::new();
     for (i, entry) in list.iter_mut().enumerate() {
         let Some(table) = entry.as_table_mut() else { continue };
         let Some(inc) = table.remove("include") else { continue };
@@ -84,6 +92,53 @@ pub fn expand_includes(root: &mut toml::Value, base: &Path) -> Result<(), Config
             merged.insert(k.clone(), v.clone());
         }
         *table = merged;
+        if let Some(m) = inc_root.get("model") {
+            let t = m.as_table().ok_or_else(|| ConfigError::invalid(format!("{key} = \"{file}\": [model] is not a table")))?;
+            // keys and ranges as in a case's [model]
+            let pf: crate::models::diffusion7::PathFactors =
+                from_value(m.clone(), "model").map_err(|e| ConfigError::invalid(format!("{key} = \"{file}\": {e}")))?;
+            pf.validate().map_err(|e| ConfigError::invalid(format!("{key} = \"{file}\": {e}")))?;
+            models.push((key, file.to_string(), t.clone()));
+        }
+    }
+    if models.is_empty() {
+        return Ok(());
+    }
+    let target = if crate::calibrate::is_calibration(root) {
+        "path_factors"
+    } else if matches!(kind_name(root), "heat" | "compact" | "pair") {
+        "model"
+    } else {
+        return Ok(());
+    };
+    let Some(rt) = root.as_table_mut() else { return Ok(()) };
+    let own = rt.entry(target.to_string()).or_insert_with(|| toml::Value::Table(toml::Table::new()));
+    let own = own.as_table_mut().ok_or_else(|| ConfigError::invalid(format!("{target}: expected a table")))?;
+    let explicit: Vec<String> = own.keys().cloned().collect();
+    let number = |v: &toml::Value| v.as_float().or_else(|| v.as_integer().map(|i| i as f64));
+    // key → (value, the include that set it)
+    let mut set: Vec<(String, toml::Value, String)> = Vec::new();
+    for (key, file, t) in &models {
+        for (k, v) in t {
+            if explicit.contains(k) {
+                continue;
+            }
+            match set.iter().find(|(k0, _, _)| k0 == k) {
+                Some((_, v0, by)) if number(v0) != number(v) => {
+                    return Err(ConfigError::inconsistent(
+                        format!("{key} = \"{file}\""),
+                        format!(
+                            "its [model] sets {k} = {v}, but {by} sets {k} = {v0}: a run has one set of path factors; set {target}.{k} in this file to choose"
+                        ),
+                    ));
+                }
+                Some(_) => {}
+                None => set.push((k.clone(), v.clone(), format!("{key} = \"{file}\""))),
+            }
+        }
+    }
+    for (k, v, _) in set {
+        own.insert(k, v);
     }
     Ok(())
 }

@@ -46,6 +46,8 @@ pub struct StudyOptions {
     pub progress: bool,
     /// SLURM settings given on the command line (override the study file's).
     pub slurm: slurm::SlurmOverrides,
+    /// Write `DIR/plots/` when gathering (default true; a calibration's batches turn it off).
+    pub plots: bool,
 }
 
 impl Default for StudyOptions {
@@ -59,6 +61,7 @@ impl Default for StudyOptions {
             overrides: vec![],
             progress: false,
             slurm: Default::default(),
+            plots: true,
         }
     }
 }
@@ -121,7 +124,7 @@ pub fn run_study(path: &Path, opts: &StudyOptions, log: &mut dyn FnMut(&str)) ->
     let mut counts = report::Counts::default();
     if gather {
         let rows = report::gather(&study, &dir, &plan);
-        counts = report::write(&study, &dir, &rows)?;
+        counts = report::write(&study, &dir, &rows, opts.plots)?;
         log(&format!(
             "study.csv: {} runs, {} ok, {} failed, {} missing ({} executed now) in {:.2} s",
             counts.runs,

@@ -125,8 +125,8 @@ pub fn counts(rows: &[Row]) -> Counts {
     c
 }
 
-/// Writes study.csv, study.json and the plots; returns the counts.
-pub fn write(study: &Study, dir: &Path, rows: &[Row]) -> Result<Counts, Error> {
+/// Writes study.csv, study.json and (with `plots`) the plots; returns the counts.
+pub fn write(study: &Study, dir: &Path, rows: &[Row], plots: bool) -> Result<Counts, Error> {
     let mut header: Vec<String> = vec!["run".into()];
     if study.case_column {
         header.push("case".into());
@@ -170,7 +170,9 @@ pub fn write(study: &Study, dir: &Path, rows: &[Row]) -> Result<Counts, Error> {
     let c = counts(rows);
     let j = json!({"title": study.title, "study_file": study.path, "counts": c, "runs": runs_json});
     store::write_atomic(&dir.join("study.json"), &serde_json::to_string_pretty(&j).map_err(|e| IoError::new(dir.join("study.json"), e))?)?;
-    write_plots(study, dir, rows)?;
+    if plots {
+        write_plots(study, dir, rows)?;
+    }
     Ok(c)
 }
 
