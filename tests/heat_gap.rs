@@ -103,6 +103,55 @@ fn small_gaps_follow_the_logarithmic_law() {
     assert!(rel(g0, gm) < 1e-11 && g0 < PI * K_G * r * ((r / m).ln() + c + 0.1), "{g0} {gm}");
 }
 
+/// The neighbour list (a Verlet list over the contact detection's cell list) finds exactly the
+/// pairs of a brute-force O(N²) enumeration, with the same conductances, while 300 random
+/// spheres drift and grow over 40 steps: the gap pipes depend on the configuration only.
+#[test]
+fn the_neighbour_list_finds_every_gap_pair_of_a_brute_force_search() {
+    use nalgebra::Vector3;
+    use sinterdem::heat::gap::{GapModel, GapNetwork};
+    let mut seed = 0x2545F4914F6CDD1Du64;
+    let mut rnd = || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let n = 300;
+    let mut x: Vec<Vector3<f64>> = (0..n).map(|_| Vector3::new(rnd(), rnd(), rnd()) * 4e-4).collect();
+    let mut r: Vec<f64> = (0..n).map(|_| 25e-6 * (0.8 + 0.4 * rnd())).collect();
+    let model = GapModel { gas_conductivity: K_G, layer_thickness: 0.3, jump_distance: 0.1e-6, emissivity: 0.5 };
+    let mut net = GapNetwork::new(model);
+    let mut total = 0;
+    for step in 0..40 {
+        let contacts: Vec<[u32; 2]> = sinterdem::contacts::detect::touching_pairs(&x, &r, 0.0).into_iter().map(|(i, j)| [i, j]).collect();
+        let got = net.update(&x, &r, &contacts).clone();
+        let mut want = Vec::new();
+        for i in 0..n {
+            for j in i + 1..n {
+                let pr = [i as u32, j as u32];
+                if contacts.contains(&pr) {
+                    continue;
+                }
+                if let Some((g, c)) = model.pair(r[i], r[j], (x[j] - x[i]).norm()) {
+                    want.push((pr, g, c));
+                }
+            }
+        }
+        assert_eq!(got.pairs, want.iter().map(|w| w.0).collect::<Vec<_>>(), "step {step}");
+        assert_eq!(got.gas, want.iter().map(|w| w.1).collect::<Vec<_>>(), "step {step}");
+        assert_eq!(got.radiation, want.iter().map(|w| w.2).collect::<Vec<_>>(), "step {step}");
+        total += got.len();
+        // drift by up to 2 µm per step and grow by up to 0.1 µm
+        for (xi, ri) in x.iter_mut().zip(r.iter_mut()) {
+            *xi += Vector3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5) * 4e-6;
+            *ri += 1e-7 * rnd();
+        }
+    }
+    assert!(total > 40 * 50, "{total} gap pairs in all");
+    assert!(net.searches > 1 && net.searches < 40, "{} searches", net.searches);
+}
+
 fn two_sphere_case(dir: &Path, rows: &str, gap: &str, extra: &str) -> toml::Value {
     let csv = dir.join("pair.csv");
     std::fs::write(&csv, format!("x,y,z,r,temperature\n{rows}")).unwrap();

@@ -238,7 +238,7 @@ pub struct GapNetwork {
     reference_radius: Vec<f64>,
     skin: f64,
     contacts: std::collections::HashSet<[u32; 2]>,
-    contacts_seen: usize,
+    contacts_seen: Vec<[u32; 2]>,
     current: Option<GapPipes>,
     /// Candidate searches so far [1].
     pub searches: u64,
@@ -253,7 +253,7 @@ impl GapNetwork {
             reference_radius: Vec::new(),
             skin: 0.0,
             contacts: Default::default(),
-            contacts_seen: 0,
+            contacts_seen: Vec::new(),
             current: None,
             searches: 0,
         }
@@ -291,12 +291,15 @@ impl GapNetwork {
         if self.stale(position, radius) {
             self.search(position, radius);
         }
-        if contacts.len() < self.contacts_seen {
+        // the contact set grows by appending (compact runs); anything else rebuilds it
+        let seen = self.contacts_seen.len();
+        if contacts.len() < seen || contacts[..seen] != self.contacts_seen[..] {
             self.contacts.clear();
-            self.contacts_seen = 0;
+            self.contacts_seen.clear();
         }
-        self.contacts.extend(contacts[self.contacts_seen..].iter().map(|&[i, j]| [i.min(j), i.max(j)]));
-        self.contacts_seen = contacts.len();
+        let seen = self.contacts_seen.len();
+        self.contacts.extend(contacts[seen..].iter().map(|&[i, j]| [i.min(j), i.max(j)]));
+        self.contacts_seen.extend_from_slice(&contacts[seen..]);
         let model = self.model;
         let contacts = &self.contacts;
         let eval = |&[i, j]: &[u32; 2]| -> Option<([u32; 2], f64, f64, f64)> {
