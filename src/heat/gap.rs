@@ -386,9 +386,9 @@ mod tests {
     #[test]
     fn outer_radius_is_continuous_at_the_layer_edge_and_capped_by_the_smaller_radius() {
         let r = 1.0;
-        // at s = f R the layer just reaches the other sphere
-        assert_eq!(outer_radius(r, r, 2.0 + 0.2, 0.2), Some(0.0));
-        assert!(outer_radius(r, r, 2.0 + 0.2 * (1.0 + 1e-12), 0.2).is_none());
+        // at s = f R the layer just reaches the other sphere (values exact in binary)
+        assert_eq!(outer_radius(r, r, 2.25, 0.25), Some(0.0));
+        assert!(outer_radius(r, r, 2.25 * (1.0 + 1e-15), 0.25).is_none());
         assert!(outer_radius(r, r, 2.0, 0.2).is_none());
         // equal spheres nearly touching: law of cosines, lens radius 1.2, distance 2
         let ro = outer_radius(r, r, 2.0 + 1e-12, 0.2).unwrap();
