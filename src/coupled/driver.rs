@@ -66,9 +66,10 @@ pub fn run_from(
     if !isolated.is_empty() {
         let ids: Vec<String> = isolated.iter().take(20).map(|i| i.to_string()).collect();
         log(&format!(
-            "warning: {} particle{} without a conductive path to any heat source (no contact chain to a heated, fixed or exposed particle): {}{}; they keep their initial temperature and are left out of the mean/min/max temperatures (series.csv, summary.json)",
+            "warning: {} particle{} without a conductive path to any heat source (no chain of contacts{} to a heated, fixed or exposed particle): {}{}; they keep their initial temperature and are left out of the mean/min/max temperatures (series.csv, summary.json)",
             isolated.len(),
             if isolated.len() == 1 { "" } else { "s" },
+            if sim.prep.gap.is_some() { " or gap pipes" } else { "" },
             ids.join(", "),
             if isolated.len() > 20 { ", …" } else { "" }
         ));
