@@ -385,6 +385,36 @@ pub struct ThermalSpec {
     #[serde(default)]
     pub volumetric: Vec<VolumetricSpec>,
     pub furnace: Option<FurnaceSpec>,
+    /// Optional heat transfer across the gaps between near, non-touching particles (gas
+    /// conduction and radiation; docs/heat-model.md (H18)–(H23)). Absent: off.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gap: Option<GapSpec>,
+}
+
+/// `[thermal.gap]`: conduction through the gas, and radiation, between particles that are near but
+/// not in contact (docs/heat-model.md "Heat across gaps").
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct GapSpec {
+    /// Thermal conductivity of the furnace gas k_g [W/(m·K)] (default 0: vacuum, no gas conduction).
+    #[serde(default)]
+    pub gas_conductivity: f64,
+    /// Gas-layer thickness f relative to the larger radius of a pair [1]: pairs with surface gap
+    /// `0 < s ≤ f·max(r_i, r_j)` exchange heat (default 0.2; (H19)).
+    #[serde(default = "gap_layer")]
+    pub layer_thickness: f64,
+    /// Temperature-jump distance M of the rarefied gas, both surfaces together [m] (default 0:
+    /// continuum gas; (H18)).
+    #[serde(default)]
+    pub jump_distance: f64,
+    /// Emissivity ε of the particle surfaces for radiation across the gap [1] (default 0: no
+    /// radiation; (H22)).
+    #[serde(default)]
+    pub emissivity: f64,
+}
+
+fn gap_layer() -> f64 {
+    0.2
 }
 
 impl Default for ThermalSpec {
@@ -399,6 +429,7 @@ impl Default for ThermalSpec {
             fixed: Vec::new(),
             volumetric: Vec::new(),
             furnace: None,
+            gap: None,
         }
     }
 }

@@ -66,11 +66,23 @@ pub fn run_from(
     if !isolated.is_empty() {
         let ids: Vec<String> = isolated.iter().take(20).map(|i| i.to_string()).collect();
         log(&format!(
-            "warning: {} particle{} without a conductive path to any heat source (no contact chain to a heated, fixed or exposed particle): {}{}; they keep their initial temperature and are left out of the mean/min/max temperatures (series.csv, summary.json)",
+            "warning: {} particle{} without a conductive path to any heat source (no chain of contacts{} to a heated, fixed or exposed particle): {}{}; they keep their initial temperature and are left out of the mean/min/max temperatures (series.csv, summary.json)",
             isolated.len(),
             if isolated.len() == 1 { "" } else { "s" },
+            if sim.prep.gap.is_some() { " or gap pipes" } else { "" },
             ids.join(", "),
             if isolated.len() > 20 { ", …" } else { "" }
+        ));
+    }
+    if let Some(g) = &sim.prep.gap {
+        let via = sim.particles_connected_only_through_gaps();
+        log(&format!(
+            "gap model (docs/heat-model.md (H18)–(H23)): gas k_g = {} W/(m·K), layer f = {}, jump distance M = {} m, surface emissivity {}; {} particle(s) reach a heat source only across gaps",
+            g.model.gas_conductivity,
+            g.model.layer_thickness,
+            g.model.jump_distance,
+            g.model.emissivity,
+            via.len()
         ));
     }
     let (vtu_on, h5_on) = (sim.prep.case.output.vtu, sim.prep.case.output.hdf5);
@@ -275,6 +287,12 @@ pub fn run_from(
     summary["layer_z_m"] = json!(prof.iter().map(|l| l.0).collect::<Vec<_>>());
     summary["layer_contact_shrinkage"] = json!(prof.iter().map(|l| l.1).collect::<Vec<_>>());
     summary["layer_neck_ratio"] = json!(prof.iter().map(|l| l.2).collect::<Vec<_>>());
+    if let Some(g) = &sim.prep.gap {
+        // the gap model (docs/heat-model.md (H18)–(H23)): pipes of the last step, and the particles
+        // that reach a heat source only across gaps (not isolated, but hanging on the gas)
+        summary["gap_pipes"] = json!(g.pipes().map_or(0, |p| p.len()));
+        summary["particles_connected_only_through_gaps"] = json!(sim.particles_connected_only_through_gaps());
+    }
     io::write_json(&out.join("summary.json"), &summary)?;
     // the series and summary also go into the HDF5 file (docs/outputs.md)
     if sim.prep.case.output.hdf5

@@ -727,7 +727,9 @@ impl Simulation {
                 let control =
                     crate::heat::run::step_control(&self.prep.case)?.map(|c| crate::heat::adaptive::StepControl { dt_min: 1e-6 * dt, dt_max: dt, ..c });
                 if let Some(net) = self.heat.as_mut() {
-                    net.set_topology(&self.contacts.pairs)?;
+                    // contact pipes, then the gap pipes of the current positions (heat-model.md (H18)–(H23))
+                    let p = &self.prep.scene.particles;
+                    let (k, _) = crate::heat::gap::attach(net, self.prep.gap.as_mut(), &p.position, &p.radius, &self.contacts.pairs, k)?;
                     heat_info = Some(crate::heat::adaptive::advance(net, t0, dt, &mut self.prep.scene.particles.temperature, &k, control)?.0);
                 }
                 if let Err(e) =
@@ -1012,15 +1014,36 @@ impl Simulation {
         Ok(())
     }
 
-    /// Particles without a conductive path to any heat source (no contact chain to a particle of
-    /// prescribed temperature, exposed to the furnace or heated volumetrically); empty in
-    /// isothermal runs. Their temperature stays where it started.
+    /// Particles without a conductive path to any heat source (no chain of contacts, or of gap
+    /// pipes with the gap model (heat-model.md (H18)–(H23)), to a particle of prescribed
+    /// temperature, exposed to the furnace or heated volumetrically); empty in isothermal runs.
+    /// Their temperature stays where it started.
     pub fn isolated_particles(&self) -> Vec<u32> {
+        let p = &self.prep.scene.particles;
+        let mut pairs = self.contacts.pairs.clone();
+        if let Some(g) = &self.prep.gap {
+            pairs.extend(g.pairs_now(&p.position, &p.radius, &self.contacts.pairs));
+        }
+        self.isolated_through(&pairs)
+    }
+
+    /// With the gap model: the particles that reach a heat source only through gap pipes
+    /// (isolated without them); empty without the model.
+    pub fn particles_connected_only_through_gaps(&self) -> Vec<u32> {
+        if self.prep.gap.is_none() {
+            return vec![];
+        }
+        let with = self.isolated_particles();
+        self.isolated_through(&self.contacts.pairs).into_iter().filter(|i| with.binary_search(i).is_err()).collect()
+    }
+
+    /// The particles without a path through `pairs` to a heat source, sorted.
+    fn isolated_through(&self, pairs: &[[u32; 2]]) -> Vec<u32> {
         let Some(net) = self.heat.as_ref() else { return vec![] };
         let src = &self.prep.sources;
         let n = self.prep.scene.particles.len();
-        // the components of the contact network (every contact conducts)
-        let root = crate::heat::conductivity::components(n, &self.contacts.pairs, &vec![1.0; self.contacts.len()]);
+        // the components of the network (every pipe conducts)
+        let root = crate::heat::conductivity::components(n, pairs, &vec![1.0; pairs.len()]);
         let furnace = src.furnace.is_some();
         let mut heated = vec![false; n];
         for i in 0..n {

@@ -6,6 +6,7 @@ pub mod bench;
 pub mod conductance;
 pub mod conductivity;
 pub mod fe_fit;
+pub mod gap;
 pub mod network;
 pub mod properties;
 pub mod run;

@@ -117,6 +117,11 @@ pub struct HeatNetwork {
     prev: Option<(Vec<f64>, f64)>,
     // temperature-dependent properties (heat-model.md eqs. P1–P4)
     props: Option<ThermalProperties>,
+    // pipes [0, contact_pipes) are contacts (rescaled by κ(T), in series with K_c); the rest are
+    // gap pipes (heat-model.md (H18)–(H23)) with their radiation coefficients c [W/K⁴] (empty:
+    // none radiates)
+    contact_pipes: usize,
+    gap_radiation: Vec<f64>,
 }
 
 const NONE: u32 = u32::MAX;
@@ -147,6 +152,8 @@ impl HeatNetwork {
             factor: None,
             prev: None,
             props: None,
+            contact_pipes: 0,
+            gap_radiation: Vec::new(),
         }
     }
 
@@ -194,12 +201,12 @@ impl HeatNetwork {
         out
     }
 
-    /// Pipe conductances [W/K] at `temps`: the pairs' values, or with κ(T) eq. P4.
+    /// Pipe conductances [W/K] at `temps`: the pairs' values, or with κ(T) eq. P4; gap pipes add
+    /// their radiation (H23).
     fn conductances_at(&self, temps: &[f64], pipes: &[PipeConductance]) -> Vec<f64> {
-        match self.props.as_ref().filter(|p| p.has_conductivity()) {
-            Some(pr) => self.pipes.iter().zip(pipes).map(|(&[i, j], pc)| pr.pipe(pc, i as usize, j as usize, temps[i as usize], temps[j as usize])).collect(),
-            None => pipes.iter().map(|p| p.pair).collect(),
-        }
+        let k: Vec<f64> = pipes.iter().map(|p| p.pair).collect();
+        let halves = self.props.as_ref().is_some_and(|p| p.has_conductivity()).then_some(pipes);
+        pipe_values(&self.pipes, self.contact_pipes, self.props.as_ref(), &self.gap_radiation, temps, &k, halves)
     }
 
     pub fn scheme(&self) -> Scheme {
@@ -227,9 +234,29 @@ impl HeatNetwork {
     /// Sets the pipes `(i, j)`; the sparsity pattern and symbolic factorisation are rebuilt only
     /// when the list differs from the current one.
     pub fn set_topology(&mut self, pipes: &[[u32; 2]]) -> Result<f64, SolveError> {
-        if self.pattern.is_some() && pipes == self.pipes.as_slice() {
+        self.set_topology_with_gaps(pipes, &[])
+    }
+
+    /// Sets the contact pipes `contacts` followed by the gap pipes `gaps` (heat-model.md
+    /// (H18)–(H23)): the conductances passed to a step then list the contacts first. Gap pipes
+    /// carry the gas conductance as given (κ(T) tables and K_c act on contact pipes only) plus
+    /// their radiation ([`set_gap_radiation`](Self::set_gap_radiation)). The pattern is rebuilt
+    /// only when a list differs from the current one; a rebuild forgets the radiation coefficients.
+    pub fn set_topology_with_gaps(&mut self, contacts: &[[u32; 2]], gaps: &[[u32; 2]]) -> Result<f64, SolveError> {
+        let nc = contacts.len();
+        if self.pattern.is_some()
+            && nc == self.contact_pipes
+            && self.pipes.len() == nc + gaps.len()
+            && contacts == &self.pipes[..nc]
+            && gaps == &self.pipes[nc..]
+        {
             return Ok(0.0);
         }
+        let mut pipes = contacts.to_vec();
+        pipes.extend_from_slice(gaps);
+        let pipes = pipes.as_slice();
+        self.contact_pipes = nc;
+        self.gap_radiation.clear();
         self.pipes = pipes.to_vec();
         let nf = self.free.len();
         let mut entries: Vec<(u32, u32)> = (0..nf as u32).map(|k| (k, k)).collect();
@@ -247,6 +274,28 @@ impl HeatNetwork {
         self.pattern = Some(pat);
         self.factor = None;
         Ok(secs)
+    }
+
+    /// Sets the radiation coefficients c [W/K⁴] of the gap pipes (H22), one per gap pipe of
+    /// [`set_topology_with_gaps`](Self::set_topology_with_gaps); all zero (or empty) turns the
+    /// radiation off. With radiation every step iterates (Picard) on the exact secant conductance
+    /// `c (T_i² + T_j²)(T_i + T_j)` (H23) to `radiation_tolerance`.
+    pub fn set_gap_radiation(&mut self, coefficients: &[f64]) -> Result<(), SolveError> {
+        let n_gap = self.pipes.len() - self.contact_pipes;
+        if coefficients.iter().all(|&c| c == 0.0) {
+            self.gap_radiation.clear();
+            return Ok(());
+        }
+        if coefficients.len() != n_gap || coefficients.iter().any(|c| !(c.is_finite() && *c >= 0.0)) {
+            return Err(SolveError::new("heat gap radiation", format!("{} coefficients for {n_gap} gap pipes (each finite and ≥ 0 W/K⁴)", coefficients.len())));
+        }
+        self.gap_radiation = coefficients.to_vec();
+        Ok(())
+    }
+
+    /// Number of gap pipes of the topology (heat-model.md (H18)).
+    pub fn gap_pipes(&self) -> usize {
+        self.pipes.len() - self.contact_pipes
     }
 
     /// Sets Dirichlet particles to their profile at time `t` [s].
@@ -336,7 +385,10 @@ impl HeatNetwork {
         if !(dt > 0.0 && dt.is_finite()) {
             return Err(SolveError::new("heat step", format!("time step {dt} s is not positive")));
         }
-        if conductance.len() != self.pipes.len() || halves.is_some_and(|h| h.len() != self.pipes.len()) {
+        if conductance.len() != self.pipes.len()
+            || halves.is_some_and(|h| h.len() != self.pipes.len())
+            || !(self.gap_radiation.is_empty() || self.gap_radiation.len() == self.pipes.len() - self.contact_pipes)
+        {
             return Err(SolveError::new("heat step", format!("{} conductances for {} pipes", conductance.len(), self.pipes.len())));
         }
         let Some(pattern) = self.pattern.as_ref() else {
@@ -356,15 +408,10 @@ impl HeatNetwork {
         };
         // particles with c(T) (enthalpy form, eqs. P1–P2) and whether κ(T) rescales the pipes
         let table = |i: usize| self.props.as_ref().and_then(|p| p.capacity_table(i).map(|t| (t, p.mass[i])));
-        let nonlinear = self.props.is_some();
-        let pipes_now = |temps: &[f64]| -> Vec<f64> {
-            match (halves, self.props.as_ref()) {
-                (Some(h), Some(pr)) => {
-                    self.pipes.iter().zip(h).map(|(&[i, j], pc)| pr.pipe(pc, i as usize, j as usize, temps[i as usize], temps[j as usize])).collect()
-                }
-                _ => conductance.to_vec(),
-            }
-        };
+        let radiative = !self.gap_radiation.is_empty();
+        let nonlinear = self.props.is_some() || radiative;
+        let (nc, rad) = (self.contact_pipes, &self.gap_radiation);
+        let pipes_now = |temps: &[f64]| -> Vec<f64> { pipe_values(&self.pipes, nc, self.props.as_ref(), rad, temps, conductance, halves) };
         // r = storage part + explicit half for CN; with c(T) the BDF2 history term a2 ΔH^{n}
         let mut rhs0 = vec![0.0; nf];
         for (l, &i) in self.free.iter().enumerate() {
@@ -385,7 +432,7 @@ impl HeatNetwork {
         let mut g_old = 0.0;
         if w < 1.0 {
             let mut f_old = vec![0.0; nf];
-            let k_old = if halves.is_some() { pipes_now(&t_old) } else { conductance.to_vec() };
+            let k_old = if halves.is_some() || radiative { pipes_now(&t_old) } else { conductance.to_vec() };
             g_old = self.rates(&t_old, t, &k_old, &mut f_old);
             for l in 0..nf {
                 rhs0[l] += (1.0 - w) * f_old[l];
@@ -559,4 +606,32 @@ impl HeatNetwork {
         }
         Ok(info)
     }
+}
+
+/// Conductances [W/K] of `pipes` at `temps`: the given `conductance`; with `halves` and κ(T)
+/// tables, the contact pipes `[0, nc)` rescaled by eq. P4; the gap pipes `[nc, ..)` plus their
+/// radiation `c (T_i² + T_j²)(T_i + T_j)` (H23) when `radiation` is not empty.
+fn pipe_values(
+    pipes: &[[u32; 2]],
+    nc: usize,
+    props: Option<&ThermalProperties>,
+    radiation: &[f64],
+    temps: &[f64],
+    conductance: &[f64],
+    halves: Option<&[PipeConductance]>,
+) -> Vec<f64> {
+    let mut k: Vec<f64> = match (halves, props) {
+        (Some(h), Some(pr)) => pipes
+            .iter()
+            .zip(h)
+            .enumerate()
+            .map(|(p, (&[i, j], pc))| if p < nc { pr.pipe(pc, i as usize, j as usize, temps[i as usize], temps[j as usize]) } else { conductance[p] })
+            .collect(),
+        _ => conductance.to_vec(),
+    };
+    for (q, &c) in radiation.iter().enumerate() {
+        let [i, j] = pipes[nc + q];
+        k[nc + q] += crate::heat::gap::radiative_conductance(c, temps[i as usize], temps[j as usize]);
+    }
+    k
 }

@@ -22,6 +22,9 @@ pub struct Prepared {
     /// `Some(profile)` for `thermal.mode = "isothermal"`.
     pub isothermal: Option<Profile>,
     pub conductance: Conductance,
+    /// The gap model (`[thermal.gap]`, docs/heat-model.md (H18)–(H23)) with its neighbour search;
+    /// `None`: off.
+    pub gap: Option<crate::heat::gap::GapNetwork>,
     /// The case as run (overrides applied) and its folder, for checkpoints; set by the run API.
     pub source: Option<(String, std::path::PathBuf)>,
 }
@@ -138,6 +141,20 @@ pub fn prepare_scene(value: toml::Value, base: &Path) -> Result<Prepared, Error>
         }
         other => return Err(ConfigError::invalid(format!("thermal.mode = \"{other}\": expected network or isothermal")).into()),
     };
+    let gap = match &th.gap {
+        Some(spec) => {
+            let model = crate::heat::gap::GapModel::from_spec(spec)?;
+            if isothermal.is_some() {
+                return Err(ConfigError::inconsistent(
+                    "thermal.gap",
+                    "an isothermal scene has no heat solve: remove [thermal.gap] or use thermal.mode = \"network\"",
+                )
+                .into());
+            }
+            model.map(crate::heat::gap::GapNetwork::new)
+        }
+        None => None,
+    };
     if !matches!(th.contact_temperature.as_str(), "arithmetic" | "harmonic") {
         return Err(ConfigError::invalid(format!("thermal.contact_temperature = \"{}\": expected arithmetic or harmonic", th.contact_temperature)).into());
     }
@@ -183,7 +200,7 @@ pub fn prepare_scene(value: toml::Value, base: &Path) -> Result<Prepared, Error>
         sources.furnace = Some(fur);
     }
     let pipes = scene::pipes(&scene.particles, &scene.materials, &conductance)?;
-    Ok(Prepared { case, scene, pipes, sources, isothermal, conductance, source: None })
+    Ok(Prepared { case, scene, pipes, sources, isothermal, conductance, gap, source: None })
 }
 
 /// The heat network of a case: capacities, sources, scheme and, when a material has c(T) or κ(T)
@@ -361,6 +378,8 @@ pub fn run_returning_temperatures(
         case.time.scheme
     ));
     let mut net = network_for(&prep.case, &prep.sources, p, &prep.scene.materials, &prep.conductance);
+    // the conductances of the network's pipes: the contacts', then the gap pipes' (static packing)
+    let mut parts = prep.pipes.parts.clone();
     if net.properties().is_some() {
         log("temperature-dependent properties: c(T) and/or κ(T) tables (enthalpy form, Picard iteration; docs/heat-model.md eqs. P1–P4)");
     }
@@ -368,8 +387,20 @@ pub fn run_returning_temperatures(
         log("thermal.mode = isothermal: the heat network solve is skipped; every particle follows the furnace profile");
         p.temperature.iter_mut().for_each(|t| *t = prof.temperature(0.0));
     } else {
-        let secs = net.set_topology(&prep.pipes.pairs)?;
+        let (all, secs) = crate::heat::gap::attach(&mut net, prep.gap.as_mut(), &p.position, &p.radius, &prep.pipes.pairs, prep.pipes.parts.clone())?;
+        parts = all;
         log(&format!("heat network: {} unknowns, {} fixed-temperature particles; symbolic analysis {secs:.3} s", net.unknowns(), n - net.unknowns()));
+        if let Some(g) = &prep.gap {
+            let m = g.model;
+            log(&format!(
+                "gap model (docs/heat-model.md (H18)–(H23)): {} gap pipes between particles not in contact (gas k_g = {} W/(m·K), layer f = {}, jump distance M = {} m, surface emissivity {})",
+                net.gap_pipes(),
+                m.gas_conductivity,
+                m.layer_thickness,
+                m.jump_distance,
+                m.emissivity
+            ));
+        }
         net.apply_fixed(0.0, &mut p.temperature);
         // neighbour search is done once: the packing is static in a heat run
         log("static packing: neighbour search done once, mechanics and diffusion are not part of a heat run");
@@ -518,11 +549,11 @@ pub fn run_returning_temperatures(
             let saved = control.as_ref().map(|_| (p.temperature.clone(), net.history().cloned()));
             // the fixed-Δt report uses full-order estimates only; step control also the
             // conservative lower-order ones while the history builds up
-            let ydot = (control.is_some() && hist.len() == 1 && !spans_kink).then(|| net.rate_of_change(t, &p.temperature, &prep.pipes.parts));
+            let ydot = (control.is_some() && hist.len() == 1 && !spans_kink).then(|| net.rate_of_change(t, &p.temperature, &parts));
             let bdf2_step = case.time.scheme == crate::heat::Scheme::Bdf2 && net.history().is_some();
             let step_order =
                 if case.time.scheme == crate::heat::Scheme::BackwardEuler || (case.time.scheme == crate::heat::Scheme::Bdf2 && !bdf2_step) { 1 } else { 2 };
-            let info = match (net.step_pipes(t, dt, &mut p.temperature, &prep.pipes.parts), &control, &saved) {
+            let info = match (net.step_pipes(t, dt, &mut p.temperature, &parts), &control, &saved) {
                 (Ok(i), _, _) => i,
                 (Err(e), Some(c), Some((temps, bdf))) if dt > c.dt_min * (1.0 + 1e-9) => {
                     // a failed solve (radiation or property iteration) on a long step: shorter
@@ -687,6 +718,9 @@ pub fn run_returning_temperatures(
     });
     if let Some(c) = &control {
         summary["heat_tolerance_K"] = json!(c.tolerance);
+    }
+    if prep.gap.is_some() {
+        summary["gap_pipes"] = json!(net.gap_pipes());
     }
     io::write_json(&out.join("summary.json"), &summary)?;
     if snaps.hdf5_enabled() {
