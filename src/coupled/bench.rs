@@ -32,6 +32,15 @@ pub fn bench_coupled(copper_case: Option<&Path>, sizes: &[usize], steps: u64, ov
             "  mechanics: {} Newton iterations, {} factorisations; profile {}",
             s["mechanics"]["newton_iterations"], s["mechanics"]["factorizations"], s["mechanics_profile"]
         );
+        let rhs = s["rhs_evaluations"].as_f64().unwrap_or(0.0);
+        let _ = writeln!(
+            out,
+            "  7-DOF sweep: {:.3e} right-hand sides in {:.3} s = {:.3e} per second ({} ODE steps)",
+            rhs,
+            tm.diffusion,
+            rhs / tm.diffusion.max(1e-300),
+            s["ode_steps"]
+        );
         for (name, v) in [
             ("detection", tm.detection),
             ("heat", tm.heat),
