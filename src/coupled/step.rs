@@ -879,6 +879,12 @@ impl Simulation {
             }
             let n_particles = p.len();
             let xi: Vec<f64> = if n_particles == 2 {
+                if let Some(th) = &thermal {
+                    // the predictor (X12) moves both; B covers the rest of the approach below
+                    for (x, q) in self.prep.scene.particles.position.iter_mut().zip(&th.predictor) {
+                        *x += q;
+                    }
+                }
                 approach.clone()
             } else {
                 // the applied load enters as its increment over the step (docs/pressure.md (P2))
@@ -968,7 +974,10 @@ impl Simulation {
                 if p2 {
                     // an isolated pair: A stays, B approaches by exactly the 7-DOF prediction
                     let ps = &mut self.prep.scene.particles;
-                    ps.position[j as usize] -= xi[k] * e3[k];
+                    match &thermal {
+                        Some(th) => ps.position[j as usize] -= (xi[k] - th.predictor_approach[k]) * e3[k],
+                        None => ps.position[j as usize] -= xi[k] * e3[k],
+                    }
                 }
             }
             crate::finite::ensure_finite_groups("correction", self.step + 1, t1, "contact", "7-DOF state", self.contacts.state.iter().map(|c| &c.y))?;
