@@ -2,7 +2,8 @@
 //! (X1)–(X12)): α = 0 changes nothing, bit for bit; a compact heated uniformly without sintering
 //! expands by exactly ε = α (T − T_ref) in every direction; with sintering, the sintering
 //! shrinkage (X10) equals that of the run without expansion while the total differs by the
-//! thermal strain; a hot plate expands the hot side more; a checkpointed run resumes bit for bit;
+//! thermal strain; a hot plate expands the hot side more; a checkpointed run resumes bit for bit,
+//! and 1 and 2 threads agree bit for bit;
 //! bad values are rejected naming key, value, range and unit.
 
 use sinterdem::config::apply_override;
@@ -257,6 +258,23 @@ fn resumed_run_with_expansion_is_bit_identical() {
     assert!(f(&full, "thermal_strain") > 1e-2);
     let (sim, _) = Simulation::from_checkpoint(&coupled::read_checkpoint(&part).unwrap(), &mut |_| {}).unwrap();
     assert!(sim.expansion.as_ref().unwrap().reference_temperature.iter().all(|&t| t == 293.15));
+}
+
+/// With expansion on (bundled copper table, heating ramp, new contacts), 1 and 2 threads give the
+/// same series.csv byte for byte.
+#[test]
+fn one_and_two_threads_are_bit_identical_with_expansion() {
+    let dir = tmp("threads");
+    let p = packing(&dir, 0.2e-3, 0.2e-3);
+    let mut series = Vec::new();
+    for threads in [1, 2] {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        let v = case(&file_particles(&p), RAMP, 150.0, &["materials.0.thermal_expansion_table=\"copper\""]);
+        let (s, text) = pool.install(|| run(v, &dir.join(format!("t{threads}"))));
+        assert!(f(&s, "thermal_strain") > 1e-2);
+        series.push(text);
+    }
+    assert_eq!(series[0], series[1], "series differ between 1 and 2 threads");
 }
 
 /// Bad values name the key, the value, the range and the unit.
