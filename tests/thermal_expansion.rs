@@ -1,7 +1,7 @@
 //! Thermal expansion of the particles in compact runs (docs/coupled.md "Thermal expansion",
 //! (X1)–(X12)): α = 0 changes nothing, bit for bit; a compact heated uniformly without sintering
 //! expands by exactly ε = α (T − T_ref) in every direction; with sintering, the sintering
-//! shrinkage (X10) equals that of the run without expansion while the total differs by the
+//! shrinkage (X11) equals that of the run without expansion while the total differs by the
 //! thermal strain; a hot plate expands the hot side more; a checkpointed run resumes bit for bit,
 //! and 1 and 2 threads agree bit for bit;
 //! bad values are rejected naming key, value, range and unit.
@@ -89,7 +89,7 @@ fn zero_coefficient_is_bit_identical_to_no_key() {
 /// An FCC block and a corner of the random green packing heated uniformly from 293.15 K to 500 K
 /// (where copper does not sinter: the run without expansion shrinks by 2e-12), α = 1.65e-5 1/K:
 /// every extent grows by (1 + ε) with ε = α·206.85 K = 3.4130e-3 — the dilation (1 − s)/(1 − s₀)
-/// against the run without expansion equals 1 + ε to 1e-12 —, the sintering shrinkage (X10) is
+/// against the run without expansion equals 1 + ε to 1e-12 —, the sintering shrinkage (X11) is
 /// the run without expansion's, every bond's centre distance grew by ε, and the relative density
 /// is unchanged.
 #[test]
@@ -130,10 +130,10 @@ fn uniform_heating_without_sintering_expands_homogeneously_by_the_thermal_strain
 }
 
 /// The corner of the random packing heated to 1293 K and sintered for 200 s, with and without
-/// expansion (new contacts found on the way in both): the sintering shrinkage (X10) equals the
+/// expansion (new contacts found on the way in both): the sintering shrinkage (X11) equals the
 /// run without expansion's per axis, the total differs by the thermal strain ε = α·999.85 K =
 /// 1.6498e-2, the relative density is the same. Tolerance 1e-7 relative: the expanded compact is
-/// the unexpanded one scaled by 1 + ε (X12), so the runs differ only by the bonded solve's
+/// the unexpanded one scaled by 1 + ε (X7), so the runs differ only by the bonded solve's
 /// tolerance (mechanics.rtol = 1e-6 of each step's load; measured 9e-9 with the constant α, 1e-12
 /// with rtol = 1e-10); the run with the bundled α(T) table meets the same tolerance.
 #[test]
@@ -165,7 +165,7 @@ fn sintering_shrinkage_equals_the_run_without_expansion_and_the_total_differs_by
 }
 
 /// A two-particle compact (no bonded solve: B approaches A by the eigen-approach (X5), both moved
-/// by the predictor (X12)) heated to 1293 K and sintered for 200 s: the sintering shrinkage along
+/// by the predictor (X7)) heated to 1293 K and sintered for 200 s: the sintering shrinkage along
 /// the pair equals the unexpanded pair's to 1e-8 relative, and across it, where nothing sinters,
 /// the pair dilates by exactly 1 + ε.
 #[test]

@@ -284,7 +284,7 @@ pub fn run_from(
     summary["layer_z_m"] = json!(prof.iter().map(|l| l.0).collect::<Vec<_>>());
     summary["layer_contact_shrinkage"] = json!(prof.iter().map(|l| l.1).collect::<Vec<_>>());
     summary["layer_neck_ratio"] = json!(prof.iter().map(|l| l.2).collect::<Vec<_>>());
-    // thermal expansion (docs/coupled.md (X9), (X10)): zeros and the total shrinkage when off
+    // thermal expansion (docs/coupled.md (X10), (X11)): zeros and the total shrinkage when off
     let (eps, ss) = (sim.thermal_strain(), sim.sintering_shrinkage());
     summary["thermal_expansion"] = json!(sim.expansion.is_some());
     summary["thermal_strain"] = json!(eps.0);

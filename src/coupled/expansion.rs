@@ -1,11 +1,11 @@
 //! Thermal expansion of the particles of a compact run (docs/coupled.md "Thermal expansion",
-//! (X1)–(X9)).
+//! (X1)–(X12)).
 //!
 //! Each particle's free radius is `r_i(1 + ε_i)` with `ε_i = ∫ α dT` from its temperature at
 //! t = 0 (X1). The 7-DOF contacts, the heat network and the contact search keep working in the
 //! reference (unexpanded) geometry; the bonded mechanics receives, per bond and step, the thermal
 //! eigen-elongation (X4) beside the sintering approach, scaled to the current geometry (X5), and
-//! hands back to the correction the mechanical approach net of it (X7). A compact heated
+//! hands back to the correction the mechanical approach net of it (X8). A compact heated
 //! uniformly without sintering thus expands homogeneously by exactly ε in every direction.
 //! Without any expanding material nothing here is built and a run is bit-identical to one
 //! without the feature.
@@ -38,9 +38,9 @@ pub struct StepTerms {
     /// Expanded radii at the step's start (X6) [m], one per particle: R_m of the links and r̄ (the
     /// step is linearised about its start, as are the lever arms (B2)).
     pub radii: Vec<f64>,
-    /// The predicted thermal displacement of each particle over the step (X12) [m].
+    /// The predicted thermal displacement of each particle over the step (X7) [m].
     pub predictor: Vec<Vector3<f64>>,
-    /// Each bond's axial approach under the predictor, `(u_A − u_B)·e3` (X12) [m].
+    /// Each bond's axial approach under the predictor, `(u_A − u_B)·e3` (X7) [m].
     pub predictor_approach: Vec<f64>,
 }
 
@@ -74,13 +74,13 @@ impl ThermalExpansion {
         p.radius[i] * (1.0 + eps[i]) + p.radius[j] * (1.0 + eps[j])
     }
 
-    /// (X3)–(X6) and (X12) of one step, from the strains `eps0` at its start and `eps1` at its
+    /// (X3)–(X6) and (X7) of one step, from the strains `eps0` at its start and `eps1` at its
     /// end, at the positions of its start; `corner` [m]: the corner of the principal planes.
     pub fn step_terms(&self, p: &Particles, pairs: &[[u32; 2]], eps0: &[f64], eps1: &[f64], corner: &Vector3<f64>) -> StepTerms {
         let m = pairs.len();
         let mut t =
             StepTerms { elongation: Vec::with_capacity(m), factor: Vec::with_capacity(m), predictor_approach: Vec::with_capacity(m), ..Default::default() };
-        // (X12): the affine expansion by the mean strain about the planes' corner; a particle held
+        // (X7): the affine expansion by the mean strain about the planes' corner; a particle held
         // on a plane moves off it by its own radial growth instead of the mean one (its surface
         // keeps its distance to the plane)
         let (mean0, mean1) = (Self::mean_strain(p, eps0, pairs).0, Self::mean_strain(p, eps1, pairs).0);
@@ -111,12 +111,12 @@ impl ThermalExpansion {
         t
     }
 
-    /// (X8) The reference centre distance of the pair `i`, `j` at distance `d` [m]: `d·L_ref/L(ε)`.
+    /// (X9) The reference centre distance of the pair `i`, `j` at distance `d` [m]: `d·L_ref/L(ε)`.
     pub fn reference_distance(p: &Particles, eps: &[f64], i: usize, j: usize, d: f64) -> f64 {
         d * (p.radius[i] + p.radius[j]) / Self::free_length(p, eps, i, j)
     }
 
-    /// (X9) The volume-weighted mean thermal strain `Σ V_i ε_i / Σ V_i` over the particles with a
+    /// (X10) The volume-weighted mean thermal strain `Σ V_i ε_i / Σ V_i` over the particles with a
     /// contact (all particles when none has one) [1], and the smallest and largest ε_i among them.
     pub fn mean_strain(p: &Particles, eps: &[f64], pairs: &[[u32; 2]]) -> (f64, f64, f64) {
         let mut bonded = vec![pairs.is_empty(); p.len()];
@@ -136,7 +136,7 @@ impl ThermalExpansion {
     }
 }
 
-/// (X10) The sintering shrinkage `s_sint = 1 − (1 − s)/(1 + ε̄)` of a total shrinkage `s` (1 −
+/// (X11) The sintering shrinkage `s_sint = 1 − (1 − s)/(1 + ε̄)` of a total shrinkage `s` (1 −
 /// L/L0 of the extents) with the mean thermal strain `eps` [1].
 pub fn sintering_shrinkage(s: f64, eps: f64) -> f64 {
     1.0 - (1.0 - s) / (1.0 + eps)

@@ -154,7 +154,7 @@ pub fn write_plots(out: &Path, sim: &Simulation) -> Result<(), IoError> {
         p.add(Line::new(name, col(key)));
     }
     if sim.expansion.is_some() {
-        // (X10): net of the thermal strain
+        // (X11): net of the thermal strain
         for (name, key) in [("x, sintering", "sintering_shrinkage_x"), ("y, sintering", "sintering_shrinkage_y"), ("z, sintering", "sintering_shrinkage_z")] {
             p.add(Line::new(name, col(key)));
         }

@@ -456,7 +456,7 @@ pub struct Simulation {
     pub source: (String, std::path::PathBuf),
     /// The applied load and its distribution over the contacts (docs/pressure.md); None: no load.
     pub load: Option<super::load::LoadState>,
-    /// Thermal expansion of the particles (docs/coupled.md (X1)–(X10)); None: no material expands.
+    /// Thermal expansion of the particles (docs/coupled.md (X1)–(X12)); None: no material expands.
     pub expansion: Option<super::expansion::ThermalExpansion>,
 }
 
@@ -608,7 +608,7 @@ impl Simulation {
     }
 
     /// Extent from the principal planes to the mean far face along each axis [m], with the
-    /// thermally expanded radii (docs/coupled.md (X11)).
+    /// thermally expanded radii (docs/coupled.md (X12)).
     pub fn extents(&self) -> Vector3<f64> {
         let p = &self.prep.scene.particles;
         let free = !self.settings.mechanics.constrain_planes;
@@ -621,7 +621,7 @@ impl Simulation {
             let l = &self.far_layer[a];
             let s: f64 = l.iter().map(|&i| p.position[i as usize][a] + r(i)).sum();
             // with constrained planes the near face is the plane itself (the particles held on it
-            // keep their surface on it, (X12)); without, it is the mean near face of the particles
+            // keep their surface on it, (X7)); without, it is the mean near face of the particles
             // that started on it ((S6) with both faces measured)
             let near = if free && !self.near_layer[a].is_empty() {
                 let l = &self.near_layer[a];
@@ -643,7 +643,7 @@ impl Simulation {
         let gap = if during_run { self.settings.new_gap } else { self.settings.gap };
         let state = if during_run { self.settings.new_state } else { NewContactState::Seed };
         // with thermal expansion the search sees the expanded radii and each contact starts from
-        // the reference distance (X8) of its pair
+        // the reference distance (X9) of its pair
         let eps = self.thermal_strains();
         let radii: std::borrow::Cow<[f64]> = match &eps {
             Some(e) => p.radius.iter().zip(e).map(|(r, e)| r * (1.0 + e)).collect::<Vec<f64>>().into(),
@@ -716,7 +716,7 @@ impl Simulation {
                 let a = match self.settings.neck {
                     NeckSource::SevenDof => c.y[0],
                     NeckSource::VolumeConserving => {
-                        // in the reference geometry of the contact (X8)
+                        // in the reference geometry of the contact (X9)
                         let d = match &eps {
                             Some(e) => super::expansion::ThermalExpansion::reference_distance(p, e, i as usize, j as usize, dist(p, i, j)),
                             None => dist(p, i, j),
@@ -880,7 +880,7 @@ impl Simulation {
             let n_particles = p.len();
             let xi: Vec<f64> = if n_particles == 2 {
                 if let Some(th) = &thermal {
-                    // the predictor (X12) moves both; B covers the rest of the approach below
+                    // the predictor (X7) moves both; B covers the rest of the approach below
                     for (x, q) in self.prep.scene.particles.position.iter_mut().zip(&th.predictor) {
                         *x += q;
                     }
@@ -890,7 +890,7 @@ impl Simulation {
                 // the applied load enters as its increment over the step (docs/pressure.md (P2))
                 let external = self.load_increment(t1);
                 let radii = thermal.as_ref().map(|th| th.radii.as_slice());
-                // with thermal expansion the solve takes what the predictor (X12) leaves
+                // with thermal expansion the solve takes what the predictor (X7) leaves
                 let solve_approach: std::borrow::Cow<[f64]> = match &thermal {
                     Some(th) => approach.iter().zip(&th.predictor_approach).map(|(a, q)| a - q).collect::<Vec<f64>>().into(),
                     None => (&approach[..]).into(),
@@ -906,7 +906,7 @@ impl Simulation {
                 xi
             };
             crate::finite::ensure_finite("mechanics", self.step + 1, t1, "contact", "axial approach", xi.iter().copied())?;
-            // (X7): the correction gets the mechanical approach net of the thermal elongation, in
+            // (X8): the correction gets the mechanical approach net of the thermal elongation, in
             // the reference geometry of the 7-DOF contacts (the pair moves by the full ξ above)
             let xi_ref: std::borrow::Cow<[f64]> = match &thermal {
                 Some(th) => xi.iter().zip(&th.elongation).zip(&th.factor).map(|((x, d), f)| (x + d) / f).collect::<Vec<f64>>().into(),
@@ -1229,7 +1229,7 @@ impl Simulation {
     }
 
     /// Relative density: particle volume over the bounding volume from the principal planes to the
-    /// far faces (Ivannikov et al. 2022 eq. 49) [1], both with the thermally expanded radii (X11).
+    /// far faces (Ivannikov et al. 2022 eq. 49) [1], both with the thermally expanded radii (X12).
     pub fn relative_density(&self) -> f64 {
         let p = &self.prep.scene.particles;
         let v: f64 = match self.thermal_strains() {
@@ -1275,7 +1275,7 @@ impl Simulation {
         Some(x.strains(p, &p.temperature))
     }
 
-    /// (X9) The mean thermal strain of the compact (volume-weighted over the particles with a
+    /// (X10) The mean thermal strain of the compact (volume-weighted over the particles with a
     /// contact), and the smallest and largest particle strain among them [1]; zeros without
     /// thermal expansion.
     pub fn thermal_strain(&self) -> (f64, f64, f64) {
@@ -1285,7 +1285,7 @@ impl Simulation {
         }
     }
 
-    /// (X10) Sintering shrinkage per axis: the total shrinkage net of the mean thermal strain,
+    /// (X11) Sintering shrinkage per axis: the total shrinkage net of the mean thermal strain,
     /// `1 − (1 − s)/(1 + ε̄)` [1]; the total itself without thermal expansion.
     pub fn sintering_shrinkage(&self) -> Vector3<f64> {
         let s = self.shrinkage();
