@@ -25,6 +25,12 @@ pub struct MaterialSpec {
     /// c(T) as a piecewise-linear table: `[[T, c], ...]` ([K], [J/(kg·K)]) or the name of a bundled
     /// table; replaces `heat_capacity` in every heat path (heat-model.md eqs. P1–P2).
     pub heat_capacity_table: Option<toml::Value>,
+    /// Linear thermal expansion coefficient α [1/K] of compact runs (docs/coupled.md (X1)); 0 or
+    /// absent: no thermal expansion.
+    pub thermal_expansion: Option<f64>,
+    /// α(T) as a piecewise-linear table `[[T, α], ...]` ([K], [1/K]) or the name of a bundled table
+    /// ("copper", "titanium"); replaces `thermal_expansion` (docs/coupled.md (X1)).
+    pub thermal_expansion_table: Option<toml::Value>,
     /// Young's modulus E [Pa].
     pub young_modulus: Option<f64>,
     /// Poisson's ratio ν [1].
@@ -60,6 +66,8 @@ pub struct Material {
     pub conductivity_table: Option<Table>,
     /// c(T) [J/(kg·K)], if given (then `heat_capacity` is its value at 293.15 K).
     pub heat_capacity_table: Option<Table>,
+    /// Linear thermal expansion α [1/K] (compact runs, docs/coupled.md (X1)); None: off.
+    pub thermal_expansion: Option<Expansion>,
     /// E [Pa].
     pub young_modulus: f64,
     /// ν [1].
@@ -84,6 +92,7 @@ pub fn preset(name: &str) -> Option<Material> {
             conductivity: 394.0,
             conductivity_table: None,
             heat_capacity_table: None,
+            thermal_expansion: None,
             young_modulus: 72e9,
             poisson_ratio: 0.34,
             diffusion: Some("copper".into()),
@@ -96,6 +105,7 @@ pub fn preset(name: &str) -> Option<Material> {
             conductivity: 21.9,
             conductivity_table: None,
             heat_capacity_table: None,
+            thermal_expansion: None,
             young_modulus: 57e9,
             poisson_ratio: 0.39,
             diffusion: Some("titanium".into()),
@@ -175,6 +185,11 @@ impl MaterialSpec {
         let conductivity_table = table(&self.conductivity_table, "conductivity_table", self.conductivity, Quantity::Conductivity)?;
         let heat_capacity_table = table(&self.heat_capacity_table, "heat_capacity_table", self.heat_capacity, Quantity::HeatCapacity)?;
         let from_table = |t: &Option<Table>| t.as_ref().map(|t| t.at(REFERENCE_TEMPERATURE));
+        let alpha = self.thermal_expansion.map(|a| config::check(&key("thermal_expansion"), a)).transpose()?;
+        let thermal_expansion = match table(&self.thermal_expansion_table, "thermal_expansion_table", alpha, Quantity::ThermalExpansion)? {
+            Some(t) => Some(Expansion::Table(t)),
+            None => alpha.filter(|&a| a != 0.0).map(Expansion::Constant),
+        };
         Ok(Material {
             name: self.name.clone(),
             density: get(self.density, "density", base.as_ref().map(|b| b.density))?,
@@ -188,6 +203,7 @@ impl MaterialSpec {
             },
             conductivity_table,
             heat_capacity_table,
+            thermal_expansion,
             young_modulus: young,
             poisson_ratio: poisson,
             diffusion: diffusion_name,
@@ -228,6 +244,8 @@ pub enum Quantity {
     Conductivity,
     /// c [J/(kg·K)], (0, 1e5].
     HeatCapacity,
+    /// α [1/K], (0, 1e-3].
+    ThermalExpansion,
 }
 
 impl Quantity {
@@ -235,12 +253,14 @@ impl Quantity {
         match self {
             Quantity::Conductivity => (1e4, "W/(m K)", "conductivity"),
             Quantity::HeatCapacity => (1e5, "J/(kg K)", "heat capacity"),
+            Quantity::ThermalExpansion => (1e-3, "1/K", "thermal expansion coefficient"),
         }
     }
     fn constant_key(self) -> &'static str {
         match self {
             Quantity::Conductivity => "conductivity",
             Quantity::HeatCapacity => "heat_capacity",
+            Quantity::ThermalExpansion => "thermal_expansion",
         }
     }
 }
@@ -259,7 +279,9 @@ pub struct Table {
 /// Transfer*, 6th ed., Wiley, Table A.1 (pure copper; unalloyed titanium), points 200–1200 K
 /// (copper, melting at 1358 K) and 200–1500 K (titanium). The titanium heat capacity falls from
 /// 675 (1000 K) to 620 J/(kg·K) (1200 K) across the α→β transition (1155 K); the table has no
-/// point inside it and no latent-heat peak (docs/heat-model.md).
+/// point inside it and no latent-heat peak (docs/heat-model.md). Thermal expansion α(T): Kaye &
+/// Laby (NPL) §2.3.5, copper 100–1100 K, titanium 293–1100 K (α phase; the α→β step in length at
+/// 1155 K is not modelled, docs/coupled.md "Thermal expansion").
 pub fn bundled_table(name: &str, quantity: Quantity) -> Option<Table> {
     let (t, v): (&[f64], &[f64]) = match (name, quantity) {
         ("copper", Quantity::Conductivity) => (&[200.0, 300.0, 400.0, 600.0, 800.0, 1000.0, 1200.0], &[413.0, 401.0, 393.0, 379.0, 366.0, 352.0, 339.0]),
@@ -270,9 +292,33 @@ pub fn bundled_table(name: &str, quantity: Quantity) -> Option<Table> {
         ("titanium", Quantity::HeatCapacity) => {
             (&[200.0, 300.0, 400.0, 600.0, 800.0, 1000.0, 1200.0, 1500.0], &[465.0, 522.0, 551.0, 591.0, 633.0, 675.0, 620.0, 686.0])
         }
+        // α [1/K]: Kaye & Laby, Tables of Physical and Chemical Constants (NPL), §2.3.5
+        // (docs/coupled.md "Thermal expansion", docs/references.md)
+        ("copper", Quantity::ThermalExpansion) => (&[100.0, 200.0, 293.0, 500.0, 800.0, 1100.0], &[10.3e-6, 15.2e-6, 16.5e-6, 18.3e-6, 20.3e-6, 23.7e-6]),
+        ("titanium", Quantity::ThermalExpansion) => (&[293.0, 500.0, 800.0, 1100.0], &[8.6e-6, 9.9e-6, 11.1e-6, 11.7e-6]),
         _ => return None,
     };
     Some(Table { temperature: t.to_vec(), value: v.to_vec() })
+}
+
+/// Linear thermal expansion of a material (docs/coupled.md (X1)).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub enum Expansion {
+    /// A constant α [1/K].
+    Constant(f64),
+    /// α(T) [1/K], piecewise linear, constant beyond its ends.
+    Table(Table),
+}
+
+impl Expansion {
+    /// (X1) The free thermal strain ε_th = ∫_{T_ref}^{T} α dT [1] from `t_ref` to `t` [K];
+    /// exactly 0 at `t = t_ref`.
+    pub fn strain(&self, t_ref: f64, t: f64) -> f64 {
+        match self {
+            Expansion::Constant(a) => a * (t - t_ref),
+            Expansion::Table(tab) => tab.integral(t_ref, t),
+        }
+    }
 }
 
 impl Table {

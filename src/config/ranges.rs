@@ -101,6 +101,13 @@ pub static TABLE: &[Range] = &[
     p("materials.*.young_modulus", 0.0, 1e13, "Pa", "Young's modulus E"),
     c("materials.*.poisson_ratio", -0.99, 0.4999, "1", "Poisson's ratio nu"),
     c("materials.*.emissivity", 0.0, 1.0, "1", "total hemispherical emissivity"),
+    c(
+        "materials.*.thermal_expansion",
+        0.0,
+        1e-3,
+        "1/K",
+        "compact runs: linear thermal expansion coefficient alpha of the particle radii (0: off; docs/coupled.md (X1))",
+    ),
     // particles
     c("particles.radius", 1e-9, 1.0, "m", "particle radius (also every radius of a packing file)"),
     c("particles.radius_2", 1e-9, 1.0, "m", "second particle radius of a pair"),

@@ -23,6 +23,10 @@ const SERIES_HEADER: &[&str] = &[
     "max_temperature_K",
     "subdivided_fraction",
     "rhs_evaluations",
+    "thermal_strain",
+    "sintering_shrinkage_x",
+    "sintering_shrinkage_y",
+    "sintering_shrinkage_z",
     "applied_stress_Pa",
     "sigma_xx_Pa",
     "sigma_yy_Pa",
@@ -117,6 +121,7 @@ pub fn run_from(
         let (mean, t_lo, t_hi) = sim.temperature_stats(&sim.isolated_particles());
         let frac = sim.contacts.substeps.iter().filter(|&&s| s > 1).count() as f64 / sim.contacts.len().max(1) as f64;
         let sg = sim.macroscopic_stress();
+        let ss = sim.sintering_shrinkage();
         series.row(&[
             sim.t,
             dt,
@@ -132,6 +137,10 @@ pub fn run_from(
             t_hi,
             frac,
             sim.ode.rhs as f64,
+            sim.thermal_strain().0,
+            ss.x,
+            ss.y,
+            ss.z,
             sim.applied_stress(),
             sg[0],
             sg[1],
@@ -293,6 +302,15 @@ pub fn run_from(
         summary["gap_pipes"] = json!(g.pipes().map_or(0, |p| p.len()));
         summary["particles_connected_only_through_gaps"] = json!(sim.particles_connected_only_through_gaps());
     }
+    // thermal expansion (docs/coupled.md (X10), (X11)): zeros and the total shrinkage when off
+    let (eps, ss) = (sim.thermal_strain(), sim.sintering_shrinkage());
+    summary["thermal_expansion"] = json!(sim.expansion.is_some());
+    summary["thermal_strain"] = json!(eps.0);
+    summary["thermal_strain_min"] = json!(eps.1);
+    summary["thermal_strain_max"] = json!(eps.2);
+    summary["sintering_shrinkage_x"] = json!(ss.x);
+    summary["sintering_shrinkage_y"] = json!(ss.y);
+    summary["sintering_shrinkage_z"] = json!(ss.z);
     io::write_json(&out.join("summary.json"), &summary)?;
     // the series and summary also go into the HDF5 file (docs/outputs.md)
     if sim.prep.case.output.hdf5

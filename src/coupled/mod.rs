@@ -13,6 +13,7 @@
 mod bench;
 mod checkpoint;
 mod driver;
+pub mod expansion;
 pub mod load;
 mod output;
 pub mod precision;

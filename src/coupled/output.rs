@@ -61,15 +61,25 @@ pub(crate) fn write_snapshot(sim: &Simulation, snaps: &mut SnapshotWriter) -> Re
     let normal: Vec<f64> = sim.contacts.state.iter().map(|c| c.normal_force).collect();
     let disp: Vec<nalgebra::Vector3<f64>> = p.position.iter().zip(&sim.x0).map(|(x, x0)| x - x0).collect();
     let materials_json = serde_json::to_string_pretty(&sim.d7_materials).unwrap_or_default();
+    // with thermal expansion: the expanded radii and each particle's thermal strain (X1)
+    let eps = sim.thermal_strains();
+    let radius: Vec<f64> = match &eps {
+        Some(e) => p.radius.iter().zip(e).map(|(r, e)| r * (1.0 + e)).collect(),
+        None => p.radius.clone(),
+    };
+    let mut particle_data = vec![];
+    if let Some(e) = &eps {
+        particle_data.push(("thermal_strain", e.as_slice()));
+    }
     snaps.write(&Snapshot {
         time: sim.t,
         step: sim.step,
         position: &p.position,
-        radius: &p.radius,
+        radius: &radius,
         temperature: &p.temperature,
         contacts: &sim.contacts.pairs,
         contact_data: vec![("neck_radius_m", &neck), ("contact_shrinkage", &shrink), ("dl_bar_m", &sim.contacts.dl_bar), ("normal_force_N", &normal)],
-        particle_data: vec![],
+        particle_data,
         particle_vectors: vec![("displacement_m", &disp), ("velocity_m_per_s", &sim.velocity)],
         parameters: Some(crate::io::Parameters { case_toml: sim.source.0.clone(), materials_json }),
     })
@@ -142,6 +152,12 @@ pub fn write_plots(out: &Path, sim: &Simulation) -> Result<(), IoError> {
     let mut p = Plot::new("shrinkage along each axis").labels("time t [s]", "shrinkage 1 - L/L0 [1]");
     for (name, key) in [("x", "shrinkage_x"), ("y", "shrinkage_y"), ("z", "shrinkage_z")] {
         p.add(Line::new(name, col(key)));
+    }
+    if sim.expansion.is_some() {
+        // (X11): net of the thermal strain
+        for (name, key) in [("x, sintering", "sintering_shrinkage_x"), ("y, sintering", "sintering_shrinkage_y"), ("z, sintering", "sintering_shrinkage_z")] {
+            p.add(Line::new(name, col(key)));
+        }
     }
     p.save_png(&out.join("shrinkage.png"))?;
     let mut p = Plot::new("relative density (eq. 49)").labels("time t [s]", "relative density [1]");

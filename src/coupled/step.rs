@@ -281,12 +281,15 @@ impl MechanicsStage {
     }
 
     /// Solves the step: displacement increments per particle and the axial approach ξ per contact.
+    /// `radii`: the thermally expanded radii (docs/coupled.md (X6)) that set R_m of the links and of
+    /// the load (F5); None: the particles' own.
     fn solve(
         &mut self,
         p: &crate::particles::Particles,
         contacts: &Contacts,
         approach: &[f64],
         external: Option<&[NodalLoad]>,
+        radii: Option<&[f64]>,
     ) -> Result<(Vec<Vector3<f64>>, Vec<f64>), Error> {
         let sys = self.sys.as_mut().ok_or_else(|| ModelError::new("mechanics: the bonded system was not built"))?;
         if self.bonds != contacts.len() {
@@ -300,9 +303,12 @@ impl MechanicsStage {
             .iter()
             .zip(approach)
             .zip(&contacts.pairs)
-            .map(|((c, &a), &[i, j])| d7::load_increment(a, 0.0, c.r_mean(), sys.link_elastic(i, j)[0]))
+            .map(|((c, &a), &[i, j])| {
+                let r_m = radii.map_or(c.r_mean(), |r| 0.5 * (r[i as usize] + r[j as usize]));
+                d7::load_increment(a, 0.0, r_m, sys.link_elastic(i, j)[0])
+            })
             .collect();
-        let inp = StepInput { positions: &p.position, radii: &p.radius, y4_y7: &y4_y7, load: &load, external };
+        let inp = StepInput { positions: &p.position, radii: radii.unwrap_or(&p.radius), y4_y7: &y4_y7, load: &load, external };
         let out = step_or_refactor(sys, &inp)?;
         for (r, d) in self.rotation.iter_mut().zip(&out.dtheta) {
             *r += d;
@@ -461,6 +467,8 @@ pub struct Simulation {
     pub source: (String, std::path::PathBuf),
     /// The applied load and its distribution over the contacts (docs/pressure.md); None: no load.
     pub load: Option<super::load::LoadState>,
+    /// Thermal expansion of the particles (docs/coupled.md (X1)–(X12)); None: no material expands.
+    pub expansion: Option<super::expansion::ThermalExpansion>,
 }
 
 fn dist(p: &crate::particles::Particles, i: u32, j: u32) -> f64 {
@@ -544,6 +552,7 @@ impl Simulation {
             skipped: Vec::new(),
             source: (String::new(), std::path::PathBuf::new()),
             load: None,
+            expansion: None,
             prep,
         };
         sim.extent0 = sim.extents();
@@ -558,6 +567,17 @@ impl Simulation {
             let net = crate::heat::run::network_for(&sim.prep.case, &sim.prep.sources, p, &sim.prep.scene.materials, &sim.prep.conductance);
             net.apply_fixed(0.0, &mut p.temperature);
             sim.heat = Some(net);
+        }
+        // (X1): the reference temperature of each particle is its temperature at t = 0
+        sim.expansion = super::expansion::ThermalExpansion::new(&sim.prep.scene.materials, &sim.prep.scene.particles);
+        if let Some(x) = sim.expansion.as_mut() {
+            let p = &sim.prep.scene.particles;
+            if sim.settings.mechanics.constrain_planes {
+                x.plane_mask = crate::mechanics::Constraints::principal_planes(&p.position, &p.radius, sim.settings.mechanics.plane_gap)?.fixed;
+            }
+            log(
+                "thermal expansion on: particle radii grow by ε = ∫α dT from each particle's temperature at t = 0; shrinkage is reported in total and net of the thermal strain (docs/coupled.md \"Thermal expansion\")",
+            );
         }
         if n == 2 {
             log("two particles: the bonded mechanics is skipped; the pair approaches by exactly the 7-DOF prediction");
@@ -598,18 +618,25 @@ impl Simulation {
         Ok(sim)
     }
 
-    /// Extent from the principal planes to the mean far face along each axis [m].
+    /// Extent from the principal planes to the mean far face along each axis [m], with the
+    /// thermally expanded radii (docs/coupled.md (X12)).
     pub fn extents(&self) -> Vector3<f64> {
         let p = &self.prep.scene.particles;
         let free = !self.settings.mechanics.constrain_planes;
+        let eps = self.thermal_strains();
+        let r = |i: u32| match &eps {
+            Some(e) => p.radius[i as usize] * (1.0 + e[i as usize]),
+            None => p.radius[i as usize],
+        };
         Vector3::from_fn(|a, _| {
             let l = &self.far_layer[a];
-            let s: f64 = l.iter().map(|&i| p.position[i as usize][a] + p.radius[i as usize]).sum();
-            // with constrained planes the near face is the plane itself; without, it is the mean
-            // near face of the particles that started on it ((S6) with both faces measured)
+            let s: f64 = l.iter().map(|&i| p.position[i as usize][a] + r(i)).sum();
+            // with constrained planes the near face is the plane itself (the particles held on it
+            // keep their surface on it, (X7)); without, it is the mean near face of the particles
+            // that started on it ((S6) with both faces measured)
             let near = if free && !self.near_layer[a].is_empty() {
                 let l = &self.near_layer[a];
-                l.iter().map(|&i| p.position[i as usize][a] - p.radius[i as usize]).sum::<f64>() / l.len() as f64
+                l.iter().map(|&i| p.position[i as usize][a] - r(i)).sum::<f64>() / l.len() as f64
             } else {
                 self.planes[a]
             };
@@ -626,7 +653,15 @@ impl Simulation {
         let during_run = self.step > 0;
         let gap = if during_run { self.settings.new_gap } else { self.settings.gap };
         let state = if during_run { self.settings.new_state } else { NewContactState::Seed };
-        let found = crate::contacts::detect::touching_pairs(&p.position, &p.radius, gap * p.mean_radius());
+        // with thermal expansion the search sees the expanded radii and each contact starts from
+        // the reference distance (X9) of its pair
+        let eps = self.thermal_strains();
+        let radii: std::borrow::Cow<[f64]> = match &eps {
+            Some(e) => p.radius.iter().zip(e).map(|(r, e)| r * (1.0 + e)).collect::<Vec<f64>>().into(),
+            None => (&p.radius[..]).into(),
+        };
+        let r_mean = if eps.is_some() { radii.iter().sum::<f64>() / radii.len().max(1) as f64 } else { p.mean_radius() };
+        let found = crate::contacts::detect::touching_pairs(&p.position, &radii, gap * r_mean);
         let existing: std::collections::HashSet<(u32, u32)> = self.contacts.pairs.iter().map(|&[i, j]| (i, j)).collect();
         let mut added = 0;
         // overlap at detection relative to the smaller radius (log only)
@@ -636,7 +671,10 @@ impl Simulation {
                 continue;
             }
             let (ri, rj) = (p.radius[i as usize], p.radius[j as usize]);
-            let d_now = dist(p, i, j);
+            let d_now = match &eps {
+                Some(e) => super::expansion::ThermalExpansion::reference_distance(p, e, i as usize, j as usize, dist(p, i, j)),
+                None => dist(p, i, j),
+            };
             overlaps.push((ri + rj - d_now) / ri.min(rj));
             // a pair within the gap tolerance starts as touching (I1 needs d ≤ R_A + R_B)
             let d = d_now.min(ri + rj);
@@ -678,6 +716,7 @@ impl Simulation {
         let p = &self.prep.scene.particles;
         let law: &Conductance = &self.prep.conductance;
         let mats = &self.prep.scene.materials;
+        let eps = self.thermal_strains();
         self.contacts
             .pairs
             .iter()
@@ -688,7 +727,12 @@ impl Simulation {
                 let a = match self.settings.neck {
                     NeckSource::SevenDof => c.y[0],
                     NeckSource::VolumeConserving => {
-                        let h = ri + rj - dist(p, i, j);
+                        // in the reference geometry of the contact (X9)
+                        let d = match &eps {
+                            Some(e) => super::expansion::ThermalExpansion::reference_distance(p, e, i as usize, j as usize, dist(p, i, j)),
+                            None => dist(p, i, j),
+                        };
+                        let h = ri + rj - d;
                         crate::neck::solve(ri, rj, h).map_err(|e| e.with_context(format!("contact {k} ({i}–{j}) at t = {} s", self.t)))?.a
                     }
                 };
@@ -832,19 +876,55 @@ impl Simulation {
                 e3.push(d / d.norm());
                 approach.push((c.y_prev[3] - c.y[3]) + (c.y_prev[6] - c.y[6]));
             }
+            // thermal expansion (docs/coupled.md (X3)–(X6)): each bond's eigen-approach in the
+            // current geometry is the scaled sintering approach less the thermal elongation
+            let thermal = self.expansion.as_ref().map(|x| {
+                let temps_end = match &self.prep.isothermal {
+                    Some(prof) => vec![prof.temperature(if t1 >= end * (1.0 - 1e-12) { end } else { t1 }); p.len()],
+                    None => p.temperature.clone(),
+                };
+                x.step_terms(p, &self.contacts.pairs, &x.strains(p, &temps_old), &x.strains(p, &temps_end), &self.planes)
+            });
+            if let Some(th) = &thermal {
+                for ((a, f), dth) in approach.iter_mut().zip(&th.factor).zip(&th.elongation) {
+                    *a = f * *a - dth;
+                }
+            }
             let n_particles = p.len();
             let xi: Vec<f64> = if n_particles == 2 {
+                if let Some(th) = &thermal {
+                    // the predictor (X7) moves both; B covers the rest of the approach below
+                    for (x, q) in self.prep.scene.particles.position.iter_mut().zip(&th.predictor) {
+                        *x += q;
+                    }
+                }
                 approach.clone()
             } else {
                 // the applied load enters as its increment over the step (docs/pressure.md (P2))
                 let external = self.load_increment(t1);
-                let (du, xi) = self.mechanics.solve(&self.prep.scene.particles, &self.contacts, &approach, external.as_deref())?;
+                let radii = thermal.as_ref().map(|th| th.radii.as_slice());
+                // with thermal expansion the solve takes what the predictor (X7) leaves
+                let solve_approach: std::borrow::Cow<[f64]> = match &thermal {
+                    Some(th) => approach.iter().zip(&th.predictor_approach).map(|(a, q)| a - q).collect::<Vec<f64>>().into(),
+                    None => (&approach[..]).into(),
+                };
+                let (mut du, mut xi) = self.mechanics.solve(&self.prep.scene.particles, &self.contacts, &solve_approach, external.as_deref(), radii)?;
+                if let Some(th) = &thermal {
+                    du.iter_mut().zip(&th.predictor).for_each(|(d, q)| *d += q);
+                    xi.iter_mut().zip(&th.predictor_approach).for_each(|(x, q)| *x += q);
+                }
                 for (x, d) in self.prep.scene.particles.position.iter_mut().zip(&du) {
                     *x += d;
                 }
                 xi
             };
             crate::finite::ensure_finite("mechanics", self.step + 1, t1, "contact", "axial approach", xi.iter().copied())?;
+            // (X8): the correction gets the mechanical approach net of the thermal elongation, in
+            // the reference geometry of the 7-DOF contacts (the pair moves by the full ξ above)
+            let xi_ref: std::borrow::Cow<[f64]> = match &thermal {
+                Some(th) => xi.iter().zip(&th.elongation).zip(&th.factor).map(|((x, d), f)| (x + d) / f).collect::<Vec<f64>>().into(),
+                None => (&xi[..]).into(),
+            };
             self.timing.mechanics += tic.elapsed().as_secs_f64();
             // 5. correction (C1)–(C4)
             let tic = Instant::now();
@@ -879,7 +959,7 @@ impl Simulation {
                     let r = d7::rates_with(&c.y, &kc)?;
                     (r[3], r[6])
                 };
-                let corr = d7::correct_y4_y7(prev, star, rates_star, xi[k], r_sum);
+                let corr = d7::correct_y4_y7(prev, star, rates_star, xi_ref[k], r_sum);
                 // (C4) can push a young contact's cone past tangency (A3) when its neighbours
                 // compress it more than its own approach: then the deviation from y* is halved
                 // until the state is admissible (counted; docs/decisions.md)
@@ -907,7 +987,10 @@ impl Simulation {
                 if p2 {
                     // an isolated pair: A stays, B approaches by exactly the 7-DOF prediction
                     let ps = &mut self.prep.scene.particles;
-                    ps.position[j as usize] -= xi[k] * e3[k];
+                    match &thermal {
+                        Some(th) => ps.position[j as usize] -= (xi[k] - th.predictor_approach[k]) * e3[k],
+                        None => ps.position[j as usize] -= xi[k] * e3[k],
+                    }
                 }
             }
             crate::finite::ensure_finite_groups("correction", self.step + 1, t1, "contact", "7-DOF state", self.contacts.state.iter().map(|c| &c.y))?;
@@ -1180,10 +1263,13 @@ impl Simulation {
     }
 
     /// Relative density: particle volume over the bounding volume from the principal planes to the
-    /// far faces (Ivannikov et al. 2022 eq. 49) [1].
+    /// far faces (Ivannikov et al. 2022 eq. 49) [1], both with the thermally expanded radii (X12).
     pub fn relative_density(&self) -> f64 {
         let p = &self.prep.scene.particles;
-        let v: f64 = p.radius.iter().map(|&r| crate::units::sphere_volume(r)).sum();
+        let v: f64 = match self.thermal_strains() {
+            Some(e) => p.radius.iter().zip(&e).map(|(&r, e)| crate::units::sphere_volume(r * (1.0 + e))).sum(),
+            None => p.radius.iter().map(|&r| crate::units::sphere_volume(r)).sum(),
+        };
         let e = self.extents();
         v / (e.x * e.y * e.z)
     }
@@ -1209,10 +1295,39 @@ impl Simulation {
             .collect()
     }
 
-    /// Shrinkage per axis, 1 − L/L0 [1].
+    /// Shrinkage per axis, 1 − L/L0 [1]: the total, thermal strain included (a dilatometer's).
     pub fn shrinkage(&self) -> Vector3<f64> {
         let e = self.extents();
         Vector3::from_fn(|a, _| 1.0 - e[a] / self.extent0[a])
+    }
+
+    /// (X1) The thermal strain ε_i of every particle at its current temperature [1]; None
+    /// without thermal expansion.
+    pub fn thermal_strains(&self) -> Option<Vec<f64>> {
+        let x = self.expansion.as_ref()?;
+        let p = &self.prep.scene.particles;
+        Some(x.strains(p, &p.temperature))
+    }
+
+    /// (X10) The mean thermal strain of the compact (volume-weighted over the particles with a
+    /// contact), and the smallest and largest particle strain among them [1]; zeros without
+    /// thermal expansion.
+    pub fn thermal_strain(&self) -> (f64, f64, f64) {
+        match self.thermal_strains() {
+            Some(e) => super::expansion::ThermalExpansion::mean_strain(&self.prep.scene.particles, &e, &self.contacts.pairs),
+            None => (0.0, 0.0, 0.0),
+        }
+    }
+
+    /// (X11) Sintering shrinkage per axis: the total shrinkage net of the mean thermal strain,
+    /// `1 − (1 − s)/(1 + ε̄)` [1]; the total itself without thermal expansion.
+    pub fn sintering_shrinkage(&self) -> Vector3<f64> {
+        let s = self.shrinkage();
+        if self.expansion.is_none() {
+            return s;
+        }
+        let eps = self.thermal_strain().0;
+        s.map(|v| super::expansion::sintering_shrinkage(v, eps))
     }
 }
 
