@@ -171,6 +171,9 @@ pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunPar
         log.line(&format!("overrides: {}", overrides.join(" ")));
     }
     let mut logf = |m: &str| log.line(m);
+    for w in compact_only_keys(&value) {
+        logf(&format!("warning: {w}"));
+    }
     let base = &params.base_dir;
     let summary = match kind {
         Kind::Heat => {
@@ -210,6 +213,32 @@ pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunPar
         }
     };
     Ok(RunSummary { kind, wall_seconds: wall.elapsed().as_secs_f64(), summary })
+}
+
+/// Keys set in `case` that only compact runs use (thermal expansion, docs/coupled.md "Thermal
+/// expansion"): one sentence per key when `case` is not a compact case (for a warning), else none.
+pub fn compact_only_keys(case: &toml::Value) -> Vec<String> {
+    let mut out = Vec::new();
+    let kind = case.get("kind").and_then(|k| k.as_str()).unwrap_or("heat");
+    if kind == "compact" {
+        return out;
+    }
+    if let Some(mats) = case.get("materials").and_then(|m| m.as_array()) {
+        for (i, m) in mats.iter().enumerate() {
+            for key in ["thermal_expansion", "thermal_expansion_table"] {
+                let set = match m.get(key) {
+                    Some(toml::Value::Float(v)) => *v != 0.0,
+                    Some(toml::Value::Integer(v)) => *v != 0,
+                    Some(_) => true,
+                    None => false,
+                };
+                if set {
+                    out.push(format!("materials.{i}.{key} is used by compact runs only; this {kind} run ignores it (no thermal expansion)"));
+                }
+            }
+        }
+    }
+    out
 }
 
 /// Continues the interrupted run in `dir` from its checkpoint (compact, heat and explicit_sinter

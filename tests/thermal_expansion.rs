@@ -305,3 +305,22 @@ fn bad_expansion_input_is_rejected_with_key_value_range_and_unit() {
     let e = coupled::prepare(v, Path::new("."), &mut |_| {}).err().unwrap().to_string();
     assert!(e.contains("thermal_expansion_table") && e.contains("not both"), "{e}");
 }
+
+/// Thermal expansion is a compact-run feature: a heat run whose material sets it says, in its log,
+/// that it ignores the key (never silently).
+#[test]
+fn other_kinds_warn_that_they_ignore_thermal_expansion() {
+    let dir = tmp("heat-warning");
+    let case = sinterdem::config::load_case(Path::new("cases/hot-plate.toml"), &[]).unwrap();
+    let sets: Vec<String> =
+        ["time.end=0.5", "output.snapshots=0", "output.vtu=false", "output.hdf5=false", "materials.0.thermal_expansion=8.6e-6"].map(String::from).to_vec();
+    let params = sinterdem::run::RunParams { base_dir: PathBuf::from("cases"), plots: false, ..Default::default() };
+    sinterdem::run::run(&case, &sets, &dir, &params).unwrap();
+    let log = std::fs::read_to_string(dir.join("log.txt")).unwrap();
+    assert!(log.contains("warning: materials.0.thermal_expansion is used by compact runs only; this heat run ignores it"), "log.txt:\n{log}");
+    // the same key on a compact run is used, not warned about
+    let compact = toml::Value::Table(
+        "kind = \"compact\"\n[[materials]]\nname = \"copper\"\npreset = \"copper\"\nthermal_expansion = 1.6e-5\n".parse::<toml::Table>().unwrap(),
+    );
+    assert!(sinterdem::run::compact_only_keys(&compact).is_empty());
+}
