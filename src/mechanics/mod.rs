@@ -300,8 +300,13 @@ impl BondedSystem {
         let Some(rep) = self.report.as_ref() else { unreachable!() };
         let b_norm = cg::dot(&rhs, &rhs).sqrt();
         let mut x = vec![0.0; 6 * n];
+        let above = match (self.params.reuse_factor, self.params.warm_start) {
+            (true, true) => solve::AMG_ABOVE_EQUATIONS_WARM,
+            (true, false) => AMG_ABOVE_EQUATIONS,
+            (false, _) => AMG_ABOVE_EQUATIONS_FRESH,
+        };
         let solver = match self.params.solver {
-            LinearSolver::Auto if rep.n_eq > if self.params.reuse_factor { AMG_ABOVE_EQUATIONS } else { AMG_ABOVE_EQUATIONS_FRESH } => LinearSolver::Amg,
+            LinearSolver::Auto if rep.n_eq > above => LinearSolver::Amg,
             LinearSolver::Auto => LinearSolver::Cholesky,
             s => s,
         };

@@ -38,6 +38,14 @@ pub enum LinearSolver {
 /// (0.33 vs 0.28–0.41 s per step). So the switch stays at 5·10⁴ equations (≈ 8·10³ particles).
 pub const AMG_ABOVE_EQUATIONS: usize = 50_000;
 
+/// Automatic choice with `reuse_factor` and `warm_start` (docs/mechanics.md (B12)): AMG-preconditioned
+/// CG above this many equations. Measured 2026-12-02 on the same machine, back to back: the E14B
+/// compact (3619 particles, 2.2·10⁴ equations, 1055 steps) took 122 s with Cholesky (mechanics
+/// 93.5 s: 74 factorisations 31 s, 2243 triangular solves 43 s) and 64 s with warm-started AMG
+/// (mechanics 40.4 s, 8099 CG iterations); the copper compact (4.8·10³ equations) 10.7 s against
+/// 10.5 s, a tie. So warm-started AMG takes over at 10⁴ equations (≈ 1700 particles).
+pub const AMG_ABOVE_EQUATIONS_WARM: usize = 10_000;
+
 /// Automatic choice without `reuse_factor` (a fresh factor every step): AMG above this many
 /// equations. Measured with the same benchmark: Cholesky step 0.006 / 0.03–0.06 / 0.18 / 1.5–2.2 s
 /// at 4.6·10³ / 1.1·10⁴ / 2.2·10⁴ / 6.0·10⁴ equations, AMG step (fresh hierarchy) 0.02 / 0.04 /
