@@ -7,44 +7,14 @@
 //! test starts (and stops) its own. Where the cluster cannot be started (not root, no apt-get),
 //! the test says why and is skipped.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
-fn repo() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-struct Cluster {
-    dir: PathBuf,
-    started_here: bool,
-}
-
-impl Drop for Cluster {
-    fn drop(&mut self) {
-        if self.started_here {
-            let _ = Command::new("bash").arg(repo().join("scripts/slurm-local.sh")).arg("stop").arg(&self.dir).status();
-        }
-    }
-}
+mod slurm_cluster;
+use slurm_cluster::{Cluster, repo};
 
 fn cluster() -> Option<Cluster> {
-    if let Ok(d) = std::env::var("SINTERDEM_SLURM_DIR") {
-        return Some(Cluster { dir: PathBuf::from(d), started_here: false });
-    }
-    if let Ok(reason) = std::env::var("SINTERDEM_SLURM_SKIP") {
-        eprintln!("SKIP slurm calibration test: {reason}");
-        return None;
-    }
-    let dir = std::env::temp_dir().join(format!("sinterdem-slurm-cal-{}", std::process::id()));
-    let st = Command::new("bash").arg(repo().join("scripts/slurm-local.sh")).arg("start").arg(&dir).status().expect("bash runs");
-    match st.code() {
-        Some(0) => Some(Cluster { dir, started_here: true }),
-        Some(77) => {
-            eprintln!("SKIP slurm calibration test: scripts/slurm-local.sh could not start a cluster here (see its SKIP line)");
-            None
-        }
-        _ => panic!("scripts/slurm-local.sh start {} failed ({st})", dir.display()),
-    }
+    slurm_cluster::cluster("slurm calibration test", "slurm-cal")
 }
 
 fn setup(dir: &Path) {
@@ -96,7 +66,7 @@ fn packing_fit_through_slurm_matches_the_local_engine() {
             .arg(dir.join(file))
             .arg("--out")
             .arg(dir.join(out))
-            .env("SLURM_CONF", cluster.dir.join("slurm.conf"))
+            .env("SLURM_CONF", cluster.conf())
             .output()
             .unwrap();
         eprintln!("$ sinterdem calibrate {file}\n{}", String::from_utf8_lossy(&o.stderr));

@@ -11,47 +11,11 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-fn repo() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-struct Cluster {
-    dir: PathBuf,
-    started_here: bool,
-}
-
-impl Cluster {
-    fn conf(&self) -> PathBuf {
-        self.dir.join("slurm.conf")
-    }
-}
-
-impl Drop for Cluster {
-    fn drop(&mut self) {
-        if self.started_here {
-            let _ = Command::new("bash").arg(repo().join("scripts/slurm-local.sh")).arg("stop").arg(&self.dir).status();
-        }
-    }
-}
+mod slurm_cluster;
+use slurm_cluster::{Cluster, repo};
 
 fn cluster() -> Option<Cluster> {
-    if let Ok(d) = std::env::var("SINTERDEM_SLURM_DIR") {
-        return Some(Cluster { dir: PathBuf::from(d), started_here: false });
-    }
-    if let Ok(reason) = std::env::var("SINTERDEM_SLURM_SKIP") {
-        eprintln!("SKIP slurm engine test: {reason}");
-        return None;
-    }
-    let dir = std::env::temp_dir().join(format!("sinterdem-slurm-{}", std::process::id()));
-    let st = Command::new("bash").arg(repo().join("scripts/slurm-local.sh")).arg("start").arg(&dir).status().expect("bash runs");
-    match st.code() {
-        Some(0) => Some(Cluster { dir, started_here: true }),
-        Some(77) => {
-            eprintln!("SKIP slurm engine test: scripts/slurm-local.sh could not start a cluster here (see its SKIP line)");
-            None
-        }
-        _ => panic!("scripts/slurm-local.sh start {} failed ({st})", dir.display()),
-    }
+    slurm_cluster::cluster("slurm engine test", "slurm")
 }
 
 fn csv_without_wall(path: &Path) -> Vec<String> {

@@ -277,15 +277,6 @@ fn study_param(key: &str, name: &str, values: Vec<toml::Value>) -> toml::Value {
     toml::Value::Table(t)
 }
 
-/// Reads a series CSV into (header, rows).
-fn read_series(path: &Path) -> Option<(Vec<String>, Vec<Vec<f64>>)> {
-    let text = std::fs::read_to_string(path).ok()?;
-    let mut lines = text.lines().filter(|l| !l.starts_with('#') && !l.trim().is_empty());
-    let header: Vec<String> = lines.next()?.split(',').map(|s| s.trim().to_string()).collect();
-    let rows = lines.map(|l| l.split(',').map(|v| v.trim().parse().unwrap_or(f64::NAN)).collect()).collect();
-    Some((header, rows))
-}
-
 /// The prediction of experiment `e` from its run's record (and series.csv).
 fn prediction(dir: &Path, run: &store::PlannedRun, e: &Experiment) -> Result<Prediction, ModelError> {
     let ctx = |m: String| ModelError::new(m).with_context(format!("experiment {} on the packing, {}", e.id, store::run_dir(dir, run.index).display()));
@@ -302,7 +293,7 @@ fn prediction(dir: &Path, run: &store::PlannedRun, e: &Experiment) -> Result<Pre
     let mut series = Vec::with_capacity(e.series.len());
     if !e.series.is_empty() {
         let path = store::run_dir(dir, run.index).join("series.csv");
-        let (head, rows) = read_series(&path).ok_or_else(|| ctx(format!("cannot read {}", path.display())))?;
+        let (head, rows) = study::report::read_series(&path).ok_or_else(|| ctx(format!("cannot read {}", path.display())))?;
         let col = |k: &str| head.iter().position(|h| h == k).ok_or_else(|| ctx(format!("{} has no column {k}", path.display())));
         let cols = [col("shrinkage_x")?, col("shrinkage_y")?, col("shrinkage_z")?, col("neck_ratio_mean")?];
         for p in &e.series {

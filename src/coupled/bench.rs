@@ -91,8 +91,8 @@ pub fn bench_coupled(copper_case: Option<&Path>, sizes: &[usize], steps: u64, ov
             d(tm.diffusion, t0.diffusion),
             d(tm.mechanics, t0.mechanics),
             d(tm.correction, t0.correction),
-            (sim.mechanics.newton_iterations - n0) as f64 / k.max(1) as f64,
-            (sim.mechanics.profile.cg_iterations - c0) as f64 / k.max(1) as f64
+            d(sim.mechanics.newton_iterations as f64, n0 as f64),
+            d(sim.mechanics.profile.cg_iterations as f64, c0 as f64)
         );
     }
     Ok(out)

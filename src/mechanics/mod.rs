@@ -114,8 +114,6 @@ pub struct BondedSystem {
     elastic: Option<Vec<[f64; 2]>>,
     /// The last solutions (newest last) for the warm start (B12); emptied by [`Self::drop_factor`].
     history: Vec<Vec<f64>>,
-    /// The residual `b − K x₀` of this step's warm start, handed to the solver.
-    warm_residual: Option<Vec<f64>>,
 }
 
 impl BondedSystem {
@@ -140,7 +138,6 @@ impl BondedSystem {
             amg_fresh_iterations: 0,
             elastic: None,
             history: Vec::new(),
-            warm_residual: None,
         })
     }
 
@@ -314,23 +311,24 @@ impl BondedSystem {
         // a reused factor, it saved 17 % of the Newton iterations of the copper compact and cost as
         // much time as it saved, docs/mechanics.md)
         let warm = self.params.warm_start && matches!(solver, LinearSolver::Amg | LinearSolver::Pcg);
+        // the residual b − K x₀ of the warm start, handed to the solver
+        let mut r0 = None;
         if b_norm > 0.0 && rep.n_eq > 0 && warm && !self.history.is_empty() {
             let t0 = Instant::now();
             let op = amg::FineOp { blocks: &blocks, pairs: &self.pairs, inc: &self.inc, fixed: &rep.fixed };
             let (rel, r) = warm_start(&op, &self.history, &rhs, b_norm, &mut x);
             info.warm_start = rel;
-            self.warm_residual = r;
+            r0 = r;
             info.solve_seconds += t0.elapsed().as_secs_f64();
         }
         if b_norm > 0.0 && rep.n_eq > 0 {
             match solver {
-                LinearSolver::Pcg => self.newton_pcg(&blocks, &rhs, b_norm, &mut x, &mut info)?,
-                LinearSolver::Amg => self.newton_amg(inp.positions, r_scale, &blocks, &rhs, b_norm, &mut x, &mut info)?,
+                LinearSolver::Pcg => self.newton_pcg(&blocks, &rhs, b_norm, &mut x, r0, &mut info)?,
+                LinearSolver::Amg => self.newton_amg(inp.positions, r_scale, &blocks, &rhs, b_norm, &mut x, r0, &mut info)?,
                 _ => self.newton_cholesky(inp.positions, &blocks, &rhs, b_norm, &mut x, &mut info)?,
             }
         }
 
-        self.warm_residual = None;
         if warm && b_norm > 0.0 {
             if self.history.len() == WARM_START_DEPTH {
                 self.history.remove(0);
@@ -438,7 +436,6 @@ impl BondedSystem {
         if stale_usable && (self.params.stale_factor_cg || !self.chol_current) {
             // CG on the current stiffness, preconditioned by the last factor (possibly of an
             // older topology: DOF that were not in it get their block-Jacobi inverse)
-            self.warm_residual = None;
             let Some(chol) = self.chol.as_mut() else { unreachable!() };
             if let Some(iterations) = stale_factor_cg(chol, &self.chol_eq, &op, &rep.eq, blocks, b, b_norm, self.params.rtol, x, info)? {
                 if iterations > STALE_CG_REFRESH {
@@ -485,10 +482,7 @@ impl BondedSystem {
             fresh = true;
             self.refresh = false;
         }
-        let (mut r, mut rel) = initial_residual(&op, b, b_norm, x, self.warm_residual.take());
-        if rel <= self.params.rtol {
-            return Ok(());
-        }
+        let (mut r, mut rel) = initial_residual(&op, b, b_norm, x, None);
         let mut red = vec![0.0; rep.n_eq];
         while info.newton_iterations < self.params.max_newton {
             for (d, &e) in rep.eq.iter().enumerate() {
@@ -523,14 +517,15 @@ impl BondedSystem {
         Err(solve::not_converged(info, self.params.rtol, "Cholesky").into())
     }
 
-    fn newton_pcg(&mut self, blocks: &BlockMatrix, b: &[f64], b_norm: f64, x: &mut [f64], info: &mut MechInfo) -> Result<(), Error> {
+    /// Newton with block-Jacobi PCG from `x` (the warm start, whose residual is `r0` when given).
+    fn newton_pcg(&mut self, blocks: &BlockMatrix, b: &[f64], b_norm: f64, x: &mut [f64], r0: Option<Vec<f64>>, info: &mut MechInfo) -> Result<(), Error> {
         info.solver = SolverUsed::Pcg;
         let Some(rep) = self.report.as_ref() else { unreachable!() };
         let op = amg::FineOp { blocks, pairs: &self.pairs, inc: &self.inc, fixed: &rep.fixed };
         let t0 = Instant::now();
         let prec = cg::BlockJacobi::new(&blocks.diag, &rep.fixed)?;
         info.factor_seconds += t0.elapsed().as_secs_f64();
-        let (mut r, mut rel) = initial_residual(&op, b, b_norm, x, self.warm_residual.take());
+        let (mut r, mut rel) = initial_residual(&op, b, b_norm, x, r0);
         if rel <= self.params.rtol {
             return Ok(());
         }
@@ -571,6 +566,7 @@ impl BondedSystem {
         b: &[f64],
         b_norm: f64,
         x: &mut [f64],
+        r0: Option<Vec<f64>>,
         info: &mut MechInfo,
     ) -> Result<(), Error> {
         info.solver = SolverUsed::Amg;
@@ -591,7 +587,7 @@ impl BondedSystem {
             }
         }
         info.factor_seconds += t0.elapsed().as_secs_f64();
-        let (mut r, mut rel) = initial_residual(&fine, b, b_norm, x, self.warm_residual.take());
+        let (mut r, mut rel) = initial_residual(&fine, b, b_norm, x, r0);
         if rel <= self.params.rtol {
             return Ok(());
         }

@@ -42,7 +42,7 @@ fn number_text(v: &Value) -> String {
 }
 
 /// Reads a series CSV (`#` lines skipped, first other line the header) into (header, rows).
-fn read_series(path: &Path) -> Option<(Vec<String>, Vec<Vec<f64>>)> {
+pub fn read_series(path: &Path) -> Option<(Vec<String>, Vec<Vec<f64>>)> {
     let text = std::fs::read_to_string(path).ok()?;
     let mut lines = text.lines().filter(|l| !l.starts_with('#') && !l.trim().is_empty());
     let header: Vec<String> = lines.next()?.split(',').map(|s| s.trim().to_string()).collect();
