@@ -275,6 +275,18 @@ enum Bench {
         #[arg(long = "cholesky-max", default_value_t = usize::MAX)]
         cholesky_max: usize,
     },
+    /// The 7-DOF sweep: copper contacts integrated one at a time and in lanes of four, right-hand sides per second
+    Sweep {
+        /// Number of contacts.
+        #[arg(long, default_value_t = 100_000)]
+        contacts: usize,
+        /// Intervals (the first is the contacts' start).
+        #[arg(long, default_value_t = 4)]
+        steps: usize,
+        /// Length of an interval [s].
+        #[arg(long, default_value_t = 1.0)]
+        dt: f64,
+    },
     /// Work-precision diagram of the 7-DOF pair integrators (copper and E14B titanium).
     Pair {
         /// Output directory for work_precision.csv and the PNG diagrams.
@@ -460,6 +472,10 @@ fn real_main(cli: Cli) -> Result<(), Error> {
             Bench::Generate { particles, out } => {
                 sinterdem::io::ensure_dir(&out)?;
                 println!("{}", sinterdem::packing::bench_generate(&out, &particles)?);
+                Ok(())
+            }
+            Bench::Sweep { contacts, steps, dt } => {
+                println!("{}", sinterdem::models::diffusion7::bench::bench_sweep(contacts, steps, dt)?);
                 Ok(())
             }
             Bench::Pair { out } => {

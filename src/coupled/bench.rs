@@ -54,8 +54,8 @@ pub fn bench_coupled(copper_case: Option<&Path>, sizes: &[usize], steps: u64, ov
     }
     let _ = writeln!(
         out,
-        "{:>9} {:>9} {:>12} {:>12} {:>12} {:>12} {:>12} {:>12} {:>12}",
-        "particles", "contacts", "s/step", "detection", "diffusion", "mechanics", "correction", "newton/step", "cg/step"
+        "{:>9} {:>9} {:>12} {:>12} {:>12} {:>12} {:>12} {:>12} {:>12} {:>12} {:>12} {:>9}",
+        "particles", "contacts", "s/step", "detection", "diffusion", "mechanics", "correction", "newton/step", "cg/step", "rhs/contact", "rhs/s", "in lanes"
     );
     for &n in sizes {
         let cells = ((n as f64 / 4.0).cbrt().round() as u32).max(2);
@@ -71,7 +71,7 @@ pub fn bench_coupled(copper_case: Option<&Path>, sizes: &[usize], steps: u64, ov
         // the first step of a new contact is the stiff start; time the later steps
         sim.advance_step(&mut |_| {})?;
         let t0 = sim.timing;
-        let (n0, c0) = (sim.mechanics.newton_iterations, sim.mechanics.profile.cg_iterations);
+        let (n0, c0, r0, l0) = (sim.mechanics.newton_iterations, sim.mechanics.profile.cg_iterations, sim.ode.rhs, sim.contacts_in_lanes);
         let w = Instant::now();
         let mut k = 0;
         while sim.t < sim.settings.end && k < steps {
@@ -79,11 +79,12 @@ pub fn bench_coupled(copper_case: Option<&Path>, sizes: &[usize], steps: u64, ov
             k += 1;
         }
         let per = w.elapsed().as_secs_f64() / k.max(1) as f64;
+        let lanes_share = (sim.contacts_in_lanes - l0) as f64 / (k.max(1) as f64 * sim.contacts.len().max(1) as f64);
         let tm = sim.timing;
         let d = |a: f64, b: f64| (a - b) / k.max(1) as f64;
         let _ = writeln!(
             out,
-            "{:>9} {:>9} {:>12.4} {:>12.4} {:>12.4} {:>12.4} {:>12.4} {:>12.1} {:>12.1}",
+            "{:>9} {:>9} {:>12.4} {:>12.4} {:>12.4} {:>12.4} {:>12.4} {:>12.1} {:>12.1} {:>12.2} {:>12.3e} {:>8.1}%",
             sim.prep.scene.particles.len(),
             sim.contacts.len(),
             per,
@@ -92,7 +93,10 @@ pub fn bench_coupled(copper_case: Option<&Path>, sizes: &[usize], steps: u64, ov
             d(tm.mechanics, t0.mechanics),
             d(tm.correction, t0.correction),
             d(sim.mechanics.newton_iterations as f64, n0 as f64),
-            d(sim.mechanics.profile.cg_iterations as f64, c0 as f64)
+            d(sim.mechanics.profile.cg_iterations as f64, c0 as f64),
+            d(sim.ode.rhs as f64, r0 as f64) / sim.contacts.len().max(1) as f64,
+            (sim.ode.rhs - r0) as f64 / (tm.diffusion - t0.diffusion).max(1e-300),
+            100.0 * lanes_share
         );
     }
     Ok(out)

@@ -454,6 +454,9 @@ pub struct Simulation {
     pub near_layer: [Vec<u32>; 3],
     pub extent0: Vector3<f64>,
     pub ode: OdeStats,
+    /// Contact steps integrated in lanes (docs/diffusion7.md §7) since this process started (not
+    /// checkpointed: a diagnostic of the sweep, not part of the result).
+    pub contacts_in_lanes: u64,
     pub timing: Timing,
     pub heat_in: f64,
     pub heat_stored: f64,
@@ -543,6 +546,7 @@ impl Simulation {
             near_layer,
             extent0: Vector3::zeros(),
             ode: OdeStats::default(),
+            contacts_in_lanes: 0,
             timing: Timing::default(),
             heat_in: 0.0,
             heat_stored: 0.0,
@@ -803,25 +807,45 @@ impl Simulation {
             }
             let harmonic = self.settings.harmonic;
             let ct = |a: f64, b: f64| if harmonic { 2.0 * a * b / (a + b) } else { 0.5 * (a + b) };
-            let results: Vec<Result<OdeStats, ModelError>> = self
+            // contacts four at a time side by side (docs/diffusion7.md §7 "The sweep in lanes"),
+            // each ending bit for bit where the scalar integration would
+            use d7::lanes::{LANES, advance_lanes};
+            let chunks: Vec<(Vec<Result<OdeStats, ModelError>>, usize)> = self
                 .contacts
                 .state
-                .par_iter_mut()
-                .zip(self.contacts.pairs.par_iter())
+                .par_chunks_mut(LANES)
+                .zip(self.contacts.pairs.par_chunks(LANES))
                 .enumerate()
-                .map(|(k, (c, &[i, j]))| {
-                    let (i, j) = (i as usize, j as usize);
-                    let pm = PairMaterials { a: &mats[p.material[i] as usize], b: &mats[p.material[j] as usize], factors };
-                    let path = match iso {
-                        Some(prof) => TemperaturePath::Profile(prof),
-                        None => TemperaturePath::Linear { t0, temp0: ct(temps_old[i], temps_old[j]), t1, temp1: ct(temps_new[i], temps_new[j]) },
-                    };
-                    let mut st = OdeStats::default();
-                    d7::advance(c, &pm, &path, t0, t1, &solver, &mut st, |_, _, _| {})
-                        .map_err(|e| e.with_context(format!("contact {k} between particles {i} and {j}")))?;
-                    Ok(st)
+                .map(|(ch, (cs, ps))| {
+                    let pms: Vec<PairMaterials> = ps
+                        .iter()
+                        .map(|&[i, j]| PairMaterials { a: &mats[p.material[i as usize] as usize], b: &mats[p.material[j as usize] as usize], factors })
+                        .collect();
+                    let paths: Vec<TemperaturePath> = ps
+                        .iter()
+                        .map(|&[i, j]| {
+                            let (i, j) = (i as usize, j as usize);
+                            match iso {
+                                Some(prof) => TemperaturePath::Profile(prof),
+                                None => TemperaturePath::Linear { t0, temp0: ct(temps_old[i], temps_old[j]), t1, temp1: ct(temps_new[i], temps_new[j]) },
+                            }
+                        })
+                        .collect();
+                    let (res, n) = advance_lanes(cs, &pms, &paths, t0, t1, &solver);
+                    let res = res
+                        .into_iter()
+                        .zip(ps)
+                        .enumerate()
+                        .map(|(l, (r, &[i, j]))| r.map_err(|e| e.with_context(format!("contact {} between particles {i} and {j}", ch * LANES + l))))
+                        .collect();
+                    (res, n)
                 })
                 .collect();
+            let mut results: Vec<Result<OdeStats, ModelError>> = Vec::with_capacity(self.contacts.len());
+            for (r, n) in chunks {
+                results.extend(r);
+                self.contacts_in_lanes += n as u64;
+            }
             let mut stats = Vec::with_capacity(results.len());
             let mut trial_rejected = 0usize;
             for r in results {

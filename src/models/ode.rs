@@ -180,7 +180,16 @@ fn err_norm<const N: usize>(err: &[f64; N], y0: &[f64; N], y1: &[f64; N], ctl: &
 
 /// Starting step (Hairer–Nørsett–Wanner II.4, scipy's `select_initial_step`), RMS norm with the
 /// (T1) scale.
-fn initial_step<const N: usize, F>(f: &mut F, t0: f64, y0: &[f64; N], f0: &[f64; N], ctl: &Control<N>, order: f64, span: f64, stats: &mut OdeStats) -> f64
+pub(crate) fn initial_step<const N: usize, F>(
+    f: &mut F,
+    t0: f64,
+    y0: &[f64; N],
+    f0: &[f64; N],
+    ctl: &Control<N>,
+    order: f64,
+    span: f64,
+    stats: &mut OdeStats,
+) -> f64
 where
     F: FnMut(f64, &[f64; N]) -> Result<[f64; N], ModelError>,
 {

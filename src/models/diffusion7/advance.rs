@@ -53,7 +53,7 @@ impl SolverOptions {
         Ok(())
     }
 
-    fn control(&self, r_min: f64) -> Control<7> {
+    pub(crate) fn control(&self, r_min: f64) -> Control<7> {
         Control {
             method: self.method,
             rtol: self.rtol,

@@ -17,6 +17,7 @@ pub mod bench;
 pub mod contact;
 pub mod geometry;
 pub mod kinetics;
+pub mod lanes;
 pub mod material;
 pub mod pair;
 pub mod ranges;
