@@ -265,7 +265,6 @@ impl MechanicsStage {
             reuse_factor: self.settings.reuse_factor,
             rtol: self.settings.rtol,
             warm_start: self.settings.warm_start,
-            pattern_margin: std::env::var("MECH_PATTERN_MARGIN").ok().and_then(|v| v.parse().ok()).unwrap_or(0.0),
             ..Default::default()
         };
         self.sys = Some(BondedSystem::new(p.len(), params, cons)?);

@@ -17,7 +17,7 @@ use crate::error::SolveError;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::perm::PermRef;
 use faer::sparse::linalg::cholesky::{LltRef, SymbolicCholesky, SymmetricOrdering, factorize_symbolic_cholesky};
-use faer::sparse::{Argsort, Pair, SparseColMat, SparseColMatRef, SymbolicSparseColMat};
+use faer::sparse::{Argsort, Pair, SparseColMat, SymbolicSparseColMat};
 use faer::{Conj, MatMut, Side};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
@@ -103,73 +103,6 @@ pub fn nested_dissection(pos: &[Vector3<f64>], nodes: Vec<u32>, adj_start: &[u32
     out
 }
 
-/// Parallelism of the numeric factorisation: the global one, or `Par::rayon(k)` with the
-/// experiment variable `MECH_CHOL_PAR=k` (k = 0: all rayon threads).
-fn factor_parallelism() -> faer::Par {
-    match std::env::var("MECH_CHOL_PAR").ok().and_then(|v| v.parse::<usize>().ok()) {
-        Some(0) => faer::Par::rayon(rayon::current_num_threads()),
-        Some(1) => faer::Par::Seq,
-        Some(k) => faer::Par::rayon(k),
-        None => faer::get_global_parallelism(),
-    }
-}
-
-/// The factor's sparsity in particle terms: the particle pairs that have an off-diagonal block
-/// and the equation in the factor of each DOF. Either the bonds of one topology with its free
-/// DOF (exact), or a superset of the bonds that survives new ones (docs/mechanics.md).
-#[derive(Debug, Clone, PartialEq)]
-pub struct FactorPattern {
-    /// Particle pairs `[min, max]` with an off-diagonal block, sorted, no duplicates.
-    pub pairs: Vec<[u32; 2]>,
-    /// Equation in the factor of DOF `6i + k` (`u32::MAX`: not in the factor).
-    pub seq: Vec<u32>,
-    /// Number of equations of the factor.
-    pub n_seq: usize,
-}
-
-impl FactorPattern {
-    /// Lower-triangle entries `(row, col)` of the pattern: the 6×6 diagonal block of every
-    /// particle in the factor and the off-diagonal block of every pair.
-    pub fn entries(&self) -> Vec<(u32, u32)> {
-        let seq = &self.seq;
-        let mut out = Vec::new();
-        for i in 0..seq.len() / 6 {
-            for p in 0..6 {
-                let rp = seq[6 * i + p];
-                if rp == u32::MAX {
-                    continue;
-                }
-                for q in 0..=p {
-                    let rq = seq[6 * i + q];
-                    if rq != u32::MAX {
-                        out.push((rp.max(rq), rp.min(rq)));
-                    }
-                }
-            }
-        }
-        for &[a, b] in &self.pairs {
-            for p in 0..6 {
-                let rp = seq[6 * a as usize + p];
-                if rp == u32::MAX {
-                    continue;
-                }
-                for q in 0..6 {
-                    let rq = seq[6 * b as usize + q];
-                    if rq != u32::MAX {
-                        out.push((rp.max(rq), rp.min(rq)));
-                    }
-                }
-            }
-        }
-        out
-    }
-
-    /// Fixed-DOF mask per particle of the factor (63: not in it), for the orderings.
-    pub fn fixed(&self) -> Vec<u8> {
-        self.seq.chunks(6).map(|c| (0..6).fold(0u8, |m, k| if c[k] == u32::MAX { m | (1 << k) } else { m })).collect()
-    }
-}
-
 /// Pattern, symbolic factorisation, numeric buffer and scratch of one topology.
 pub struct BondCholesky {
     n: usize,
@@ -210,10 +143,7 @@ impl BondCholesky {
         }
         .map_err(|e| err("symbolic Cholesky", format!("{e:?}")))?;
         let par = faer::get_global_parallelism();
-        let req = chol
-            .factorize_numeric_llt_scratch::<f64>(par, Default::default())
-            .or(chol.factorize_numeric_llt_scratch::<f64>(factor_parallelism(), Default::default()))
-            .or(chol.solve_in_place_scratch::<f64>(1, par));
+        let req = chol.factorize_numeric_llt_scratch::<f64>(par, Default::default()).or(chol.solve_in_place_scratch::<f64>(1, par));
         let scratch = MemBuffer::try_new(req).map_err(|e| err("symbolic Cholesky", format!("scratch allocation: {e:?}")))?;
         let l_values = Vec::new();
         Ok(BondCholesky { n, symbolic, argsort, chol, l_values, factored: false, scratch, symbolic_seconds: t0.elapsed().as_secs_f64() })
@@ -222,56 +152,6 @@ impl BondCholesky {
     /// Number of stored values of the factor L [1].
     pub fn nnz_l(&self) -> usize {
         self.chol.len_val()
-    }
-
-    /// Number of unknowns [1].
-    pub fn n(&self) -> usize {
-        self.n
-    }
-
-    /// Number of stored lower-triangle entries of the matrix [1].
-    pub fn nnz_a(&self) -> usize {
-        self.symbolic.row_idx().len()
-    }
-
-    /// Position of the lower-triangle entry `(row, col)`, `row ≥ col`, in the column-major value
-    /// array of [`Self::factorize_csc`] (None: outside the pattern).
-    pub fn position(&self, row: u32, col: u32) -> Option<usize> {
-        let (r, c) = (row as usize, col as usize);
-        if c >= self.n {
-            return None;
-        }
-        let cp = self.symbolic.col_ptr();
-        let (lo, hi) = (cp[c], cp[c + 1]);
-        self.symbolic.row_idx()[lo..hi].binary_search(&r).ok().map(|k| lo + k)
-    }
-
-    /// Invalidates the numeric factor (the symbolic analysis is kept).
-    pub fn invalidate(&mut self) {
-        self.factored = false;
-    }
-
-    /// Numeric factorisation of the matrix whose lower-triangle values are given in the
-    /// column-major order of the pattern ([`Self::position`]); returns its wall time [s].
-    pub fn factorize_csc(&mut self, csc_values: &[f64]) -> Result<f64, SolveError> {
-        let t0 = Instant::now();
-        self.factored = false;
-        if csc_values.len() != self.nnz_a() {
-            return Err(SolveError::new("Cholesky", format!("{} values for {} pattern entries", csc_values.len(), self.nnz_a())));
-        }
-        if let Some(k) = csc_values.iter().position(|v| !v.is_finite()) {
-            return Err(SolveError::new("Cholesky", format!("matrix entry {k} is {}", csc_values[k])));
-        }
-        let mat = SparseColMatRef::new(self.symbolic.as_ref(), csc_values);
-        if self.l_values.len() != self.chol.len_val() {
-            self.l_values = vec![0.0; self.chol.len_val()];
-        }
-        let par = factor_parallelism();
-        self.chol
-            .factorize_numeric_llt(&mut self.l_values, mat, Side::Lower, Default::default(), par, MemStack::new(&mut self.scratch), Default::default())
-            .map_err(|e| SolveError::new("Cholesky", format!("the stiffness is not positive definite ({e:?})")))?;
-        self.factored = true;
-        Ok(t0.elapsed().as_secs_f64())
     }
 
     /// Numeric factorisation of the matrix with these lower-triangle `values`; returns its wall time [s].

@@ -100,10 +100,6 @@ pub struct BondedSystem {
     inc: Incidence,
     report: Option<TopologyReport>,
     chol: Option<BondCholesky>,
-    /// The factor's sparsity pattern in particle terms (kept with `chol`).
-    pattern: Option<cholesky::FactorPattern>,
-    /// Where the current topology's values go in the factor's pattern.
-    scatter: Option<Scatter>,
     /// Equation map (`eq` of the topology report) the factor was built for; it differs from the
     /// current one after a topology change that kept the factor as a preconditioner.
     chol_eq: Vec<u32>,
@@ -135,8 +131,6 @@ impl BondedSystem {
             inc: Incidence::new(n_particles, &[]),
             report: None,
             chol: None,
-            pattern: None,
-            scatter: None,
             chol_eq: Vec::new(),
             chol_current: false,
             refresh: false,
@@ -159,7 +153,7 @@ impl BondedSystem {
             }
         }
         self.elastic = elastic;
-        self.drop_chol();
+        self.chol = None;
         self.amg = None;
         Ok(())
     }
@@ -222,14 +216,8 @@ impl BondedSystem {
         // stiffness (a few new bonds are a low-rank change); otherwise it is dropped
         let keep = self.params.reuse_factor && self.params.stale_factor_cg && self.chol.as_ref().is_some_and(|c| c.is_factored());
         if !keep {
-            // a superset pattern keeps its symbolic analysis for the new bonds; the numeric
-            // factor belongs to the old stiffness
-            match self.chol.as_mut() {
-                Some(c) if self.params.pattern_margin > 0.0 => c.invalidate(),
-                _ => self.drop_chol(),
-            }
+            self.chol = None;
         }
-        self.scatter = None;
         self.chol_current = false;
         self.amg = None;
         Ok(())
@@ -239,17 +227,11 @@ impl BondedSystem {
     /// factorises afresh, as a system built anew with these bonds would (checkpoints rely on it).
     pub fn drop_factor(&mut self) {
         self.report = None;
-        self.drop_chol();
+        self.chol = None;
         self.chol_current = false;
         self.refresh = false;
         self.amg = None;
         self.history.clear();
-    }
-
-    fn drop_chol(&mut self) {
-        self.chol = None;
-        self.pattern = None;
-        self.scatter = None;
     }
 
     /// Replaces the constraints (same length); the next step redoes the topology analysis.
@@ -259,7 +241,7 @@ impl BondedSystem {
         }
         self.constraints = constraints;
         self.report = None;
-        self.drop_chol();
+        self.chol = None;
         self.amg = None;
         Ok(())
     }
@@ -343,7 +325,7 @@ impl BondedSystem {
             match solver {
                 LinearSolver::Pcg => self.newton_pcg(&blocks, &rhs, b_norm, &mut x, r0, &mut info)?,
                 LinearSolver::Amg => self.newton_amg(inp.positions, r_scale, &blocks, &rhs, b_norm, &mut x, r0, &mut info)?,
-                _ => self.newton_cholesky(inp.positions, inp.radii, &blocks, &rhs, b_norm, &mut x, &mut info)?,
+                _ => self.newton_cholesky(inp.positions, &blocks, &rhs, b_norm, &mut x, &mut info)?,
             }
         }
 
@@ -437,46 +419,9 @@ impl BondedSystem {
         Ok((blocks, rhs, r_scale, rep, self.inc.clone()))
     }
 
-    /// The factor's pattern for the topology `rep`: the bonds, or with `pattern_margin` > 0 the
-    /// bonds and the pairs within the margin, on all DOF of their particles that are free now or
-    /// not held by the constraints.
-    fn factor_pattern(&self, positions: &[Vector3<f64>], radii: &[f64], rep: &TopologyReport) -> cholesky::FactorPattern {
-        let mut pairs: Vec<[u32; 2]> = self.pairs.iter().map(|&[a, b]| [a.min(b), a.max(b)]).collect();
-        let margin = self.params.pattern_margin;
-        if margin <= 0.0 {
-            pairs.sort_unstable();
-            return cholesky::FactorPattern { pairs, seq: rep.eq.clone(), n_seq: rep.n_eq };
-        }
-        let r_mean = radii.iter().sum::<f64>() / radii.len().max(1) as f64;
-        pairs.extend(crate::contacts::detect::touching_pairs(positions, radii, margin * r_mean).into_iter().map(|(i, j)| [i, j]));
-        pairs.sort_unstable();
-        pairs.dedup();
-        let mut member = vec![false; self.n];
-        for &[a, b] in &pairs {
-            member[a as usize] = true;
-            member[b as usize] = true;
-        }
-        let mut seq = vec![u32::MAX; 6 * self.n];
-        let mut n_seq = 0usize;
-        for i in 0..self.n {
-            if !member[i] {
-                continue;
-            }
-            for k in 0..6 {
-                if self.constraints.fixed[i] & (1 << k) == 0 || rep.eq[6 * i + k] != u32::MAX {
-                    seq[6 * i + k] = n_seq as u32;
-                    n_seq += 1;
-                }
-            }
-        }
-        cholesky::FactorPattern { pairs, seq, n_seq }
-    }
-
-    #[allow(clippy::too_many_arguments)]
     fn newton_cholesky(
         &mut self,
         positions: &[Vector3<f64>],
-        radii: &[f64],
         blocks: &BlockMatrix,
         b: &[f64],
         b_norm: f64,
@@ -506,62 +451,47 @@ impl BondedSystem {
         }
         if self.chol.is_none() || !self.chol_current {
             let t0 = Instant::now();
-            // the last pattern serves when it holds the new bonds and free DOF
-            let mut sc = match (&self.chol, &self.pattern) {
-                (Some(c), Some(p)) => Scatter::new(c, p, rep, blocks, &self.pairs),
-                _ => None,
+            let mut entries = Vec::new();
+            blocks.for_each_lower(&self.pairs, rep, |r, c, _| entries.push((r, c)));
+            let perm = match self.params.ordering {
+                cholesky::Ordering::NestedDissection => Some(cholesky::equation_order(positions, &self.pairs, &rep.fixed, &rep.eq, rep.n_eq)),
+                cholesky::Ordering::BlockAmd => Some(cholesky::block_amd_order(self.n, &self.pairs, &rep.eq, rep.n_eq)?),
+                cholesky::Ordering::Amd => None,
             };
-            if sc.is_none() {
-                let pattern = self.factor_pattern(positions, radii, rep);
-                let entries = pattern.entries();
-                let perm = match self.params.ordering {
-                    cholesky::Ordering::NestedDissection => Some(cholesky::equation_order(positions, &pattern.pairs, &pattern.fixed(), &pattern.seq, pattern.n_seq)),
-                    cholesky::Ordering::BlockAmd => Some(cholesky::block_amd_order(self.n, &pattern.pairs, &pattern.seq, pattern.n_seq)?),
-                    cholesky::Ordering::Amd => None,
-                };
-                let c = BondCholesky::new(pattern.n_seq, &entries, perm)?;
-                sc = Scatter::new(&c, &pattern, rep, blocks, &self.pairs);
-                self.chol = Some(c);
-                self.pattern = Some(pattern);
-            }
-            let Some(sc) = sc else {
-                return Err(SolveError::new("Cholesky", "the factor's pattern does not hold the bonds").into());
-            };
-            self.chol_eq = sc.act.clone();
-            self.scatter = Some(sc);
+            let c = BondCholesky::new(rep.n_eq, &entries, perm)?;
             info.symbolic_seconds = t0.elapsed().as_secs_f64();
+            self.chol = Some(c);
+            self.chol_eq = rep.eq.clone();
             self.chol_current = true;
         }
-        let (Some(chol), Some(sc)) = (self.chol.as_mut(), self.scatter.as_ref()) else { unreachable!() };
-        // the reduced lower-triangle values in the factor's column order, gathered only when a
-        // factorisation needs them
-        let nnz_a = chol.nnz_a();
+        // the reduced lower-triangle values, gathered only when a factorisation needs them
         let mut values: Vec<f64> = Vec::new();
         let gather = |values: &mut Vec<f64>, info: &mut MechInfo| {
             if values.is_empty() {
                 let t0 = Instant::now();
-                *values = sc.values(blocks, &self.pairs, rep, nnz_a);
+                blocks.for_each_lower(&self.pairs, rep, |_, _, v| values.push(v));
                 info.assemble_seconds += t0.elapsed().as_secs_f64();
             }
         };
+        let Some(chol) = self.chol.as_mut() else { unreachable!() };
         let mut fresh = false;
         if !self.params.reuse_factor || !chol.is_factored() || self.refresh {
             gather(&mut values, info);
-            info.factor_seconds += chol.factorize_csc(&values)?;
+            info.factor_seconds += chol.factorize(&values)?;
             info.factorizations += 1;
             fresh = true;
             self.refresh = false;
         }
         let (mut r, mut rel) = initial_residual(&op, b, b_norm, x, None);
-        let mut red = vec![0.0; chol.n()];
+        let mut red = vec![0.0; rep.n_eq];
         while info.newton_iterations < self.params.max_newton {
-            for (d, &e) in sc.act.iter().enumerate() {
+            for (d, &e) in rep.eq.iter().enumerate() {
                 if e != u32::MAX {
                     red[e as usize] = r[d];
                 }
             }
             info.solve_seconds += chol.solve_in_place(&mut red)?;
-            for (d, &e) in sc.act.iter().enumerate() {
+            for (d, &e) in rep.eq.iter().enumerate() {
                 if e != u32::MAX {
                     x[d] += red[e as usize];
                 }
@@ -578,7 +508,7 @@ impl BondedSystem {
             // a stale factor that converges slowly (or diverges) is replaced by a fresh one
             if !fresh && new_rel > 0.1 * rel {
                 gather(&mut values, info);
-                info.factor_seconds += chol.factorize_csc(&values)?;
+                info.factor_seconds += chol.factorize(&values)?;
                 info.factorizations += 1;
                 fresh = true;
             }
@@ -711,68 +641,6 @@ impl BondedSystem {
     }
 }
 
-/// Where one topology's reduced stiffness goes in the factor's pattern
-/// ([`cholesky::FactorPattern`]): the factor equation of each free DOF, the column-major position
-/// of each value of [`BlockMatrix::for_each_lower`] in visiting order, and the diagonal of each
-/// factor equation that is not free now (it gets 1, a decoupled equation with zero right-hand
-/// side and zero solution).
-struct Scatter {
-    act: Vec<u32>,
-    pos: Vec<u32>,
-    unit: Vec<u32>,
-}
-
-impl Scatter {
-    /// None when the pattern does not hold a bond or a free DOF of `rep`.
-    fn new(chol: &BondCholesky, pattern: &cholesky::FactorPattern, rep: &TopologyReport, blocks: &BlockMatrix, pairs: &[[u32; 2]]) -> Option<Self> {
-        let mut act = vec![u32::MAX; rep.eq.len()];
-        let mut e2s = vec![u32::MAX; rep.n_eq];
-        for (d, &e) in rep.eq.iter().enumerate() {
-            if e != u32::MAX {
-                let s = *pattern.seq.get(d)?;
-                if s == u32::MAX {
-                    return None;
-                }
-                act[d] = s;
-                e2s[e as usize] = s;
-            }
-        }
-        let mut pos = Vec::new();
-        let mut ok = true;
-        blocks.for_each_lower(pairs, rep, |r, c, _| {
-            let (a, b) = (e2s[r as usize], e2s[c as usize]);
-            match chol.position(a.max(b), a.min(b)) {
-                Some(p) => pos.push(p as u32),
-                None => ok = false,
-            }
-        });
-        if !ok {
-            return None;
-        }
-        let mut unit = Vec::new();
-        for (d, &s) in pattern.seq.iter().enumerate() {
-            if s != u32::MAX && act[d] == u32::MAX {
-                unit.push(chol.position(s, s)? as u32);
-            }
-        }
-        Some(Scatter { act, pos, unit })
-    }
-
-    /// The factor's lower-triangle values (`nnz` of them, column-major) of the stiffness `blocks`.
-    fn values(&self, blocks: &BlockMatrix, pairs: &[[u32; 2]], rep: &TopologyReport, nnz: usize) -> Vec<f64> {
-        let mut v = vec![0.0; nnz];
-        for &p in &self.unit {
-            v[p as usize] = 1.0;
-        }
-        let mut k = 0;
-        blocks.for_each_lower(pairs, rep, |_, _, val| {
-            v[self.pos[k] as usize] = val;
-            k += 1;
-        });
-        v
-    }
-}
-
 /// CG iterations at most with a stale factor before a fresh factorisation takes over [1].
 const STALE_CG_MAX_ITER: usize = 40;
 /// A stale-factor CG that needed more iterations than this triggers a fresh factorisation at the
@@ -797,7 +665,7 @@ fn stale_factor_cg(
     x: &mut [f64],
     info: &mut MechInfo,
 ) -> Result<Option<usize>, Error> {
-    let n_old = chol.n();
+    let n_old = chol_eq.iter().filter(|&&e| e != u32::MAX).count();
     // particles with DOF that the factor does not know: their block-Jacobi inverse on those DOF
     let mut extra: Vec<(usize, u8, nalgebra::Matrix6<f64>)> = Vec::new();
     for i in 0..eq.len() / 6 {

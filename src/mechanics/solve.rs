@@ -95,10 +95,6 @@ pub struct MechParams {
     /// system onto the last [`WARM_START_DEPTH`] solutions (docs/mechanics.md (B12)) instead of
     /// from zero [flag]. Cholesky steps do not use it.
     pub warm_start: bool,
-    /// Cholesky: the factor's sparsity pattern also holds the particle pairs whose surfaces are
-    /// within this gap, relative to the mean radius, so that bonds formed later reuse the symbolic
-    /// analysis ([1]; 0: the bonds only).
-    pub pattern_margin: f64,
 }
 
 /// Solutions of earlier steps kept for the warm start [1].
@@ -118,7 +114,6 @@ impl Default for MechParams {
             stale_factor_cg: false,
             amg: Default::default(),
             warm_start: false,
-            pattern_margin: 0.0,
         }
     }
 }
@@ -143,9 +138,6 @@ impl MechParams {
         }
         if self.pcg_max_iter == 0 {
             return bad("pcg_max_iter", 0.0, "[1, ∞)", "1");
-        }
-        if !(self.pattern_margin >= 0.0 && self.pattern_margin <= 1.0) {
-            return bad("pattern_margin", self.pattern_margin, "[0, 1]", "1");
         }
         let a = &self.amg;
         if !(1..=10).contains(&a.sweeps) {
