@@ -327,42 +327,6 @@ fn random_packing_is_spd_and_solvers_agree() {
     assert!(diff < 1e-8 * scale, "reuse vs fresh: {diff:e}");
 }
 
-/// Above `cholesky::PARALLEL_FACTOR_ABOVE` equations the numeric factorisation runs on all rayon
-/// threads; the step (a fresh factor, then one with the factor reused) is bit-identical for 1 and
-/// 2 threads.
-#[test]
-fn parallel_factorisation_is_bit_identical_on_one_and_two_threads() {
-    let (pos, rad, pairs, y) = fcc_packing(4000, 11);
-    let mut s = 5u64;
-    let load: Vec<f64> = pairs
-        .iter()
-        .map(|&[i, j]| {
-            let rm = 0.5 * (rad[i as usize] + rad[j as usize]);
-            load_increment(1e-4 * rm * rng(&mut s), 1e-4 * rm * rng(&mut s), rm, E)
-        })
-        .collect();
-    let cons = Constraints::principal_planes(&pos, &rad, 0.01).unwrap();
-    let inp = StepInput { positions: &pos, radii: &rad, y4_y7: &y, load: &load, external: None };
-    let run = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-        pool.install(|| {
-            let mut sys = BondedSystem::new(pos.len(), MechParams { reuse_factor: true, ..params(LinearSolver::Cholesky) }, cons.clone()).unwrap();
-            sys.set_topology(&pairs).unwrap();
-            let first = sys.step(&inp).unwrap();
-            let pos2: Vec<Vector3<f64>> = pos.iter().zip(&first.du).map(|(x, d)| x + d).collect();
-            let second = sys.step(&StepInput { positions: &pos2, ..inp }).unwrap();
-            (first, second)
-        })
-    };
-    let (a1, b1) = run(1);
-    let (a2, b2) = run(2);
-    assert!(a2.info.equations > sinterdem::mechanics::cholesky::PARALLEL_FACTOR_ABOVE, "{} equations", a2.info.equations);
-    assert_eq!(a2.info.factorizations, 1);
-    assert!(a2.info.residuals.last().unwrap() <= &1e-10);
-    assert!(a1.du == a2.du && a1.dtheta == a2.dtheta && a1.xi == a2.xi, "fresh factor: 1 vs 2 threads differ");
-    assert!(b1.du == b2.du && b1.xi == b2.xi && b1.info.residuals == b2.info.residuals, "reused factor: 1 vs 2 threads differ");
-}
-
 /// An iteration budget that cannot reach the tolerance is a SolveError with the residual history,
 /// not a silent inaccurate answer.
 #[test]

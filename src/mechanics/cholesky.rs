@@ -103,14 +103,6 @@ pub fn nested_dissection(pos: &[Vector3<f64>], nodes: Vec<u32>, adj_start: &[u32
     out
 }
 
-/// Bonded Cholesky steps above this many equations factorise on all rayon threads
-/// ([`BondCholesky::set_factor_threads`]); the triangular solves stay sequential. Measured
-/// 2026-12-02 (`sinterdem bench mechanics`, 2 threads against 1, numeric factorisation of the
-/// FCC packings): 0.0058–0.0064 → 0.0072–0.0076 s at 4.5·10³ equations, 0.039–0.041 → 0.063–0.088 s
-/// at 1.1·10⁴, 0.165–0.173 → 0.133–0.139 s at 2.2·10⁴, 1.09–1.10 → 0.72–0.75 s at 6.0·10⁴; the
-/// factor is bit-identical for 1 and 2 threads (tests/mechanics_system.rs).
-pub const PARALLEL_FACTOR_ABOVE: usize = 20_000;
-
 /// Pattern, symbolic factorisation, numeric buffer and scratch of one topology.
 pub struct BondCholesky {
     n: usize,
@@ -120,8 +112,6 @@ pub struct BondCholesky {
     l_values: Vec<f64>,
     factored: bool,
     scratch: MemBuffer,
-    /// Parallelism of the numeric factorisation (faer's global one unless set).
-    factor_par: faer::Par,
     /// Wall time of pattern + symbolic analysis [s].
     pub symbolic_seconds: f64,
 }
@@ -156,19 +146,7 @@ impl BondCholesky {
         let req = chol.factorize_numeric_llt_scratch::<f64>(par, Default::default()).or(chol.solve_in_place_scratch::<f64>(1, par));
         let scratch = MemBuffer::try_new(req).map_err(|e| err("symbolic Cholesky", format!("scratch allocation: {e:?}")))?;
         let l_values = Vec::new();
-        Ok(BondCholesky { n, symbolic, argsort, chol, l_values, factored: false, scratch, factor_par: par, symbolic_seconds: t0.elapsed().as_secs_f64() })
-    }
-
-    /// Runs the numeric factorisation on `threads` rayon threads (1: sequentially).
-    pub fn set_factor_threads(&mut self, threads: usize) -> Result<(), SolveError> {
-        let par = if threads > 1 { faer::Par::rayon(threads) } else { faer::Par::Seq };
-        if par == self.factor_par {
-            return Ok(());
-        }
-        let req = self.chol.factorize_numeric_llt_scratch::<f64>(par, Default::default()).or(self.chol.solve_in_place_scratch::<f64>(1, faer::get_global_parallelism()));
-        self.scratch = MemBuffer::try_new(req).map_err(|e| SolveError::new("symbolic Cholesky", format!("scratch allocation: {e:?}")))?;
-        self.factor_par = par;
-        Ok(())
+        Ok(BondCholesky { n, symbolic, argsort, chol, l_values, factored: false, scratch, symbolic_seconds: t0.elapsed().as_secs_f64() })
     }
 
     /// Number of stored values of the factor L [1].
@@ -187,7 +165,7 @@ impl BondCholesky {
         if self.l_values.len() != self.chol.len_val() {
             self.l_values = vec![0.0; self.chol.len_val()];
         }
-        let par = self.factor_par;
+        let par = faer::get_global_parallelism();
         self.chol
             .factorize_numeric_llt(&mut self.l_values, mat.as_ref(), Side::Lower, Default::default(), par, MemStack::new(&mut self.scratch), Default::default())
             .map_err(|e| SolveError::new("Cholesky", format!("the stiffness is not positive definite ({e:?})")))?;

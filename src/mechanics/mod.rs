@@ -458,10 +458,7 @@ impl BondedSystem {
                 cholesky::Ordering::BlockAmd => Some(cholesky::block_amd_order(self.n, &self.pairs, &rep.eq, rep.n_eq)?),
                 cholesky::Ordering::Amd => None,
             };
-            let mut c = BondCholesky::new(rep.n_eq, &entries, perm)?;
-            if rep.n_eq > cholesky::PARALLEL_FACTOR_ABOVE {
-                c.set_factor_threads(rayon::current_num_threads())?;
-            }
+            let c = BondCholesky::new(rep.n_eq, &entries, perm)?;
             info.symbolic_seconds = t0.elapsed().as_secs_f64();
             self.chol = Some(c);
             self.chol_eq = rep.eq.clone();
