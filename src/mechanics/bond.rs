@@ -173,11 +173,7 @@ pub fn element_blocks(g: &BondGeometry, k: &[f64; 6], r_scale: f64) -> (Matrix6<
         m.fixed_view_mut::<3, 3>(3, 3).copy_from(&d);
         m
     };
-    (
-        block(rr, r_ta, r_ta.transpose(), ta_ta),
-        block(-rr, r_tb, -r_ta.transpose(), ta_tb),
-        block(rr, -r_tb, -r_tb.transpose(), tb_tb),
-    )
+    (block(rr, r_ta, r_ta.transpose(), ta_ta), block(-rr, r_tb, -r_ta.transpose(), ta_tb), block(rr, -r_tb, -r_tb.transpose(), tb_tb))
 }
 
 /// Link forces and moments in the local frame, `P_link = K_link·y_link` (eq. 32), from the scaled
