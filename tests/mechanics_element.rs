@@ -4,7 +4,7 @@
 
 use nalgebra::{DMatrix, Matrix3, SMatrix, SymmetricEigen, Vector3};
 use sinterdem::Error;
-use sinterdem::mechanics::bond::{BondGeometry, element_matrix, frame, h_matrix, link_forces, link_stiffness};
+use sinterdem::mechanics::bond::{BondGeometry, element_blocks, element_matrix, frame, h_matrix, link_forces, link_stiffness};
 use sinterdem::mechanics::{BondedSystem, Constraints, MechParams, NodalLoad, StepInput, dof};
 use std::f64::consts::PI;
 
@@ -114,6 +114,21 @@ fn element_is_symmetric_with_exactly_six_rigid_zero_modes() {
             let v = eig.eigenvectors.column(i).into_owned();
             let rest = &v - &q * (q.transpose() * &v);
             assert!(rest.norm() < 1e-8, "zero mode outside the rigid span: {}", rest.norm());
+        }
+    }
+}
+
+#[test]
+fn element_blocks_are_the_blocks_of_the_element_matrix() {
+    let mut s = 17u64;
+    for _ in 0..50 {
+        let (_, _, g, k, rbar) = random_link(&mut s);
+        let ke = element_matrix(&g, &k, rbar);
+        let kmax = ke.abs().max();
+        let (kaa, kab, kbb) = element_blocks(&g, &k, rbar);
+        for (blk, (r, c)) in [(kaa, (0, 0)), (kab, (0, 6)), (kbb, (6, 6))] {
+            let d = (blk - ke.fixed_view::<6, 6>(r, c)).abs().max();
+            assert!(d <= 1e-14 * kmax, "block ({r}, {c}) differs by {d:e} of {kmax:e}");
         }
     }
 }

@@ -58,19 +58,24 @@ impl BlockMatrix {
     /// Assembles the element matrices of all bonds: `geom[b]`, link stiffness `k[b]`, rotation
     /// scale `r_scale` [m].
     pub fn assemble(n: usize, pairs: &[[u32; 2]], inc: &Incidence, geom: &[BondGeometry], k: &[[f64; 6]], r_scale: f64) -> Self {
-        let blocks: Vec<(Matrix6<f64>, Matrix6<f64>, Matrix6<f64>)> = geom.par_iter().zip(k.par_iter()).map(|(g, kk)| element_blocks(g, kk, r_scale)).collect();
+        let (ends, off): (Vec<[Matrix6<f64>; 2]>, Vec<Matrix6<f64>>) = geom
+            .par_iter()
+            .zip(k.par_iter())
+            .map(|(g, kk)| {
+                let (aa, ab, bb) = element_blocks(g, kk, r_scale);
+                ([aa, bb], ab)
+            })
+            .unzip();
         let diag: Vec<Matrix6<f64>> = (0..n)
             .into_par_iter()
             .map(|i| {
                 let mut d = Matrix6::zeros();
                 for &(b, side) in inc.of(i) {
-                    let e = &blocks[b as usize];
-                    d += if side == 0 { e.0 } else { e.2 };
+                    d += ends[b as usize][side as usize];
                 }
                 d
             })
             .collect();
-        let off = blocks.iter().map(|e| e.1).collect();
         debug_assert_eq!(pairs.len(), geom.len());
         BlockMatrix { diag, off }
     }

@@ -143,10 +143,37 @@ pub fn element_matrix(g: &BondGeometry, k: &[f64; 6], r_scale: f64) -> ElementMa
     b.transpose() * db
 }
 
-/// The four 6×6 blocks `(K_AA, K_AB, K_BB)` of [`element_matrix`] (`K_BA = K_ABᵀ`).
+/// The blocks `(K_AA, K_AB, K_BB)` of [`element_matrix`] (`K_BA = K_ABᵀ`), from the 3×3 blocks
+/// of `B = [[R, T_A, −R, T_B], [O, Q, O, −Q]]` (`T_A = −R·skew(l_A0)/r̄`, `T_B = R·skew(l_B0)/r̄`,
+/// `Q = R/r̄`) and `diag(k) = diag(D_t, D_r)`: `K_AA = [[RᵀD_tR, RᵀD_tT_A], [·ᵀ, T_AᵀD_tT_A + QᵀD_rQ]]`,
+/// `K_AB = [[−RᵀD_tR, RᵀD_tT_B], [−T_AᵀD_tR, T_AᵀD_tT_B − QᵀD_rQ]]`,
+/// `K_BB = [[RᵀD_tR, −RᵀD_tT_B], [·ᵀ, T_BᵀD_tT_B + QᵀD_rQ]]`. A quarter of the 12×12 product's
+/// work (its zero blocks and `K_BA` skipped); the same matrix to round-off.
 pub fn element_blocks(g: &BondGeometry, k: &[f64; 6], r_scale: f64) -> (Matrix6<f64>, Matrix6<f64>, Matrix6<f64>) {
-    let ke = element_matrix(g, k, r_scale);
-    (ke.fixed_view::<6, 6>(0, 0).into_owned(), ke.fixed_view::<6, 6>(0, 6).into_owned(), ke.fixed_view::<6, 6>(6, 6).into_owned())
+    let r = frame(&g.e3);
+    let inv = 1.0 / r_scale;
+    let ta = -(r * skew(&g.l_a)) * inv;
+    let tb = (r * skew(&g.l_b)) * inv;
+    let scale_rows = |m: &Matrix3<f64>, d: [f64; 3]| Matrix3::from_fn(|i, j| d[i] * m[(i, j)]);
+    let dt = [k[0], k[1], k[2]];
+    let (dt_r, dt_ta, dt_tb) = (scale_rows(&r, dt), scale_rows(&ta, dt), scale_rows(&tb, dt));
+    let rt = r.transpose();
+    let rr = rt * dt_r;
+    let r_ta = rt * dt_ta;
+    let r_tb = rt * dt_tb;
+    let qq = rt * scale_rows(&r, [k[3], k[4], k[5]]) * (inv * inv);
+    let ta_ta = ta.transpose() * dt_ta + qq;
+    let ta_tb = ta.transpose() * dt_tb - qq;
+    let tb_tb = tb.transpose() * dt_tb + qq;
+    let block = |a: Matrix3<f64>, b: Matrix3<f64>, c: Matrix3<f64>, d: Matrix3<f64>| {
+        let mut m = Matrix6::zeros();
+        m.fixed_view_mut::<3, 3>(0, 0).copy_from(&a);
+        m.fixed_view_mut::<3, 3>(0, 3).copy_from(&b);
+        m.fixed_view_mut::<3, 3>(3, 0).copy_from(&c);
+        m.fixed_view_mut::<3, 3>(3, 3).copy_from(&d);
+        m
+    };
+    (block(rr, r_ta, r_ta.transpose(), ta_ta), block(-rr, r_tb, -r_ta.transpose(), ta_tb), block(rr, -r_tb, -r_tb.transpose(), tb_tb))
 }
 
 /// Link forces and moments in the local frame, `P_link = K_link·y_link` (eq. 32), from the scaled
