@@ -809,12 +809,19 @@ impl Simulation {
             let ct = |a: f64, b: f64| if harmonic { 2.0 * a * b / (a + b) } else { 0.5 * (a + b) };
             // contacts four at a time side by side (docs/diffusion7.md §7 "The sweep in lanes"),
             // each ending bit for bit where the scalar integration would
-            use d7::lanes::{LANES, advance_lanes};
-            let chunks: Vec<(Vec<Result<OdeStats, ModelError>>, usize)> = self
-                .contacts
-                .state
+            use d7::lanes::{LANES, advance_lanes, work_order};
+            // lanes run in lockstep, so contacts of alike work share a chunk: the order by last
+            // step's substeps, new contacts together (the result does not depend on it)
+            let order = work_order(&self.contacts.state, &self.contacts.substeps);
+            let (mut work, work_pairs) = match &order {
+                Some(o) => (o.iter().map(|&k| self.contacts.state[k as usize]).collect(), o.iter().map(|&k| self.contacts.pairs[k as usize]).collect()),
+                None => (Vec::new(), Vec::new()),
+            };
+            let (states, pairs_in_order): (&mut [Contact7], &[[u32; 2]]) =
+                if order.is_some() { (&mut work, &work_pairs) } else { (&mut self.contacts.state, &self.contacts.pairs) };
+            let chunks: Vec<(Vec<Result<OdeStats, ModelError>>, usize)> = states
                 .par_chunks_mut(LANES)
-                .zip(self.contacts.pairs.par_chunks(LANES))
+                .zip(pairs_in_order.par_chunks(LANES))
                 .enumerate()
                 .map(|(ch, (cs, ps))| {
                     let pms: Vec<PairMaterials> = ps
@@ -836,7 +843,10 @@ impl Simulation {
                         .into_iter()
                         .zip(ps)
                         .enumerate()
-                        .map(|(l, (r, &[i, j]))| r.map_err(|e| e.with_context(format!("contact {} between particles {i} and {j}", ch * LANES + l))))
+                        .map(|(l, (r, &[i, j]))| {
+                            let k = order.as_ref().map_or(ch * LANES + l, |o| o[ch * LANES + l] as usize);
+                            r.map_err(|e| e.with_context(format!("contact {k} between particles {i} and {j}")))
+                        })
                         .collect();
                     (res, n)
                 })
@@ -845,6 +855,15 @@ impl Simulation {
             for (r, n) in chunks {
                 results.extend(r);
                 self.contacts_in_lanes += n as u64;
+            }
+            if let Some(o) = &order {
+                // back to contact order
+                let mut back: Vec<Option<Result<OdeStats, ModelError>>> = (0..o.len()).map(|_| None).collect();
+                for ((&k, r), c) in o.iter().zip(results).zip(&work) {
+                    self.contacts.state[k as usize] = *c;
+                    back[k as usize] = Some(r);
+                }
+                results = back.into_iter().map(|r| r.unwrap_or_else(|| Err(ModelError::new("7-DOF sweep: a contact was not integrated")))).collect();
             }
             let mut stats = Vec::with_capacity(results.len());
             let mut trial_rejected = 0usize;

@@ -481,6 +481,46 @@ pub fn advance_lanes<'a>(
     (results, in_lanes)
 }
 
+/// An order of the contacts that puts contacts of alike work into the same chunk of [`LANES`]: new
+/// contacts (no substep proposed yet) first, then by the number of substeps they took in the last
+/// interval, in doubling classes (1, 2, 3–4, 5–8, …), stable within a class. `None` when the
+/// contacts are already so ordered (no gather needed).
+pub fn work_order(contacts: &[Contact7], substeps: &[u32]) -> Option<Vec<u32>> {
+    let class = |k: usize| -> usize {
+        if !(contacts[k].h_last > 0.0) {
+            0
+        } else {
+            let n = substeps.get(k).copied().unwrap_or(1).max(1);
+            // 1 → 1, 2 → 2, 3–4 → 3, 5–8 → 4, …
+            1 + (u32::BITS - (n - 1).leading_zeros()) as usize
+        }
+    };
+    let n = contacts.len();
+    let mut count = [0usize; 34];
+    let mut sorted = true;
+    let mut last = 0;
+    for k in 0..n {
+        let c = class(k);
+        count[c] += 1;
+        sorted &= c >= last;
+        last = c;
+    }
+    if sorted {
+        return None;
+    }
+    let mut start = [0usize; 34];
+    for c in 1..34 {
+        start[c] = start[c - 1] + count[c - 1];
+    }
+    let mut order = vec![0u32; n];
+    for k in 0..n {
+        let c = class(k);
+        order[start[c]] = k as u32;
+        start[c] += 1;
+    }
+    Some(order)
+}
+
 /// The lockstep loop, compiled twice: with AVX2 where the CPU has it, and for the baseline.
 fn run(lanes: &mut [Option<Lane>; LANES], y: StateL, fixed: &CoeffsL, opts: &SolverOptions) -> StateL {
     #[cfg(target_arch = "x86_64")]
