@@ -39,11 +39,11 @@ impl F4 {
     }
     #[inline(always)]
     fn map(self, f: impl Fn(f64) -> f64) -> F4 {
-        F4([f(self.0[0]), f(self.0[1]), f(self.0[2]), f(self.0[3])])
+        F4(std::array::from_fn(|l| f(self.0[l])))
     }
     #[inline(always)]
     fn zip(self, o: F4, f: impl Fn(f64, f64) -> f64) -> F4 {
-        F4([f(self.0[0], o.0[0]), f(self.0[1], o.0[1]), f(self.0[2], o.0[2]), f(self.0[3], o.0[3])])
+        F4(std::array::from_fn(|l| f(self.0[l], o.0[l])))
     }
     #[inline(always)]
     fn sqrt(self) -> F4 {
@@ -52,11 +52,11 @@ impl F4 {
     /// Lanes where `v > 0` (false for NaN).
     #[inline(always)]
     fn positive(self) -> [bool; LANES] {
-        [self.0[0] > 0.0, self.0[1] > 0.0, self.0[2] > 0.0, self.0[3] > 0.0]
+        std::array::from_fn(|l| self.0[l] > 0.0)
     }
     #[inline(always)]
     fn finite(self) -> [bool; LANES] {
-        [self.0[0].is_finite(), self.0[1].is_finite(), self.0[2].is_finite(), self.0[3].is_finite()]
+        std::array::from_fn(|l| self.0[l].is_finite())
     }
 }
 
@@ -100,7 +100,7 @@ impl Neg for F4 {
 
 #[inline(always)]
 fn and(a: [bool; LANES], b: [bool; LANES]) -> [bool; LANES] {
-    [a[0] && b[0], a[1] && b[1], a[2] && b[2], a[3] && b[3]]
+    std::array::from_fn(|l| a[l] && b[l])
 }
 
 /// The transport coefficients (M9) of four contacts, lane-wise ([`Coeffs`]).
