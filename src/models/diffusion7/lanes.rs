@@ -220,12 +220,14 @@ pub fn rates_l(y: &StateL, k: &CoeffsL) -> (StateL, [bool; LANES]) {
     let mut ma = side_mu(k.gamma_s[0], &sa);
     let mut mb = side_mu(k.gamma_s[1], &sb);
     // (M11), only in lanes with a force (as the scalar guard)
-    let fa = ma[2] + om * k.normal_force / dv[3];
-    let fb = mb[2] + om * k.normal_force / dv[6];
-    for l in 0..LANES {
-        if k.normal_force.0[l] != 0.0 {
-            ma[2].0[l] = fa.0[l];
-            mb[2].0[l] = fb.0[l];
+    if k.normal_force.0.iter().any(|&f| f != 0.0) {
+        let fa = ma[2] + om * k.normal_force / dv[3];
+        let fb = mb[2] + om * k.normal_force / dv[6];
+        for l in 0..LANES {
+            if k.normal_force.0[l] != 0.0 {
+                ma[2].0[l] = fa.0[l];
+                mb[2].0[l] = fb.0[l];
+            }
         }
     }
     // (M5)
@@ -759,6 +761,23 @@ mod tests {
         }
         assert!(same > 300, "{same} states compared");
         let _ = refused;
+    }
+
+    #[test]
+    fn work_order_groups_new_contacts_then_doubling_classes_stably() {
+        let r = 25e-6;
+        let mut cs: Vec<Contact7> = (0..8).map(|_| Contact7::new(r, r, 2.0 * r, 0.0, 0.01, 0.1).unwrap()).collect();
+        for (k, c) in cs.iter_mut().enumerate() {
+            c.h_last = if k == 3 || k == 6 { 0.0 } else { 1e-3 };
+        }
+        // substeps of the last interval: classes 1 → 1, 2 → 2, 3–4 → 3, 5–8 → 4, 9–16 → 5
+        let sub = [1, 9, 4, 7, 1, 3, 2, 16];
+        let order = work_order(&cs, &sub).expect("not yet ordered");
+        assert_eq!(order, vec![3u32, 6, 0, 4, 2, 5, 1, 7]);
+        // already in class order: no gather
+        let sorted: Vec<u32> = order.iter().map(|&k| sub[k as usize]).collect();
+        let cs2: Vec<Contact7> = order.iter().map(|&k| cs[k as usize]).collect();
+        assert!(work_order(&cs2, &sorted).is_none());
     }
 
     #[test]
