@@ -259,7 +259,9 @@ pub fn rates_l(y: &StateL, k: &CoeffsL) -> (StateL, [bool; LANES]) {
 }
 
 // Dormand–Prince 5(4), the tableau of the scalar integrator
-use crate::models::ode::{A21, A31, A32, A41, A42, A43, A51, A52, A53, A54, A61, A62, A63, A64, A65, A71, A73, A74, A75, A76, C2, C3, C4, C5, E1, E3, E4, E5, E6, E7};
+use crate::models::ode::{
+    A21, A31, A32, A41, A42, A43, A51, A52, A53, A54, A61, A62, A63, A64, A65, A71, A73, A74, A75, A76, C2, C3, C4, C5, E1, E3, E4, E5, E6, E7,
+};
 
 /// `y + Σ c_j k_j`, terms in order, a term skipped in a lane where its `c` is 0 (as the scalar
 /// `lin`).
