@@ -169,7 +169,7 @@ fn lin<const N: usize>(y: &[f64; N], terms: &[(f64, &[f64; N])]) -> [f64; N] {
 
 /// Error norm (T1), max over components.
 #[inline]
-fn err_norm<const N: usize>(err: &[f64; N], y0: &[f64; N], y1: &[f64; N], ctl: &Control<N>) -> f64 {
+pub(crate) fn err_norm<const N: usize>(err: &[f64; N], y0: &[f64; N], y1: &[f64; N], ctl: &Control<N>) -> f64 {
     let mut e: f64 = 0.0;
     for i in 0..N {
         let sc = ctl.rtol * y0[i].abs().max(y1[i].abs()).max(ctl.floor[i]);
@@ -213,6 +213,29 @@ where
     };
     let h1 = if d1 <= 1e-15 && d2 <= 1e-15 { (h0 * 1e-3).max(1e-6 * h0) } else { (0.01 / d1.max(d2)).powf(1.0 / (order + 1.0)) };
     (100.0 * h0).min(h1).min(span).min(ctl.h_max)
+}
+
+/// Step-size factor after an accepted step with error norm `e` (T1) [1]: 0.9·e^(−1/(q+1)), within
+/// [0.2, 5].
+#[inline]
+pub(crate) fn accepted_factor(method: Method, e: f64) -> f64 {
+    if e == 0.0 { 5.0 } else { (0.9 * e.powf(-method.exponent())).clamp(0.2, 5.0) }
+}
+
+/// Step-size factor after a step rejected with error norm `e` [1]: 0.9·e^(−1/(q+1)) within
+/// [0.1, 0.9], or 0.25 when `e` is not finite.
+#[inline]
+pub(crate) fn rejected_factor(method: Method, e: f64) -> f64 {
+    if e.is_finite() { (0.9 * e.powf(-method.exponent())).clamp(0.1, 0.9) } else { 0.25 }
+}
+
+/// The substep proposed after an accepted `step` [s] with factor `fac`: a step shortened to land
+/// on the interval end (`truncated`) keeps the controller's earlier proposal `hh` [s] unless the
+/// error asks for less; never above `h_max` [s].
+#[inline]
+pub(crate) fn proposal_after_accept(step: f64, fac: f64, truncated: bool, hh: f64, h_max: f64) -> f64 {
+    let proposal = (step * fac).min(h_max);
+    if truncated && fac >= 1.0 { hh.max(proposal).min(h_max) } else { proposal }
 }
 
 /// Integrates `y' = f(t, y)` from `t0` to `t1` (own time of the contact, `t0 ≥ 0`), starting with
@@ -298,23 +321,18 @@ where
                             jac = None;
                             stats.steps += 1;
                             on_step(t, &y);
-                            let fac = if e == 0.0 { 5.0 } else { (0.9 * e.powf(-ctl.method.exponent())).clamp(0.2, 5.0) };
-                            (true, fac)
+                            (true, accepted_factor(ctl.method, e))
                         }
                         Err(_) => (false, 0.25),
                     }
                 } else {
-                    let fac = if e.is_finite() { (0.9 * e.powf(-ctl.method.exponent())).clamp(0.1, 0.9) } else { 0.25 };
-                    (false, fac)
+                    (false, rejected_factor(ctl.method, e))
                 }
             }
             Err(_) => (false, 0.25),
         };
         if accepted {
-            // a step shortened to land on t1 keeps the controller's earlier proposal unless the
-            // error asks for less
-            let proposal = (step * fac).min(ctl.h_max);
-            hh = if truncated && fac >= 1.0 { hh.max(proposal).min(ctl.h_max) } else { proposal };
+            hh = proposal_after_accept(step, fac, truncated, hh, ctl.h_max);
         } else {
             stats.rejected += 1;
             hh = step * fac;

@@ -20,7 +20,7 @@ use super::contact::Contact7;
 use super::kinetics::rates_with;
 use super::material::{Coeffs, ContactParams};
 use crate::error::ModelError;
-use crate::models::ode::{Method, OdeStats, initial_step};
+use crate::models::ode::{Control, Method, OdeStats, accepted_factor, err_norm, initial_step, proposal_after_accept, rejected_factor};
 use std::f64::consts::PI;
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
@@ -205,8 +205,8 @@ fn side_l(a: F4, r: F4, c: F4, d: F4) -> SideL {
     SideL { h, s, dv: [dv_a, dv_r, dv_c, dv_d], da: [da_a, da_r, da_c, da_d], ratio_c, ok: and(and(ok1, ok2), and(ok3, ok4)) }
 }
 
-/// dy/dt (M8) of four contacts with their coefficients `k`, and which lanes are admissible with
-/// a finite rate (the scalar [`super::kinetics::rates_with`] returning `Ok`).
+/// dy/dt [m/s] (M8) of four contacts at states `y` [m] with their coefficients `k`, and which
+/// lanes are admissible with a finite rate (the scalar [`super::kinetics::rates_with`] returning `Ok`).
 #[inline(always)]
 pub fn rates_l(y: &StateL, k: &CoeffsL) -> (StateL, [bool; LANES]) {
     let a = y[0];
@@ -314,7 +314,8 @@ struct Lane<'a> {
     t: f64,
     t1: f64,
     hh: f64,
-    floor: [f64; 7],
+    /// The scalar integrator's control of this contact (tolerance (T1), step bounds).
+    ctl: Control<7>,
     substeps: u64,
     stats: OdeStats,
     active: bool,
@@ -355,7 +356,7 @@ fn lane_setup<'a>(
     } else {
         (LaneCoeffs::Varying { params, temp: *temp, tc, force: c.normal_force }, None)
     };
-    let floor = [opts.norm_floor * c.r_min(); 7];
+    let ctl = opts.control(c.r_min());
     let mut stats = OdeStats::default();
     let mut h = c.h_last;
     if !(h > 0.0) || !h.is_finite() {
@@ -366,21 +367,10 @@ fn lane_setup<'a>(
             (None, None) => Err(ModelError::new("no transport coefficients at this temperature")),
         };
         let f0 = f(tau0, &c.y).ok()?;
-        h = initial_step(&mut f, tau0, &c.y, &f0, &opts.control(c.r_min()), 4.0, tau1 - tau0, &mut stats);
+        h = initial_step(&mut f, tau0, &c.y, &f0, &ctl, 4.0, tau1 - tau0, &mut stats);
     }
-    let lane = Lane { coeffs, t: tau0, t1: tau1, hh: h.min(opts.max_substep), floor, substeps: 0, stats, active: true, scalar: false };
+    let lane = Lane { coeffs, t: tau0, t1: tau1, hh: h.min(ctl.h_max), ctl, substeps: 0, stats, active: true, scalar: false };
     Some((lane, fixed))
-}
-
-/// Error norm (T1) of one lane (the scalar `err_norm`).
-#[inline]
-fn err_norm(err: &[f64; 7], y0: &[f64; 7], y1: &[f64; 7], rtol: f64, floor: &[f64; 7]) -> f64 {
-    let mut e: f64 = 0.0;
-    for i in 0..7 {
-        let sc = rtol * y0[i].abs().max(y1[i].abs()).max(floor[i]);
-        e = e.max((err[i] / sc).abs());
-    }
-    if e.is_nan() { f64::INFINITY } else { e }
 }
 
 #[inline(always)]
@@ -416,24 +406,15 @@ pub fn advance_lanes<'a>(
             lanes[l] = Some(lane);
         }
     }
-    // an idle lane integrates a harmless copy of an active one (its results are never read)
+    // an idle lane holds a copy of an active lane's state with the default coefficients (no
+    // transport: finite, zero rates); its results are never read
     if let Some(src) = (0..n).find(|&l| lanes[l].is_some()) {
         for l in (0..LANES).filter(|&l| lanes[l].is_none()) {
             for i in 0..7 {
                 y[i].0[l] = y[i].0[src];
             }
-            let mut k = fixed;
-            for v in [&mut k.omega, &mut k.gamma_gb, &mut k.k_gb, &mut k.normal_force] {
-                v.0[l] = v.0[src];
-            }
-            for s in 0..2 {
-                for v in [&mut k.gamma_s[s], &mut k.k_lat_gb[s], &mut k.k_s_neck[s], &mut k.k_b_neck[s], &mut k.k_s_cap[s], &mut k.k_b_cap[s]] {
-                    v.0[l] = v.0[src];
-                }
-            }
-            fixed = k;
         }
-        let y_end = run(&mut lanes, y, &fixed, opts);
+        let y_end = run(&mut lanes, y, &fixed);
         for l in 0..n {
             if let Some(lane) = &lanes[l]
                 && !lane.scalar
@@ -497,20 +478,20 @@ pub fn work_order(contacts: &[Contact7], substeps: &[u32]) -> Option<Vec<u32>> {
 }
 
 /// The lockstep loop, compiled twice: with AVX2 where the CPU has it, and for the baseline.
-fn run(lanes: &mut [Option<Lane>; LANES], y: StateL, fixed: &CoeffsL, opts: &SolverOptions) -> StateL {
+fn run(lanes: &mut [Option<Lane>; LANES], y: StateL, fixed: &CoeffsL) -> StateL {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU has AVX2 (checked above); `run_avx2` only differs from `run_body` in
         // the instructions the compiler may use.
-        return unsafe { run_avx2(lanes, y, fixed, opts) };
+        return unsafe { run_avx2(lanes, y, fixed) };
     }
-    run_body(lanes, y, fixed, opts)
+    run_body(lanes, y, fixed)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn run_avx2(lanes: &mut [Option<Lane>; LANES], y: StateL, fixed: &CoeffsL, opts: &SolverOptions) -> StateL {
-    run_body(lanes, y, fixed, opts)
+fn run_avx2(lanes: &mut [Option<Lane>; LANES], y: StateL, fixed: &CoeffsL) -> StateL {
+    run_body(lanes, y, fixed)
 }
 
 /// Coefficients of every lane at the stage times `tau` (fixed lanes keep theirs); a lane whose
@@ -556,8 +537,7 @@ fn stage(lanes: &[Option<Lane>; LANES], fixed: &CoeffsL, varying: bool, h: &F4, 
 }
 
 #[inline(always)]
-fn run_body(lanes: &mut [Option<Lane>; LANES], mut y: StateL, fixed: &CoeffsL, opts: &SolverOptions) -> StateL {
-    let exponent = 0.2;
+fn run_body(lanes: &mut [Option<Lane>; LANES], mut y: StateL, fixed: &CoeffsL) -> StateL {
     // any lane whose coefficients follow the temperature within the interval
     let varying = lanes.iter().any(|l| l.as_ref().is_some_and(|l| matches!(l.coeffs, LaneCoeffs::Varying { .. })));
     // first stage at the start (the scalar `integrate`'s k1)
@@ -586,7 +566,7 @@ fn run_body(lanes: &mut [Option<Lane>; LANES], mut y: StateL, fixed: &CoeffsL, o
                 continue;
             }
             lane.substeps += 1;
-            if lane.substeps > opts.max_substeps as u64 {
+            if lane.substeps > lane.ctl.max_substeps {
                 lane.active = false;
                 lane.scalar = true;
                 continue;
@@ -629,7 +609,7 @@ fn run_body(lanes: &mut [Option<Lane>; LANES], mut y: StateL, fixed: &CoeffsL, o
                 lane.stats.rhs += 1;
                 let yl = lane_of(&y, l);
                 let yn = lane_of(&ynew, l);
-                let e = err_norm(&lane_of(&err, l), &yl, &yn, opts.rtol, &lane.floor);
+                let e = err_norm(&lane_of(&err, l), &yl, &yn, &lane.ctl);
                 if e <= 1.0 && yn.iter().all(|v| v.is_finite()) {
                     lane.t = if truncated[l] { lane.t1 } else { lane.t + step };
                     for i in 0..7 {
@@ -637,21 +617,19 @@ fn run_body(lanes: &mut [Option<Lane>; LANES], mut y: StateL, fixed: &CoeffsL, o
                         k1[i].0[l] = k7[i].0[l];
                     }
                     lane.stats.steps += 1;
-                    (true, if e == 0.0 { 5.0 } else { (0.9 * e.powf(-exponent)).clamp(0.2, 5.0) })
+                    (true, accepted_factor(Method::Dopri5, e))
                 } else {
-                    (false, if e.is_finite() { (0.9 * e.powf(-exponent)).clamp(0.1, 0.9) } else { 0.25 })
+                    (false, rejected_factor(Method::Dopri5, e))
                 }
             } else {
                 (false, 0.25)
             };
-            let h_max = opts.max_substep;
             if accepted {
-                let proposal = (step * fac).min(h_max);
-                lane.hh = if truncated[l] && fac >= 1.0 { lane.hh.max(proposal).min(h_max) } else { proposal };
+                lane.hh = proposal_after_accept(step, fac, truncated[l], lane.hh, lane.ctl.h_max);
             } else {
                 lane.stats.rejected += 1;
                 lane.hh = step * fac;
-                if lane.hh < opts.min_step_rel * lane.t || !(lane.hh > 0.0) {
+                if lane.hh < lane.ctl.min_step_rel * lane.t || !(lane.hh > 0.0) {
                     lane.active = false;
                     lane.scalar = true;
                 }
