@@ -857,13 +857,13 @@ impl Simulation {
                 self.contacts_in_lanes += n as u64;
             }
             if let Some(o) = &order {
-                // back to contact order
-                let mut back: Vec<Option<Result<OdeStats, ModelError>>> = (0..o.len()).map(|_| None).collect();
+                // back to contact order (`o` is a permutation: every slot is written)
+                let mut back: Vec<Result<OdeStats, ModelError>> = (0..o.len()).map(|_| Ok(OdeStats::default())).collect();
                 for ((&k, r), c) in o.iter().zip(results).zip(&work) {
                     self.contacts.state[k as usize] = *c;
-                    back[k as usize] = Some(r);
+                    back[k as usize] = r;
                 }
-                results = back.into_iter().map(|r| r.unwrap_or_else(|| Err(ModelError::new("7-DOF sweep: a contact was not integrated")))).collect();
+                results = back;
             }
             let mut stats = Vec::with_capacity(results.len());
             let mut trial_rejected = 0usize;
