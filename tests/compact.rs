@@ -6,11 +6,10 @@ use sinterdem::config::apply_override;
 use sinterdem::coupled::{self, Simulation};
 use std::path::{Path, PathBuf};
 
+mod common;
+
 fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("sinterdem-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+    common::fresh_dir("compact", name)
 }
 
 /// A corner of the bundled green copper packing (particles with all coordinates below `edge`).
@@ -20,21 +19,9 @@ fn small_packing(dir: &Path, edge: f64) -> PathBuf {
 
 /// A column of the bundled green copper packing: x, y below `edge`, z below `height`.
 fn column_packing(dir: &Path, edge: f64, height: f64) -> PathBuf {
-    let text = std::fs::read_to_string("cases/data/green-copper.csv").unwrap();
-    let mut out = String::from("x,y,z,r\n");
-    let mut n = 0;
-    for line in text.lines().filter(|l| !l.starts_with('#') && !l.starts_with('x')) {
-        let v: Vec<f64> = line.split(',').map(|s| s.parse().unwrap()).collect();
-        if v[0] < edge && v[1] < edge && v[2] < height {
-            out.push_str(line);
-            out.push('\n');
-            n += 1;
-        }
-    }
-    assert!(n > 30, "{n}");
-    let path = dir.join("small.csv");
-    std::fs::write(&path, out).unwrap();
-    path
+    let rows = common::green_copper_block(edge, height);
+    assert!(rows.len() > 30, "{}", rows.len());
+    common::write_block(dir, "small.csv", "x,y,z,r", rows.into_iter().map(|(l, _)| l))
 }
 
 fn compact_case(packing: &Path, sets: &[&str]) -> toml::Value {

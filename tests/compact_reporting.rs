@@ -6,28 +6,17 @@
 use sinterdem::run::{self, RunParams};
 use std::path::{Path, PathBuf};
 
+mod common;
+
 fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("sinterdem-reporting-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+    common::fresh_dir("reporting", name)
 }
 
-/// A corner of the bundled green copper packing (all coordinates below `edge`), plus `extra` rows.
+/// A corner of the bundled green copper packing (all coordinates below `edge`), plus `extra` rows
+/// (lines of `x,y,z,r`).
 fn packing(dir: &Path, edge: f64, extra: &str) -> PathBuf {
-    let text = std::fs::read_to_string("cases/data/green-copper.csv").unwrap();
-    let mut out = String::from("x,y,z,r\n");
-    for line in text.lines().filter(|l| !l.starts_with('#') && !l.starts_with('x')) {
-        let v: Vec<f64> = line.split(',').map(|s| s.parse().unwrap()).collect();
-        if v[0] < edge && v[1] < edge && v[2] < edge {
-            out.push_str(line);
-            out.push('\n');
-        }
-    }
-    out.push_str(extra);
-    let path = dir.join("packing.csv");
-    std::fs::write(&path, out).unwrap();
-    path
+    let rows = common::green_copper_block(edge, edge).into_iter().map(|(l, _)| l);
+    common::write_block(dir, "packing.csv", "x,y,z,r", rows.chain(extra.lines().map(String::from)))
 }
 
 fn isothermal(packing: &Path, material: &str, temperature: f64, end: f64) -> toml::Value {

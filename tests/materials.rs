@@ -7,29 +7,18 @@ use sinterdem::mechanics::bond::series_elastic;
 use sinterdem::run::{self, RunParams};
 use std::path::{Path, PathBuf};
 
+mod common;
+
 fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("sinterdem-materials-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+    common::fresh_dir("materials", name)
 }
 
 /// A corner of the bundled green copper packing, with a material column alternating 0, 1.
 fn packing(dir: &Path, edge: f64) -> PathBuf {
-    let text = std::fs::read_to_string("cases/data/green-copper.csv").unwrap();
-    let mut out = String::from("x,y,z,r,material\n");
-    let mut n = 0;
-    for line in text.lines().filter(|l| !l.starts_with('#') && !l.starts_with('x')) {
-        let v: Vec<f64> = line.split(',').map(|s| s.parse().unwrap()).collect();
-        if v[0] < edge && v[1] < edge && v[2] < edge {
-            out.push_str(&format!("{},{},{},{},{}\n", v[0], v[1], v[2], v[3], n % 2));
-            n += 1;
-        }
-    }
-    assert!(n > 30, "{n}");
-    let path = dir.join("packing.csv");
-    std::fs::write(&path, out).unwrap();
-    path
+    let rows = common::green_copper_block(edge, edge);
+    assert!(rows.len() > 30, "{}", rows.len());
+    let lines = rows.into_iter().enumerate().map(|(n, (_, v))| format!("{},{},{},{},{}", v[0], v[1], v[2], v[3], n % 2));
+    common::write_block(dir, "packing.csv", "x,y,z,r,material", lines)
 }
 
 const COPPER_PHASE: &str = r#"

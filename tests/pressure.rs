@@ -9,27 +9,15 @@ use sinterdem::models::diffusion7::pair::{parse_pair_case, run_pair};
 use sinterdem::models::diffusion7::{Contact7, evaluate, invariants};
 use std::path::{Path, PathBuf};
 
+mod common;
+
 fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("sinterdem-pressure-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+    common::fresh_dir("pressure", name)
 }
 
 /// A block of the bundled green copper packing: x, y below `edge`, z below `height` [m].
 fn column_packing(dir: &Path, edge: f64, height: f64) -> PathBuf {
-    let text = std::fs::read_to_string("cases/data/green-copper.csv").unwrap();
-    let mut out = String::from("x,y,z,r\n");
-    for line in text.lines().filter(|l| !l.starts_with('#') && !l.starts_with('x')) {
-        let v: Vec<f64> = line.split(',').map(|s| s.parse().unwrap()).collect();
-        if v[0] < edge && v[1] < edge && v[2] < height {
-            out.push_str(line);
-            out.push('\n');
-        }
-    }
-    let path = dir.join("block.csv");
-    std::fs::write(&path, out).unwrap();
-    path
+    common::write_block(dir, "block.csv", "x,y,z,r", common::green_copper_block(edge, height).into_iter().map(|(l, _)| l))
 }
 
 fn compact_case(packing: &Path, load: &str, sets: &[&str]) -> toml::Value {

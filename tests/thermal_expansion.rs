@@ -10,27 +10,15 @@ use sinterdem::config::apply_override;
 use sinterdem::coupled::{self, Simulation};
 use std::path::{Path, PathBuf};
 
+mod common;
+
 fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("sinterdem-expansion-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+    common::fresh_dir("expansion", name)
 }
 
 /// A box of the bundled green copper packing (x, y below `edge`, z below `height`).
 fn packing(dir: &Path, edge: f64, height: f64) -> PathBuf {
-    let text = std::fs::read_to_string("cases/data/green-copper.csv").unwrap();
-    let mut out = String::from("x,y,z,r\n");
-    for line in text.lines().filter(|l| !l.starts_with('#') && !l.starts_with('x')) {
-        let v: Vec<f64> = line.split(',').map(|s| s.parse().unwrap()).collect();
-        if v[0] < edge && v[1] < edge && v[2] < height {
-            out.push_str(line);
-            out.push('\n');
-        }
-    }
-    let path = dir.join("packing.csv");
-    std::fs::write(&path, out).unwrap();
-    path
+    common::write_block(dir, "packing.csv", "x,y,z,r", common::green_copper_block(edge, height).into_iter().map(|(l, _)| l))
 }
 
 /// A copper compact in a furnace following `profile` (isothermal mode), with `sets` applied.
