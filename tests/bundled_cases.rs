@@ -97,6 +97,46 @@ fn scan(dir: &Path) -> (usize, Vec<String>) {
     (files, bad)
 }
 
+/// Fields of `summary.json` that measure the machine, not the physics: wall times (`wall_*`,
+/// `seconds_*`), thread count, and every `*_s` timing inside a `*profile*` or `timing*` object.
+fn normalise(v: &mut serde_json::Value, parent: &str) {
+    if let serde_json::Value::Object(o) = v {
+        o.retain(|k, _| {
+            let timing_parent = parent.contains("profile") || parent.starts_with("timing");
+            !(k.starts_with("wall_") || k == "threads" || k.starts_with("timing") || k.starts_with("seconds_") || (timing_parent && k.ends_with("_s")))
+        });
+        for (k, x) in o.iter_mut() {
+            normalise(x, k);
+        }
+    } else if let serde_json::Value::Array(a) = v {
+        a.iter_mut().for_each(|x| normalise(x, parent));
+    }
+}
+
+/// SHA-256 of `series.csv` and of `summary.json` without the machine-dependent fields (issue 22:
+/// behaviour unchanged by the move to the `kinds/` floor), as `name\tfile\thex` lines.
+fn checksums(name: &str, out: &Path) -> Vec<String> {
+    use sha2::{Digest, Sha256};
+    let mut lines = Vec::new();
+    for file in ["series.csv", "summary.json"] {
+        let p = out.join(file);
+        let Ok(text) = std::fs::read_to_string(&p) else { continue };
+        let bytes = if file == "summary.json" {
+            let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+            normalise(&mut v, "");
+            serde_json::to_string(&v).unwrap()
+        } else {
+            text
+        };
+        let h = Sha256::digest(bytes.as_bytes());
+        lines.push(format!("{name}\t{file}\t{}", h.iter().map(|b| format!("{b:02x}")).collect::<String>()));
+    }
+    lines
+}
+
+/// Checksums recorded with the code before the move (`SINTERDEM_RECORD_CHECKSUMS=1` rewrites them).
+const CHECKSUMS: &str = "tests/data/bundled-checksums.tsv";
+
 fn cases() -> Vec<PathBuf> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut v = Vec::new();
@@ -115,6 +155,7 @@ fn every_bundled_case_runs_briefly_without_nan_inf_or_null() {
     let _ = std::fs::remove_dir_all(&out_root);
     let mut failures = Vec::new();
     let mut report = Vec::new();
+    let mut sums = Vec::new();
     for case in cases() {
         let name = case.file_name().unwrap().to_string_lossy().to_string();
         let v = sinterdem::config::load_case(&case, &[]).unwrap();
@@ -138,9 +179,23 @@ fn every_bundled_case_runs_briefly_without_nan_inf_or_null() {
             failures.push(format!("{name}: no summary.json / no CSV written"));
         }
         failures.extend(bad.into_iter().take(5).map(|b| format!("{name}: {b}")));
+        sums.extend(checksums(&name, &out));
         report.push(format!("{name} ({kind}): {secs:.1} s, {files} files"));
     }
     eprintln!("{}", report.join("\n"));
     assert!(failures.is_empty(), "{}", failures.join("\n"));
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(CHECKSUMS);
+    if std::env::var("SINTERDEM_RECORD_CHECKSUMS").is_ok_and(|v| v == "1") {
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        std::fs::write(&path, sums.join("\n") + "\n").unwrap();
+    }
+    let recorded = std::fs::read_to_string(&path).unwrap();
+    let recorded: Vec<&str> = recorded.lines().collect();
+    let changed: Vec<String> = sums
+        .iter()
+        .filter(|s| !recorded.contains(&s.as_str()))
+        .map(|s| s.rsplit_once('\t').map_or(s.clone(), |(k, _)| k.to_string()))
+        .collect();
+    assert!(recorded.len() == sums.len() && changed.is_empty(), "outputs differ from {CHECKSUMS} ({} recorded, {} now): {changed:?}", recorded.len(), sums.len());
     let _ = std::fs::remove_dir_all(&out_root);
 }
