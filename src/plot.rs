@@ -210,7 +210,6 @@ impl Plot {
         root.present()
     }
 
-    #[allow(clippy::too_many_arguments)]
     fn chart<DB, X, Y>(&self, root: &DrawingArea<DB, Shift>, xr: X, yr: Y, raster: bool) -> DrawResult<DB::ErrorType>
     where
         DB: DrawingBackend,

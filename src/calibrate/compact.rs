@@ -438,7 +438,6 @@ impl ForwardModel for CompactModel {
 }
 
 /// Runs the chosen experiments on the compact and writes `compact_validation.csv`.
-#[allow(clippy::too_many_arguments)]
 pub fn validate(
     section: &CompactSection,
     calib_dir: &Path,

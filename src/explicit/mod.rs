@@ -1025,7 +1025,6 @@ impl<M: ContactModel> Explicit<M> {
 /// Coulomb-limited tangential spring (module docs). Returns (force on i, stored energy,
 /// dissipated power).
 #[inline]
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn tangential(xi: &mut V3, n: &V3, vt: &V3, no: &NormalOut, mu: f64, alpha: f64, beta: f64, dt: f64) -> (V3, f64, f64) {
     if mu == 0.0 {
         *xi = V3::zeros();

@@ -133,7 +133,6 @@ mod imp {
     /// A time-dependent element: appends one entry (`row`, of shape `inner`) at `step`/`time`.
     /// The first axis of `value` is the snapshot; a `grow` axis (the contact axis) is resized to
     /// the largest count so far, the rest holds `fill`.
-    #[allow(clippy::too_many_arguments)]
     fn append<T: H5Type + Copy>(parent: &Group, name: &str, u: &str, inner: &[usize], row: &[T], fill: T, step: u64, time: f64) -> R<()> {
         let g = group(parent, name)?;
         let value = if g.link_exists("value") {

@@ -557,7 +557,6 @@ impl BondedSystem {
     /// Newton with CG preconditioned by the AMG hierarchy ([`amg`]): built once per topology and,
     /// with `amg.reuse`, kept as a (stale, still SPD) preconditioner across steps with only the fine
     /// smoother refreshed, until CG needs more than 1.5× the iterations of the last fresh build + 5.
-    #[allow(clippy::too_many_arguments)]
     fn newton_amg(
         &mut self,
         positions: &[Vector3<f64>],
@@ -652,7 +651,6 @@ const STALE_CG_REFRESH: usize = 12;
 /// their particle's diagonal block). `Some(iterations)` when the true scaled residual reaches
 /// `rtol`, `None` when CG does not converge within [`STALE_CG_MAX_ITER`] iterations. The
 /// preconditioner is block diagonal over the two DOF sets, each block SPD, so CG applies.
-#[allow(clippy::too_many_arguments)]
 fn stale_factor_cg(
     chol: &mut BondCholesky,
     chol_eq: &[u32],

@@ -241,7 +241,6 @@ pub(crate) fn proposal_after_accept(step: f64, fac: f64, truncated: bool, hh: f6
 /// Integrates `y' = f(t, y)` from `t0` to `t1` (own time of the contact, `t0 ≥ 0`), starting with
 /// the step `*h` (≤ 0: estimated). On return `*h` is the step proposed for the continuation.
 /// `on_step(t, y)` is called after every accepted step.
-#[allow(clippy::too_many_arguments)]
 pub fn integrate<const N: usize, F, G>(
     f: &mut F,
     t0: f64,
@@ -493,7 +492,6 @@ fn lu_solve<const N: usize>(a: &[[f64; N]; N], piv: &[usize; N], b: &mut [f64; N
     }
 }
 
-#[allow(clippy::too_many_arguments)]
 fn rosenbrock_step<const N: usize, F>(f: &mut F, t: f64, y: &[f64; N], f0: &[f64; N], j: &[[f64; N]; N], dfdt: &[f64; N], h: f64, st: &mut OdeStats) -> Trial<N>
 where
     F: FnMut(f64, &[f64; N]) -> Result<[f64; N], ModelError>,

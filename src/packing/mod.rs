@@ -756,7 +756,6 @@ pub fn coordination(pos: &[V3], rad: &[f64], gap: f64) -> (Vec<u32>, usize) {
     (z, overl)
 }
 
-#[allow(clippy::too_many_arguments)]
 fn summarise(
     case: &GenerateCase,
     pos: &[V3],

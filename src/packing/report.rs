@@ -58,7 +58,6 @@ pub fn laminae(pos: &[Vector3<f64>], rad: &[f64], lo: &Vector3<f64>, hi: &Vector
 /// Writes the spheres through the shared VTU writer ([`crate::io::vtu::write_snapshot`]) as
 /// `stem.vtu` (points with `radius_m`, `coordination` and, if `temperature` is not empty,
 /// `temperature_K`) and `stem_contacts.vtu` (the given contact pairs as lines with their `gap_m`).
-#[allow(clippy::too_many_arguments)]
 pub fn write_vtu(
     dir: &Path,
     stem: &str,
