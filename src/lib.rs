@@ -33,7 +33,7 @@ pub mod packing;
 pub mod particles;
 pub mod plot;
 pub mod profile;
-pub mod run;
+pub mod kinds;
 pub mod scene;
 pub mod study;
 pub mod units;

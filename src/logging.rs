@@ -6,10 +6,10 @@
 //!   and progress bars do not smear: `-q` warnings and errors only, default info, `-v` debug,
 //!   `-vv` trace; warnings read `warning: …`, errors `error: …`;
 //! - copies every event of level debug or above that a run's own thread emits into that run's
-//!   `DIR/log.txt` ([`RunFile`], set up by [`crate::run::RunLog`]), whatever the console level.
+//!   `DIR/log.txt` ([`RunFile`], set up by [`crate::kinds::RunLog`]), whatever the console level.
 //!
 //! The lines a run reports through its log callback are written to `log.txt` by
-//! [`crate::run::RunLog`] itself (so a library user without a subscriber still gets the file) and
+//! [`crate::kinds::RunLog`] itself (so a library user without a subscriber still gets the file) and
 //! sent to the console as events of target [`RUN_TARGET`], which the file copy skips.
 
 use std::cell::RefCell;
@@ -21,7 +21,7 @@ use tracing_subscriber::layer::{Context, Layer};
 use tracing_subscriber::prelude::*;
 
 /// Target of the events that carry a run's log lines (already in `log.txt`).
-pub const RUN_TARGET: &str = "sinterdem::run";
+pub const RUN_TARGET: &str = "sinterdem::kinds";
 
 /// How much the console shows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -306,8 +306,8 @@ fn run_case(case: &CaseArgs, value: toml::Value, out: Option<PathBuf>, quiet: bo
     let out = out.unwrap_or_else(|| PathBuf::from("out").join(stem));
     let mut sets = case.set.clone();
     sets.extend(extra);
-    let params = sinterdem::run::RunParams { base_dir: base_dir(&case.case), progress: !quiet, echo_log: true, plots: true, wall_limit: None };
-    sinterdem::run::run(&value, &sets, &out, &params)?;
+    let params = sinterdem::kinds::RunParams { base_dir: base_dir(&case.case), progress: !quiet, echo_log: true, plots: true, wall_limit: None };
+    sinterdem::kinds::run(&value, &sets, &out, &params)?;
     Ok(())
 }
 
@@ -334,7 +334,7 @@ fn real_main(cli: Cli) -> Result<(), Error> {
     match cli.command {
         Command::Generate { case, out } => located(&case, || {
             let value = sinterdem::config::load_case(&case.case, &[])?;
-            if sinterdem::run::Kind::of(&value)? != sinterdem::run::Kind::Generate {
+            if sinterdem::kinds::Kind::of(&value)? != sinterdem::kinds::Kind::Generate {
                 return Err(sinterdem::ConfigError::invalid(format!("{}: kind must be \"generate\"", case.case.display())).into());
             }
             run_case(&case, value, out.clone(), quiet, vec![])
@@ -345,13 +345,13 @@ fn real_main(cli: Cli) -> Result<(), Error> {
             run_case(&case, value, out.clone(), quiet, extra)
         }),
         Command::Resume { dir } => {
-            let params = sinterdem::run::RunParams { progress: !quiet, echo_log: true, ..Default::default() };
-            sinterdem::run::resume(&dir, &params)?;
+            let params = sinterdem::kinds::RunParams { progress: !quiet, echo_log: true, ..Default::default() };
+            sinterdem::kinds::resume(&dir, &params)?;
             Ok(())
         }
         Command::Check { case } => located(&case, || {
             let value = sinterdem::config::load_case(&case.case, &[])?;
-            let what = sinterdem::run::check(&value, &case.set, &base_dir(&case.case))?;
+            let what = sinterdem::kinds::check(&value, &case.set, &base_dir(&case.case))?;
             println!("{}: ok ({what})", case.case.display());
             Ok(())
         }),
@@ -434,7 +434,7 @@ fn real_main(cli: Cli) -> Result<(), Error> {
         }
         Command::Conductivity { case } => located(&case, || {
             let value = sinterdem::config::load_case(&case.case, &case.set)?;
-            let v = sinterdem::heat::conductivity::run_case(value, &base_dir(&case.case))?;
+            let v = sinterdem::kinds::conductivity::run_case(value, &base_dir(&case.case))?;
             println!("{}", serde_json::to_string_pretty(&v).unwrap());
             Ok(())
         }),
@@ -471,7 +471,7 @@ fn real_main(cli: Cli) -> Result<(), Error> {
             }
             Bench::Generate { particles, out } => {
                 sinterdem::io::ensure_dir(&out)?;
-                println!("{}", sinterdem::packing::bench_generate(&out, &particles)?);
+                println!("{}", sinterdem::kinds::generate::bench_generate(&out, &particles)?);
                 Ok(())
             }
             Bench::Sweep { contacts, steps, dt } => {

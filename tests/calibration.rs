@@ -108,7 +108,7 @@ fn noisy_data_fit_within_two_sigma_with_reduced_chi2_near_one() {
     let case = format!(
         "kind = \"pair\"\n[pair]\nmaterial = \"titanium\"\nradius = 3.3e-5\nend_time = 100.0\n[temperature]\nconstant = 1373.0\n[output]\nplot = false\n{mat}"
     );
-    let spec = sinterdem::models::diffusion7::pair::parse_pair_case(&toml::Value::Table(case.parse().unwrap())).unwrap();
+    let spec = sinterdem::kinds::pair::parse_pair_case(&toml::Value::Table(case.parse().unwrap())).unwrap();
     assert_eq!(spec.material_a.phases[1].d0_gb, param(&rep, "beta.d0_gb", "value"));
     let csv = std::fs::read_to_string(dir.join("residuals.csv")).unwrap();
     assert!(csv.starts_with("id,time_s,end,quantity,measured,sigma,fitted,residual\n") && csv.lines().count() == 57);

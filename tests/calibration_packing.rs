@@ -219,8 +219,8 @@ fn a_failed_packing_run_is_a_penalty() {
 
 fn shrinkage(dir: &Path, name: &str) -> [f64; 3] {
     let v = load_case(&dir.join("compact.toml"), &[]).unwrap();
-    let p = sinterdem::run::RunParams { base_dir: dir.to_path_buf(), plots: false, ..Default::default() };
-    let s = sinterdem::run::run(&v, &["time.end=300".into()], &dir.join(name), &p).unwrap();
+    let p = sinterdem::kinds::RunParams { base_dir: dir.to_path_buf(), plots: false, ..Default::default() };
+    let s = sinterdem::kinds::run(&v, &["time.end=300".into()], &dir.join(name), &p).unwrap();
     [s.f64("shrinkage_x").unwrap(), s.f64("shrinkage_y").unwrap(), s.f64("shrinkage_z").unwrap()]
 }
 

@@ -57,7 +57,7 @@ furnace = {{ profile = {{ constant = 1293.0 }} }}
 
 fn run_case(v: toml::Value, out: &Path) -> (serde_json::Value, Vec<f64>) {
     let sim = coupled::prepare(v, Path::new("."), &mut |_| {}).unwrap();
-    let s = coupled::run(sim, out, false, &mut |_| {}).unwrap();
+    let s = sinterdem::kinds::compact::run(sim, out, false, &mut |_| {}).unwrap();
     let series = std::fs::read_to_string(out.join("series.csv")).unwrap();
     let last: Vec<f64> = series.lines().last().unwrap().split(',').map(|x| x.parse().unwrap()).collect();
     (s, last)
@@ -73,7 +73,7 @@ fn pair_through_the_scheduler_equals_the_free_pair() {
     let sim = coupled::prepare(v, Path::new("."), &mut |m| log.push(m.to_string())).unwrap();
     assert_eq!(sim.contacts.len(), 1);
     let out = dir.join("out");
-    let s = coupled::run(sim, &out, false, &mut |m| log.push(m.to_string())).unwrap();
+    let s = sinterdem::kinds::compact::run(sim, &out, false, &mut |m| log.push(m.to_string())).unwrap();
     assert!(log.iter().any(|l| l.contains("mechanics is skipped")), "{log:?}");
     // the free pair, one integration over [0, 1000 s]; reference (docs/diffusion7.md §11) at 1000 s:
     // y1/R = 0.30939, ΔL/L0 = 1.571e-2
@@ -84,8 +84,8 @@ fn pair_through_the_scheduler_equals_the_free_pair() {
             .parse()
             .unwrap(),
     );
-    let spec = sinterdem::models::diffusion7::pair::parse_pair_case(&pair_toml).unwrap();
-    let free = sinterdem::models::diffusion7::pair::run_pair(&spec, false, false).unwrap();
+    let spec = sinterdem::kinds::pair::parse_pair_case(&pair_toml).unwrap();
+    let free = sinterdem::kinds::pair::run_pair(&spec, false, false).unwrap();
     let free_y1 = free.contact.y[0] / 25e-6;
     assert!((neck / free_y1 - 1.0).abs() < 1e-6, "scheduler {neck} vs free {free_y1}");
     // A stays, B approached by the free model's ΔL (the correction leaves y4, y7 unchanged): the
@@ -124,11 +124,11 @@ fn resumed_run_is_bit_identical() {
     // the same run, killed right after its checkpoint at step 80, then resumed
     let part = dir.join("part");
     let sim = coupled::prepare(compact_case(&csv, &["time.end=200.0", "output.checkpoint_every=40"]), Path::new("."), &mut |_| {}).unwrap();
-    let r = coupled::run_from(sim, &part, false, &mut |_| {}, None, Some(80)).unwrap();
+    let r = sinterdem::kinds::compact::run_from(sim, &part, false, &mut |_| {}, None, Some(80)).unwrap();
     assert!(r.is_null());
-    let ck = coupled::read_checkpoint(&part).unwrap();
+    let ck = sinterdem::kinds::compact::read_checkpoint(&part).unwrap();
     assert_eq!(ck.step, 80);
-    let s_res = coupled::resume(&part, false, &mut |_| {}).unwrap();
+    let s_res = sinterdem::kinds::compact::resume(&part, false, &mut |_| {}).unwrap();
     for key in
         ["final_time_s", "steps", "shrinkage_x", "shrinkage_y", "shrinkage_z", "relative_density", "neck_ratio", "contacts", "rhs_evaluations", "mechanics"]
     {
@@ -143,7 +143,7 @@ fn resumed_run_is_bit_identical() {
     let b = std::fs::read_to_string(part.join("series.csv")).unwrap();
     assert_eq!(a, b, "series.csv of the resumed run differs");
     // the resumed run went on writing checkpoints; the last one restores the end state
-    let (sim_a, _) = Simulation::from_checkpoint(&coupled::read_checkpoint(&part).unwrap(), &mut |_| {}).unwrap();
+    let (sim_a, _) = Simulation::from_checkpoint(&sinterdem::kinds::compact::read_checkpoint(&part).unwrap(), &mut |_| {}).unwrap();
     assert!(sim_a.step > 80 && sim_a.step < s_full["steps"].as_u64().unwrap());
 }
 
@@ -231,8 +231,8 @@ fn fcc_compact_of_equal_spheres_shrinks_like_the_free_pair() {
     let pair_toml: toml::Value = toml::Value::Table(
         "kind = \"pair\"\n[pair]\nmaterial = \"copper\"\nradius = 25e-6\nend_time = 1000.0\n[temperature]\nconstant = 1293.0\n".parse().unwrap(),
     );
-    let spec = sinterdem::models::diffusion7::pair::parse_pair_case(&pair_toml).unwrap();
-    let free = sinterdem::models::diffusion7::pair::run_pair(&spec, false, false).unwrap();
+    let spec = sinterdem::kinds::pair::parse_pair_case(&pair_toml).unwrap();
+    let free = sinterdem::kinds::pair::run_pair(&spec, false, false).unwrap();
     let free_strain = free.contact.approach() / 50e-6;
     assert!(free_strain > 0.01, "{free_strain}");
     let mut worst: f64 = 0.0;
@@ -255,7 +255,7 @@ fn bundled_hot_plate_scene_has_a_monotone_densification_gradient() {
     let v =
         sinterdem::config::load_case(Path::new("cases/hot-plate-compact.toml"), &["output.snapshots=0".into(), "output.checkpoint_every=0".into()]).unwrap();
     let sim = coupled::prepare(v, Path::new("cases"), &mut |_| {}).unwrap();
-    let s = coupled::run(sim, &dir, false, &mut |_| {}).unwrap();
+    let s = sinterdem::kinds::compact::run(sim, &dir, false, &mut |_| {}).unwrap();
     // measured: shrinkage 5.04 % at the bottom, 4.60 % at the top; neck ratio 0.496 and 0.479
     for (key, ratio) in [("layer_contact_shrinkage", 1.05), ("layer_neck_ratio", 1.02)] {
         let l: Vec<f64> = s[key].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
@@ -276,7 +276,7 @@ fn model_error_stops_the_run_with_a_summary() {
     let v = compact_case(&csv, &["time.end=5000.0"]);
     let sim = coupled::prepare(v, Path::new("."), &mut |_| {}).unwrap();
     let out = dir.join("out");
-    let e = coupled::run(sim, &out, false, &mut |_| {}).unwrap_err();
+    let e = sinterdem::kinds::compact::run(sim, &out, false, &mut |_| {}).unwrap_err();
     assert!(matches!(e, sinterdem::error::Error::Model(_)), "{e}");
     let s: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(s["completed"], serde_json::Value::Bool(false));
@@ -331,12 +331,12 @@ fn resume_with_hdf5_snapshots_and_a_damaged_file() {
     for damaged in [false, true] {
         let part = dir.join(format!("part-{damaged}"));
         let sim = coupled::prepare(compact_case(&csv, &sets), Path::new("."), &mut |_| {}).unwrap();
-        assert!(coupled::run_from(sim, &part, false, &mut |_| {}, None, Some(80)).unwrap().is_null());
+        assert!(sinterdem::kinds::compact::run_from(sim, &part, false, &mut |_| {}, None, Some(80)).unwrap().is_null());
         if damaged {
             std::fs::write(part.join("sinterdem.h5"), [0u8; 96]).unwrap();
         }
         let mut log = Vec::new();
-        let s = coupled::resume(&part, false, &mut |m| log.push(m.to_string())).unwrap();
+        let s = sinterdem::kinds::compact::resume(&part, false, &mut |m| log.push(m.to_string())).unwrap();
         for key in ["steps", "shrinkage_x", "neck_ratio", "contacts"] {
             assert_eq!(s_full[key], s[key], "{key}");
         }

@@ -3,7 +3,7 @@
 //! left out of the temperature statistics, and shrinkage without constrained planes measured
 //! from both faces (so that it agrees with the constrained run on a symmetric packing).
 
-use sinterdem::run::{self, RunParams};
+use sinterdem::kinds::{self, RunParams};
 use std::path::{Path, PathBuf};
 
 mod common;
@@ -38,11 +38,11 @@ fn leaving_the_calibrated_range_warns_once_per_material_and_side() {
     let dir = tmp("range");
     let p = packing(&dir, 1.6e-4, "");
     // copper data are calibrated for 1193–1353 K
-    let s = run::run(&isothermal(&p, "copper", 1100.0, 50.0), &[], &dir.join("cold"), &params(&dir)).unwrap();
+    let s = kinds::run(&isothermal(&p, "copper", 1100.0, 50.0), &[], &dir.join("cold"), &params(&dir)).unwrap();
     let w: Vec<String> = serde_json::from_value(s.summary["warnings"].clone()).unwrap();
     assert_eq!(w.len(), 1, "{w:?}");
     assert!(w[0].contains("copper") && w[0].contains("below the calibrated range") && w[0].contains("1193.0–1353.0 K"), "{w:?}");
-    let s = run::run(&isothermal(&p, "copper", 1293.0, 50.0), &[], &dir.join("ok"), &params(&dir)).unwrap();
+    let s = kinds::run(&isothermal(&p, "copper", 1293.0, 50.0), &[], &dir.join("ok"), &params(&dir)).unwrap();
     assert_eq!(s.summary["warnings"].as_array().unwrap().len(), 0);
 }
 
@@ -51,7 +51,7 @@ fn a_particle_at_the_melting_temperature_stops_the_run() {
     let dir = tmp("melt");
     let p = packing(&dir, 1.6e-4, "");
     for (m, t, tm) in [("copper", 1400.0, "1358"), ("titanium", 2000.0, "1941")] {
-        let e = run::run(&isothermal(&p, m, t, 50.0), &[], &dir.join(m), &params(&dir)).unwrap_err().to_string();
+        let e = kinds::run(&isothermal(&p, m, t, 50.0), &[], &dir.join(m), &params(&dir)).unwrap_err().to_string();
         assert!(e.contains("melting") && e.contains(tm) && e.contains(m) && e.contains("particle"), "{e}");
         // the summary of the last completed step is still written, saying why the run stopped
         let s: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join(m).join("summary.json")).unwrap()).unwrap();
@@ -71,7 +71,7 @@ fn an_isolated_particle_is_named_and_left_out_of_the_temperatures() {
         p.display()
     );
     let case = toml::Value::Table(text.parse::<toml::Table>().unwrap());
-    let s = run::run(&case, &[], &dir.join("out"), &params(&dir)).unwrap();
+    let s = kinds::run(&case, &[], &dir.join("out"), &params(&dir)).unwrap();
     let n = s.summary["particles"].as_u64().unwrap();
     // the added particle (the last one) and any rattler of the corner that touches nothing
     let ids: Vec<u64> = serde_json::from_value(s.summary["isolated_particle_ids"].clone()).unwrap();
@@ -97,8 +97,8 @@ fn shrinkage_without_constrained_planes_agrees_with_the_constrained_run() {
         );
         toml::Value::Table(text.parse::<toml::Table>().unwrap())
     };
-    let c = run::run(&case(true), &[], &dir.join("c"), &params(&dir)).unwrap();
-    let f = run::run(&case(false), &[], &dir.join("f"), &params(&dir)).unwrap();
+    let c = kinds::run(&case(true), &[], &dir.join("c"), &params(&dir)).unwrap();
+    let f = kinds::run(&case(false), &[], &dir.join("f"), &params(&dir)).unwrap();
     for a in ["shrinkage_x", "shrinkage_y", "shrinkage_z"] {
         let (sc, sf) = (c.f64(a).unwrap(), f.f64(a).unwrap());
         assert!(sc > 1e-3, "{a}: {sc}");

@@ -131,15 +131,15 @@ fn time_end_is_the_end_time_of_pair_cases_too() {
     let d = tmp("alias");
     // --set time.end on a pair case sets pair.end_time
     let case = sinterdem::config::load_case(Path::new("cases/pair-copper.toml"), &[]).unwrap();
-    let params = sinterdem::run::RunParams { base_dir: PathBuf::from("cases"), plots: false, ..Default::default() };
-    let s = sinterdem::run::run(&case, &["time.end=2".into()], &d.join("set"), &params).unwrap();
+    let params = sinterdem::kinds::RunParams { base_dir: PathBuf::from("cases"), plots: false, ..Default::default() };
+    let s = sinterdem::kinds::run(&case, &["time.end=2".into()], &d.join("set"), &params).unwrap();
     assert_eq!(s.f64("final_time_s"), Some(2.0));
     // a pair case file may write [time] end = …
     let p = edited(&d, "pair-copper.toml", "end_time = 5000.0", "");
     let text = std::fs::read_to_string(&p).unwrap() + "\n[time]\nend = 3.0\n";
     std::fs::write(&p, text).unwrap();
     let v = sinterdem::config::load_case(&p, &[]).unwrap();
-    let s = sinterdem::run::run(&v, &[], &d.join("file"), &params).unwrap();
+    let s = sinterdem::kinds::run(&v, &[], &d.join("file"), &params).unwrap();
     assert_eq!(s.f64("final_time_s"), Some(3.0));
     // … but not both, nor other [time] keys
     let p = edited(&d, "pair-copper.toml", "end_time = 5000.0", "end_time = 5000.0\n[time]\nend = 3.0\n[more]");

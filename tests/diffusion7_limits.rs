@@ -3,7 +3,7 @@
 
 use sinterdem::models::diffusion7::SolverOptions;
 use sinterdem::models::diffusion7::material::{Material, PathFactors};
-use sinterdem::models::diffusion7::pair::{PairRun, PairSpec, PairTemperature, run_pair};
+use sinterdem::kinds::pair::{PairRun, PairSpec, PairTemperature, run_pair};
 
 /// Copper energies with constant diffusivities D_s, D_gb, D_b [m²/s] (Q = 0).
 fn material(ds: f64, dgb: f64, db: f64) -> Material {

@@ -2,7 +2,7 @@
 
 use sinterdem::config::{apply_override, load_case};
 use sinterdem::models::diffusion7::geometry::volume_and_areas;
-use sinterdem::models::diffusion7::pair::{PairSpec, parse_pair_case, run_pair, run_pair_case};
+use sinterdem::kinds::pair::{PairSpec, parse_pair_case, run_pair, run_pair_case};
 use sinterdem::models::ode::Method;
 use std::path::Path;
 

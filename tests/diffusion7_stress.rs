@@ -4,7 +4,7 @@
 
 use sinterdem::error::ModelError;
 use sinterdem::models::diffusion7::material::{Material, PathFactors};
-use sinterdem::models::diffusion7::pair::{PairRun, PairSpec, PairTemperature, ramp_profile, run_pair};
+use sinterdem::kinds::pair::{PairRun, PairSpec, PairTemperature, ramp_profile, run_pair};
 use sinterdem::models::diffusion7::{ContactParams, SolverOptions, correct_y4_y7, load_increment, rates, sintering_force};
 use sinterdem::models::ode::Method;
 

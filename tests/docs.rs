@@ -39,7 +39,7 @@ fn toml_snippets_in_docs_parse() {
             let v = toml::Value::Table(value);
             let is_heat_case = v.get("time").is_some() && v.get("particles").is_some() && v.get("kind").is_none();
             if is_heat_case {
-                sinterdem::heat::run::prepare(v, Path::new("cases")).unwrap_or_else(|e| panic!("{}: heat snippet rejected: {e}", path.display()));
+                sinterdem::kinds::heat::prepare(v, Path::new("cases")).unwrap_or_else(|e| panic!("{}: heat snippet rejected: {e}", path.display()));
             }
             count += 1;
             rest = &body[j + 3..];

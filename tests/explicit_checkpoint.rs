@@ -3,8 +3,8 @@
 //! second pressure) and resumed through the run API gives the uninterrupted run's CSV files byte
 //! for byte and the same summary; a damaged or mismatched checkpoint is refused with the reason.
 
-use sinterdem::explicit::protocol::run_explicit_from;
-use sinterdem::run::{self, RunParams};
+use sinterdem::kinds::explicit_sinter::run_explicit_from;
+use sinterdem::kinds::{self, RunParams};
 use std::path::{Path, PathBuf};
 
 fn tmp(name: &str) -> PathBuf {
@@ -73,7 +73,7 @@ fn without_wall_time(mut s: serde_json::Value) -> serde_json::Value {
 fn resumed_equals_whole(name: &str, value: &toml::Value, stops: &[u64]) -> Vec<String> {
     let dir = tmp(name);
     let params = RunParams { plots: false, ..Default::default() };
-    let whole = run::run(value, &[], &dir.join("whole"), &params).unwrap();
+    let whole = kinds::run(value, &[], &dir.join("whole"), &params).unwrap();
     let whole_csv = csv_files(&dir.join("whole"));
     assert!(whole_csv.len() >= 12, "history, compression and forces of 4 branches: {:?}", whole_csv.iter().map(|c| &c.0).collect::<Vec<_>>());
     let mut stages = Vec::new();
@@ -84,8 +84,8 @@ fn resumed_equals_whole(name: &str, value: &toml::Value, stops: &[u64]) -> Vec<S
         let ck: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(part.join("checkpoint.json")).unwrap()).unwrap();
         assert_eq!(ck["steps"], stop);
         stages.push(format!("{}:{}", ck["pressure_index"], ck["stage"]["stage"].as_str().unwrap()));
-        let resumed = run::resume(&part, &RunParams::default()).unwrap();
-        assert_eq!(resumed.kind, run::Kind::ExplicitSinter);
+        let resumed = kinds::resume(&part, &RunParams::default()).unwrap();
+        assert_eq!(resumed.kind, kinds::Kind::ExplicitSinter);
         let part_csv = csv_files(&part);
         assert_eq!(part_csv.len(), whole_csv.len());
         for ((na, a), (nb, b)) in part_csv.iter().zip(&whole_csv) {
@@ -125,7 +125,7 @@ fn a_damaged_or_mismatched_checkpoint_is_refused_with_the_reason() {
         let mut bad = good.clone();
         edit(&mut bad);
         std::fs::write(&path, bad.to_string()).unwrap();
-        let e = run::resume(&part, &RunParams::default()).unwrap_err().to_string();
+        let e = kinds::resume(&part, &RunParams::default()).unwrap_err().to_string();
         assert!(e.contains("checkpoint.json"), "{e}");
         for w in want {
             assert!(e.contains(w), "expected {w:?} in: {e}");
@@ -148,6 +148,6 @@ fn a_damaged_or_mismatched_checkpoint_is_refused_with_the_reason() {
     );
     // not JSON at all
     std::fs::write(&path, "{\"format\": \"sinterdem-explicit-checkpoint-1\", \"case_toml\": ").unwrap();
-    let e = run::resume(&part, &RunParams::default()).unwrap_err().to_string();
+    let e = kinds::resume(&part, &RunParams::default()).unwrap_err().to_string();
     assert!(e.contains("checkpoint.json") && e.contains("not a sinterdem checkpoint"), "{e}");
 }

@@ -3,7 +3,7 @@
 //! samples, stress control, thread-count determinism, rejection of bad input.
 use nalgebra::Vector3;
 use sinterdem::explicit::law::ContactModel;
-use sinterdem::explicit::protocol::{check_explicit_case, parse_explicit_case, run_explicit, run_explicit_case};
+use sinterdem::kinds::explicit_sinter::{check_explicit_case, parse_explicit_case, run_explicit, run_explicit_case};
 use sinterdem::explicit::sinter::{FrenkelLaw, LudingLaw};
 use sinterdem::explicit::{Explicit, Settings, time_step};
 use sinterdem::models::frenkel::{FrenkelParams, FrenkelSpec};
@@ -252,7 +252,7 @@ fn protocol_is_bit_identical_for_any_thread_count() {
         pool.install(|| run_explicit(&case, false).unwrap())
     };
     let (a, b) = (run_with(1), run_with(2));
-    let key = |r: &sinterdem::explicit::protocol::ExplicitSinterRun| {
+    let key = |r: &sinterdem::kinds::explicit_sinter::ExplicitSinterRun| {
         r.branches
             .iter()
             .flat_map(|b| {

@@ -376,7 +376,7 @@ fn check_never_panics_on_mutated_cases() {
                 parse_case_str(&String::from_utf8_lossy(&text), "fuzz")
             };
             match value {
-                Ok(v) => sinterdem::run::check(&v, &[], &dir).is_ok(),
+                Ok(v) => sinterdem::kinds::check(&v, &[], &dir).is_ok(),
                 Err(_) => false,
             }
         });

@@ -3,8 +3,8 @@
 //! the hot-plate compact over six decades of Δt.
 
 use sinterdem::config::{apply_override, load_case};
-use sinterdem::heat::conductivity;
-use sinterdem::heat::run::{prepare, run};
+use sinterdem::kinds::conductivity;
+use sinterdem::kinds::heat::{prepare, run};
 use std::path::Path;
 
 fn case(text: &str, sets: &[&str]) -> toml::Value {

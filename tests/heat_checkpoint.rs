@@ -2,7 +2,7 @@
 //! resumed through the run API gives the uninterrupted run's series.csv byte for byte and the
 //! same summary (BDF2 with radiation, so the network's history and the loop state must carry).
 
-use sinterdem::run::{self, RunParams};
+use sinterdem::kinds::{self, RunParams};
 use std::path::{Path, PathBuf};
 
 fn tmp(name: &str) -> PathBuf {
@@ -18,22 +18,22 @@ fn a_heat_run_resumed_from_its_checkpoint_equals_the_uninterrupted_run() {
     let case = sinterdem::config::load_case(Path::new("cases/hot-plate.toml"), &[]).unwrap();
     let sets: Vec<String> = ["time.end=120", "particles.cells=[4, 4, 6]", "output.snapshots=4", "output.checkpoint_every=25"].map(String::from).to_vec();
     let params = RunParams { base_dir: PathBuf::from("cases"), plots: false, ..Default::default() };
-    let whole = run::run(&case, &sets, &dir.join("whole"), &params).unwrap();
+    let whole = kinds::run(&case, &sets, &dir.join("whole"), &params).unwrap();
     assert!(dir.join("whole/checkpoint.json").exists());
     // the same run stopped right after its checkpoint at step 50 (as if killed there) ...
-    let value = run::resolve(&case, &sets).unwrap();
+    let value = kinds::resolve(&case, &sets).unwrap();
     let text = toml::to_string(&value).unwrap();
-    let mut prep = sinterdem::heat::run::prepare(value, Path::new("cases")).unwrap();
+    let mut prep = sinterdem::kinds::heat::prepare(value, Path::new("cases")).unwrap();
     prep.source = Some((text, PathBuf::from("cases").canonicalize().unwrap()));
     let part = dir.join("part");
-    let r = sinterdem::heat::run::run_from(prep, &part, false, &mut |_| {}, None, Some(50)).unwrap();
+    let r = sinterdem::kinds::heat::run_from(prep, &part, false, &mut |_| {}, None, Some(50)).unwrap();
     assert!(r.is_null());
     let ck: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(part.join("checkpoint.json")).unwrap()).unwrap();
     assert_eq!(ck["state"]["steps"], 50);
     assert!(!ck["bdf2"].is_null(), "the BDF2 history is carried");
     // ... and resumed
-    let resumed = run::resume(&part, &RunParams::default()).unwrap();
-    assert_eq!(resumed.kind, run::Kind::Heat);
+    let resumed = kinds::resume(&part, &RunParams::default()).unwrap();
+    assert_eq!(resumed.kind, kinds::Kind::Heat);
     assert_eq!(std::fs::read_to_string(part.join("series.csv")).unwrap(), std::fs::read_to_string(dir.join("whole/series.csv")).unwrap());
     for k in [
         "final_time_s",
@@ -54,6 +54,6 @@ fn a_heat_run_resumed_from_its_checkpoint_equals_the_uninterrupted_run() {
     let mut bad = ck.clone();
     bad["state"]["t"] = serde_json::json!(-1.0);
     std::fs::write(part.join("checkpoint.json"), bad.to_string()).unwrap();
-    let e = run::resume(&part, &RunParams::default()).unwrap_err().to_string();
+    let e = kinds::resume(&part, &RunParams::default()).unwrap_err().to_string();
     assert!(e.contains("checkpoint.json") && e.contains("t = -1"), "{e}");
 }

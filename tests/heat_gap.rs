@@ -166,8 +166,8 @@ fn two_sphere_case(dir: &Path, rows: &str, gap: &str, extra: &str) -> toml::Valu
 
 /// Runs a heat case, returns its summary and the temperatures at the snapshot times.
 fn heat_run(v: toml::Value, out: &Path) -> (serde_json::Value, Vec<(f64, Vec<f64>)>) {
-    let prep = sinterdem::heat::run::prepare(v, Path::new(".")).unwrap();
-    sinterdem::heat::run::run_returning_temperatures(prep, out, false, &mut |_| {}, None, None, true).unwrap()
+    let prep = sinterdem::kinds::heat::prepare(v, Path::new(".")).unwrap();
+    sinterdem::kinds::heat::run_returning_temperatures(prep, out, false, &mut |_| {}, None, None, true).unwrap()
 }
 
 /// Two titanium spheres (20 and 30 µm) 1 µm apart, no contact, 400 K and 300 K: with the gas
@@ -291,7 +291,7 @@ fn the_isolated_particle_of_the_hot_plate_warms_through_the_gas() {
     assert!(t[798] > 1300.0 && (t[798] - mean_nb).abs() < 5.0, "particle 798 at {} K, its gap neighbours at {mean_nb} K", t[798]);
     // through the driver: the summary lists nobody as isolated and names 798 as reached across gaps
     let sim = coupled::prepare(load(&["thermal.gap.gas_conductivity=0.05"]), Path::new("cases"), &mut |_| {}).unwrap();
-    let s = coupled::run(sim, &dir.join("on"), false, &mut |_| {}).unwrap();
+    let s = sinterdem::kinds::compact::run(sim, &dir.join("on"), false, &mut |_| {}).unwrap();
     assert_eq!(s["isolated_particles"], 0);
     assert_eq!(s["particles_connected_only_through_gaps"], serde_json::json!(via));
     assert!(s["gap_pipes"].as_u64().unwrap() > 100);
@@ -306,7 +306,7 @@ fn the_isolated_particle_of_the_hot_plate_warms_through_the_gas() {
 #[test]
 fn without_gap_pipes_the_results_are_unchanged_bit_for_bit() {
     let dir = tmp("identical");
-    let params = sinterdem::run::RunParams { base_dir: PathBuf::from("cases"), plots: false, ..Default::default() };
+    let params = sinterdem::kinds::RunParams { base_dir: PathBuf::from("cases"), plots: false, ..Default::default() };
     for (case, sets) in [
         ("cases/hot-plate-compact.toml", vec!["time.end=100.0", "output.snapshots=0", "output.checkpoint_every=0"]),
         ("cases/hot-plate.toml", vec!["time.end=120.0", "particles.cells=[4, 4, 6]", "output.snapshots=0"]),
@@ -319,7 +319,7 @@ fn without_gap_pipes_the_results_are_unchanged_bit_for_bit() {
         {
             let all: Vec<String> = sets.iter().chain(&extra).map(|s| s.to_string()).collect();
             let out = dir.join(format!("{}-{k}", Path::new(case).file_stem().unwrap().to_string_lossy()));
-            let s = sinterdem::run::run(&v, &all, &out, &params).unwrap();
+            let s = sinterdem::kinds::run(&v, &all, &out, &params).unwrap();
             if k == 2 {
                 assert_eq!(s.summary["gap_pipes"], 0, "{case}");
             }
@@ -344,11 +344,11 @@ fn a_compact_run_with_the_gap_model_resumes_bit_for_bit() {
     let v = sinterdem::config::load_case(Path::new("cases/hot-plate-compact.toml"), &sets).unwrap();
     let full = dir.join("full");
     let sim = coupled::prepare(v.clone(), Path::new("cases"), &mut |_| {}).unwrap();
-    let s_full = coupled::run(sim, &full, false, &mut |_| {}).unwrap();
+    let s_full = sinterdem::kinds::compact::run(sim, &full, false, &mut |_| {}).unwrap();
     let part = dir.join("part");
     let sim = coupled::prepare(v, Path::new("cases"), &mut |_| {}).unwrap();
-    assert!(coupled::run_from(sim, &part, false, &mut |_| {}, None, Some(14)).unwrap().is_null());
-    let s_res = coupled::resume(&part, false, &mut |_| {}).unwrap();
+    assert!(sinterdem::kinds::compact::run_from(sim, &part, false, &mut |_| {}, None, Some(14)).unwrap().is_null());
+    let s_res = sinterdem::kinds::compact::resume(&part, false, &mut |_| {}).unwrap();
     for key in ["steps", "shrinkage_z", "min_temperature_K", "mean_temperature_K", "gap_pipes", "energy_balance_rel"] {
         assert_eq!(s_full[key], s_res[key], "{key}");
     }
@@ -370,18 +370,18 @@ fn bad_gap_keys_are_refused_with_key_value_range_and_unit() {
         ("emissivity = 1.2", "thermal.gap.emissivity", "1.2", "[0, 1]", "1"),
     ] {
         let v = two_sphere_case(&dir, rows, gap, "");
-        let e = sinterdem::heat::run::prepare(v, Path::new(".")).err().expect(gap).to_string();
+        let e = sinterdem::kinds::heat::prepare(v, Path::new(".")).err().expect(gap).to_string();
         for part in [key, value, range, unit] {
             assert!(e.contains(part), "{gap}: «{part}» missing in: {e}");
         }
     }
     let v = two_sphere_case(&dir, rows, "gas_conductivity = 0.02\nlayer = 0.3", "");
-    let e = sinterdem::heat::run::prepare(v, Path::new(".")).err().unwrap().to_string();
+    let e = sinterdem::kinds::heat::prepare(v, Path::new(".")).err().unwrap().to_string();
     assert!(e.contains("layer"), "{e}");
     let mut v = two_sphere_case(&dir, rows, "gas_conductivity = 0.02", "");
     let th = v.get_mut("thermal").unwrap().as_table_mut().unwrap();
     th.insert("mode".into(), "isothermal".into());
     th.insert("furnace".into(), toml::Value::Table("profile = { constant = 1000.0 }".parse::<toml::Table>().unwrap()));
-    let e = sinterdem::heat::run::prepare(v, Path::new(".")).err().unwrap().to_string();
+    let e = sinterdem::kinds::heat::prepare(v, Path::new(".")).err().unwrap().to_string();
     assert!(e.contains("thermal.gap") && e.contains("isothermal"), "{e}");
 }

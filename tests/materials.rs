@@ -4,7 +4,7 @@
 //! materials take their own elastic constants (two half-links in series).
 
 use sinterdem::mechanics::bond::series_elastic;
-use sinterdem::run::{self, RunParams};
+use sinterdem::kinds::{self, RunParams};
 use std::path::{Path, PathBuf};
 
 mod common;
@@ -53,7 +53,7 @@ fn case(packing: &Path, a: &str, b: &str) -> toml::Value {
 }
 
 fn shrink(dir: &Path, name: &str, case: &toml::Value) -> [f64; 3] {
-    let s = run::run(case, &[], &dir.join(name), &RunParams { base_dir: dir.to_path_buf(), plots: false, ..Default::default() }).unwrap();
+    let s = kinds::run(case, &[], &dir.join(name), &RunParams { base_dir: dir.to_path_buf(), plots: false, ..Default::default() }).unwrap();
     [s.f64("shrinkage_x").unwrap(), s.f64("shrinkage_y").unwrap(), s.f64("shrinkage_z").unwrap()]
 }
 
@@ -84,7 +84,7 @@ fn inline_and_included_phases_equal_the_preset_and_their_data_matter() {
         assert!(fast[a] > preset[a] * 1.05, "axis {a}: {} vs {}", fast[a], preset[a]);
     }
     // a bad include names the key and the file
-    let e = run::run(
+    let e = kinds::run(
         &case(&p, PRESET_A, "name = \"x\"\ninclude = \"nope.toml\""),
         &[],
         &dir.join("bad"),

@@ -2,7 +2,7 @@
 //! the right counts and array names, and (with the `h5` feature) the H5MD-layout HDF5 file.
 
 use sinterdem::config::load_case;
-use sinterdem::heat::run::{prepare, run};
+use sinterdem::kinds::heat::{prepare, run};
 use std::path::Path;
 
 #[test]

@@ -1,6 +1,7 @@
 //! Packing generation, import and case validation.
 use nalgebra::Vector3;
-use sinterdem::packing::{self, ImportFormat, import_str};
+use sinterdem::kinds::generate as packing;
+use sinterdem::packing::{ImportFormat, import_str};
 use std::path::PathBuf;
 
 fn case(text: &str) -> toml::Value {
@@ -43,7 +44,7 @@ fn small_packing_is_stress_free_at_the_target_and_reproducible_from_the_seed() {
     assert!((sa.solid_fraction - 0.55).abs() < 0.01, "{sa:?}");
     assert!(sa.coordination_mean > 3.0, "{sa:?}");
     // the CSV reads back through the importer; the spheres fill the reported fraction of the box
-    let p = packing::import(&a.join("packing.csv"), ImportFormat::Csv).unwrap();
+    let p = sinterdem::packing::import(&a.join("packing.csv"), ImportFormat::Csv).unwrap();
     assert_eq!(p.radii.len(), 200);
     let vp: f64 = p.radii.iter().map(|&r| sinterdem::units::sphere_volume(r)).sum();
     let vbox: f64 = sa.box_size.iter().product();
@@ -81,7 +82,7 @@ fn laminae_of_a_simple_cubic_lattice_have_the_lattice_density() {
     let rad = vec![r; pos.len()];
     let hi = Vector3::repeat(6.0 * a);
     for axis in 0..3 {
-        let l = packing::report::laminae(&pos, &rad, &Vector3::zeros(), &hi, axis, a, 0.0);
+        let l = sinterdem::packing::report::laminae(&pos, &rad, &Vector3::zeros(), &hi, axis, a, 0.0);
         assert_eq!(l.density.len(), 6);
         for d in &l.density {
             assert!((d - sinterdem::units::sphere_volume(r) / (a * a * a)).abs() < 1e-12);

@@ -14,7 +14,7 @@ fn out(name: &str) -> std::path::PathBuf {
 /// The acceptance numbers of a green body: box solid fraction (eq. 49) within ±0.01 of the
 /// target, interior laminae (eq. 48) within ±0.05 of their mean, stress-free (largest overlap
 /// < 1e-3 r̄, kinetic energy below its threshold), coordination reported and mechanically sensible.
-fn assert_green_body(s: &sinterdem::packing::GenerateSummary) {
+fn assert_green_body(s: &sinterdem::kinds::generate::GenerateSummary) {
     assert!(s.thresholds_met, "{s:#?}");
     assert!((s.solid_fraction - 0.60).abs() <= 0.01, "solid fraction {} not within 0.60 ± 0.01", s.solid_fraction);
     for a in 0..3 {
@@ -33,7 +33,7 @@ fn assert_green_body(s: &sinterdem::packing::GenerateSummary) {
 #[test]
 fn copper_green_body_reaches_the_target_stress_free_and_homogeneous() {
     let dir = out("green-copper");
-    let s = sinterdem::packing::generate_case(&load("green-copper.toml"), &dir, false).unwrap();
+    let s = sinterdem::kinds::generate::generate_case(&load("green-copper.toml"), &dir, false).unwrap();
     assert_eq!(s.particles, 805);
     assert_green_body(&s);
     // the box keeps the requested shape 0.5 : 0.5 : 0.4 (within 2 %: a box accepted at jamming lies
@@ -49,7 +49,7 @@ fn copper_green_body_reaches_the_target_stress_free_and_homogeneous() {
 #[ignore]
 fn titanium_green_body_reaches_the_target_stress_free_and_homogeneous() {
     let dir = out("green-titanium");
-    let s = sinterdem::packing::generate_case(&load("green-titanium.toml"), &dir, false).unwrap();
+    let s = sinterdem::kinds::generate::generate_case(&load("green-titanium.toml"), &dir, false).unwrap();
     assert_eq!(s.particles, 3619);
     assert_green_body(&s);
     println!("{s:#?}");
@@ -59,6 +59,6 @@ fn titanium_green_body_reaches_the_target_stress_free_and_homogeneous() {
 #[test]
 fn bundled_cases_pass_the_check() {
     for name in ["green-copper.toml", "green-titanium.toml"] {
-        sinterdem::packing::check_generate_case(&load(name)).unwrap();
+        sinterdem::kinds::generate::check_generate_case(&load(name)).unwrap();
     }
 }

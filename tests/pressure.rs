@@ -5,7 +5,7 @@
 
 use sinterdem::config::apply_override;
 use sinterdem::coupled;
-use sinterdem::models::diffusion7::pair::{parse_pair_case, run_pair};
+use sinterdem::kinds::pair::{parse_pair_case, run_pair};
 use sinterdem::models::diffusion7::{Contact7, evaluate, invariants};
 use std::path::{Path, PathBuf};
 
@@ -54,7 +54,7 @@ furnace = {{ profile = {{ constant = 1293.0 }} }}
 
 fn run(v: toml::Value, out: &Path) -> (serde_json::Value, String) {
     let sim = coupled::prepare(v, Path::new("."), &mut |_| {}).unwrap();
-    let s = coupled::run(sim, out, false, &mut |_| {}).unwrap();
+    let s = sinterdem::kinds::compact::run(sim, out, false, &mut |_| {}).unwrap();
     (s, std::fs::read_to_string(out.join("series.csv")).unwrap())
 }
 
@@ -80,7 +80,7 @@ fn zero_load_is_bit_identical_to_no_load() {
     }
 }
 
-fn pair_spec(force: f64) -> sinterdem::models::diffusion7::pair::PairSpec {
+fn pair_spec(force: f64) -> sinterdem::kinds::pair::PairSpec {
     let text = format!(
         "kind = \"pair\"\n[pair]\nmaterial = \"copper\"\nradius = 25e-6\nend_time = 1000.0\n[temperature]\nconstant = 1293.0\n[solver]\nrtol = 1e-9\n[load]\nforce = {force:e}\n"
     );
@@ -255,7 +255,7 @@ fn hot_pressing_figure() {
         apply_override(&mut v, "output.snapshots=0").unwrap();
         let out = dir.join(format!("s{mpa}"));
         let sim = coupled::prepare(v, Path::new("cases"), &mut |_| {}).unwrap();
-        let s = coupled::run(sim, &out, false, &mut |_| {}).unwrap();
+        let s = sinterdem::kinds::compact::run(sim, &out, false, &mut |_| {}).unwrap();
         let series = std::fs::read_to_string(out.join("series.csv")).unwrap();
         let rows: Vec<Vec<f64>> = series.lines().skip(1).map(|l| l.split(',').map(|x| x.parse().unwrap()).collect()).collect();
         for r in &rows {

@@ -4,7 +4,7 @@
 //! files are rejected naming key, value and range.
 
 use sinterdem::models::diffusion7::titanium::{TRUNCATED_START, run_all_titanium};
-use sinterdem::run::{self, RunParams};
+use sinterdem::kinds::{self, RunParams};
 use sinterdem::study::{self, StudyOptions};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -105,7 +105,7 @@ fn each_row_equals_the_run_done_alone_and_series_values_interpolate() {
         // grid order: the last parameter varies fastest
         let (rad, peak) = (radii[k / 2], [1273.0, 1373.0][k % 2]);
         assert_eq!(r[col(&h, "pair.radius")].parse::<f64>().unwrap(), rad);
-        let alone = run::run(
+        let alone = kinds::run(
             &case,
             &[format!("pair.radius={rad:?}"), format!("temperature.peak_temperature={peak:?}")],
             &dir.join(format!("alone{k}")),

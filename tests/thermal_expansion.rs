@@ -43,7 +43,7 @@ const FCC: &str = "source = \"lattice\"\nlattice = \"fcc\"\ncells = [2, 2, 2]\nr
 
 fn run(v: toml::Value, out: &Path) -> (serde_json::Value, String) {
     let sim = coupled::prepare(v, Path::new("."), &mut |_| {}).unwrap();
-    let s = coupled::run(sim, out, false, &mut |_| {}).unwrap();
+    let s = sinterdem::kinds::compact::run(sim, out, false, &mut |_| {}).unwrap();
     (s, std::fs::read_to_string(out.join("series.csv")).unwrap())
 }
 
@@ -237,14 +237,14 @@ fn resumed_run_with_expansion_is_bit_identical() {
     let (full, series_full) = run(case(&file_particles(&p), RAMP, 200.0, &sets), &dir.join("full"));
     let part = dir.join("part");
     let sim = coupled::prepare(case(&file_particles(&p), RAMP, 200.0, &sets), Path::new("."), &mut |_| {}).unwrap();
-    assert!(coupled::run_from(sim, &part, false, &mut |_| {}, None, Some(80)).unwrap().is_null());
-    let res = coupled::resume(&part, false, &mut |_| {}).unwrap();
+    assert!(sinterdem::kinds::compact::run_from(sim, &part, false, &mut |_| {}, None, Some(80)).unwrap().is_null());
+    let res = sinterdem::kinds::compact::resume(&part, false, &mut |_| {}).unwrap();
     for key in ["steps", "shrinkage_x", "shrinkage_z", "sintering_shrinkage_y", "thermal_strain", "relative_density", "neck_ratio", "contacts"] {
         assert_eq!(full[key], res[key], "{key}");
     }
     assert_eq!(series_full, std::fs::read_to_string(part.join("series.csv")).unwrap());
     assert!(f(&full, "thermal_strain") > 1e-2);
-    let (sim, _) = Simulation::from_checkpoint(&coupled::read_checkpoint(&part).unwrap(), &mut |_| {}).unwrap();
+    let (sim, _) = Simulation::from_checkpoint(&sinterdem::kinds::compact::read_checkpoint(&part).unwrap(), &mut |_| {}).unwrap();
     assert!(sim.expansion.as_ref().unwrap().reference_temperature.iter().all(|&t| t == 293.15));
 }
 
@@ -302,13 +302,13 @@ fn other_kinds_warn_that_they_ignore_thermal_expansion() {
     let case = sinterdem::config::load_case(Path::new("cases/hot-plate.toml"), &[]).unwrap();
     let sets: Vec<String> =
         ["time.end=0.5", "output.snapshots=0", "output.vtu=false", "output.hdf5=false", "materials.0.thermal_expansion=8.6e-6"].map(String::from).to_vec();
-    let params = sinterdem::run::RunParams { base_dir: PathBuf::from("cases"), plots: false, ..Default::default() };
-    sinterdem::run::run(&case, &sets, &dir, &params).unwrap();
+    let params = sinterdem::kinds::RunParams { base_dir: PathBuf::from("cases"), plots: false, ..Default::default() };
+    sinterdem::kinds::run(&case, &sets, &dir, &params).unwrap();
     let log = std::fs::read_to_string(dir.join("log.txt")).unwrap();
     assert!(log.contains("warning: materials.0.thermal_expansion is used by compact runs only; this heat run ignores it"), "log.txt:\n{log}");
     // the same key on a compact run is used, not warned about
     let compact = toml::Value::Table(
         "kind = \"compact\"\n[[materials]]\nname = \"copper\"\npreset = \"copper\"\nthermal_expansion = 1.6e-5\n".parse::<toml::Table>().unwrap(),
     );
-    assert!(sinterdem::run::compact_only_keys(&compact).is_empty());
+    assert!(sinterdem::kinds::compact_only_keys(&compact).is_empty());
 }

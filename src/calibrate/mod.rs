@@ -469,7 +469,7 @@ pub fn check(value: &toml::Value, base: &Path) -> Result<String, Error> {
         let at = |err: ConfigError| ConfigError::invalid(format!("[compact] case = {} with experiment {}'s schedule: {err}", case_path.display(), e.id));
         crate::config::apply_override(&mut case, &format!("thermal.furnace.profile.schedule={}", toml::Value::String(e.schedule.clone()))).map_err(at)?;
         crate::config::apply_override(&mut case, &format!("time.end={:?}", e.profile.duration())).map_err(at)?;
-        let what = crate::run::check(&case, &[], case_path.parent().unwrap_or(Path::new("."))).map_err(|err| match err {
+        let what = crate::kinds::check(&case, &[], case_path.parent().unwrap_or(Path::new("."))).map_err(|err| match err {
             Error::Config(c) => Error::Config(at(c)),
             other => other,
         })?;

@@ -135,10 +135,10 @@ pub static TABLE: &[Range] = &[
 pub static TABLES: &[&[Range]] = &[
     TABLE,
     crate::models::diffusion7::RANGES,
-    crate::packing::RANGES,
+    crate::kinds::generate::RANGES,
     crate::models::luding::RANGES,
     crate::models::frenkel::RANGES,
-    crate::explicit::protocol::RANGES,
+    crate::kinds::explicit_sinter::RANGES,
     crate::calibrate::RANGES,
 ];
 

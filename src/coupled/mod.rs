@@ -11,20 +11,10 @@
 //! run sequentially in contact order, so results are bit-identical for any thread count.
 
 mod bench;
-mod checkpoint;
-mod driver;
 pub mod expansion;
 pub mod load;
-mod output;
 pub mod precision;
 mod step;
-mod validate;
 
 pub use bench::bench_coupled;
-pub(crate) use checkpoint::write_checkpoint;
-pub use checkpoint::{CHECKPOINT_FORMAT, Checkpoint, OutputState, read_checkpoint, resume};
-pub use driver::{run, run_from};
-pub(crate) use output::{Due, write_snapshot};
-pub use output::{compact_conductivity, write_correction_histogram, write_plots};
 pub use step::*;
-pub use validate::MAX_CHECKPOINT_STEP;

@@ -105,7 +105,7 @@ fn run_one(value: &toml::Value, base: &Path, sets: &[String], dir: &Path, family
     let mut all: Vec<String> =
         ["output.snapshots=0", "output.vtu=false", "output.hdf5=false", "output.checkpoint_every=0", "output.conductivity_at=[]"].map(String::from).to_vec();
     all.extend(sets.iter().cloned());
-    let params = crate::run::RunParams { base_dir: base.to_path_buf(), plots: false, wall_limit, ..Default::default() };
+    let params = crate::kinds::RunParams { base_dir: base.to_path_buf(), plots: false, wall_limit, ..Default::default() };
     let mut o = Outcome {
         family: family.into(),
         label: label.into(),
@@ -121,7 +121,7 @@ fn run_one(value: &toml::Value, base: &Path, sets: &[String], dir: &Path, family
         pareto: false,
         error: None,
     };
-    match crate::run::run(value, &all, dir, &params) {
+    match crate::kinds::run(value, &all, dir, &params) {
         Ok(r) => {
             let s = &r.summary;
             let f = |k: &str| s[k].as_f64().unwrap_or(f64::NAN);

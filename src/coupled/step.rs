@@ -4,7 +4,7 @@
 
 use crate::config::{self, case::Case};
 use crate::error::{ConfigError, Error, ModelError};
-use crate::heat::run::Prepared;
+use crate::kinds::heat::Prepared;
 use crate::heat::{Conductance, HeatNetwork};
 use crate::mechanics::{BondedSystem, Constraints, LinearSolver, MechParams, NodalLoad, StepInput};
 use crate::models::diffusion7::{self as d7, Contact7, PairMaterials, PathFactors, SolverOptions, TemperaturePath};
@@ -568,7 +568,7 @@ impl Simulation {
             sim.skipped.push("heat solve (isothermal)");
         } else {
             let p = &mut sim.prep.scene.particles;
-            let net = crate::heat::run::network_for(&sim.prep.case, &sim.prep.sources, p, &sim.prep.scene.materials, &sim.prep.conductance);
+            let net = crate::kinds::heat::network_for(&sim.prep.case, &sim.prep.sources, p, &sim.prep.scene.materials, &sim.prep.conductance);
             net.apply_fixed(0.0, &mut p.temperature);
             sim.heat = Some(net);
         }
@@ -773,7 +773,7 @@ impl Simulation {
             if self.heat.is_some() {
                 let k = self.pipe_parts()?;
                 let control =
-                    crate::heat::run::step_control(&self.prep.case)?.map(|c| crate::heat::adaptive::StepControl { dt_min: 1e-6 * dt, dt_max: dt, ..c });
+                    crate::kinds::heat::step_control(&self.prep.case)?.map(|c| crate::heat::adaptive::StepControl { dt_min: 1e-6 * dt, dt_max: dt, ..c });
                 if let Some(net) = self.heat.as_mut() {
                     // contact pipes, then the gap pipes of the current positions (heat-model.md (H18)–(H23))
                     let p = &self.prep.scene.particles;
@@ -1377,7 +1377,7 @@ impl Simulation {
 /// Parse → validate → build a compact case.
 pub fn prepare(value: toml::Value, base: &Path, log: &mut dyn FnMut(&str)) -> Result<Simulation, Error> {
     let text = toml::to_string(&value).map_err(|e| ConfigError::invalid(format!("case cannot be re-serialised: {e}")))?;
-    let prep = crate::heat::run::prepare_scene(value, base)?;
+    let prep = crate::kinds::heat::prepare_scene(value, base)?;
     if prep.case.kind.as_deref() != Some("compact") {
         return Err(ConfigError::invalid("a compact run needs kind = \"compact\"").into());
     }

@@ -26,7 +26,6 @@
 //! `E_kin + E_el + E_pot + E_diss − W_wall` is constant up to the integrator's error.
 
 pub mod law;
-pub mod protocol;
 pub mod sinter;
 
 use crate::contacts::detect::touching_pairs;

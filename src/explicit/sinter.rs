@@ -9,7 +9,7 @@
 //! Both override [`ContactModel::contact`]: the contact temperature is the law's mean
 //! (`contact_temperature`: arithmetic by default, harmonic for `temperature_frenkel`, docs/heat-model.md (H16)) of the
 //! two particles' temperatures `Particles::temperature` [K], which the caller keeps current (a
-//! prescribed profile or the heat network, [`crate::explicit::protocol`]); the time step enters the
+//! prescribed profile or the heat network, [`crate::kinds::explicit_sinter`]); the time step enters the
 //! relaxation of k1(T,t) (eqs. 11–12) and the plastic rate. The driver's tangential spring ξ is
 //! handed to the law's own tangential rule (Luding eqs. 14–24, the cohesion-shifted Coulomb limit),
 //! so the driver's `Settings::friction` is not used by these laws; the law's friction is.

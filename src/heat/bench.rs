@@ -63,7 +63,7 @@ pub fn bench_heat(sizes: &[usize], repeat: usize) -> Result<(), Error> {
                     Ok(law.pipe(mat.conductivity, mat.conductivity, ri, rj, a).pair)
                 })
                 .collect::<Result<_, crate::error::ModelError>>()?;
-            let pipes = crate::scene::Pipes { pairs, conductance, ..Default::default() };
+            let pipes = crate::heat::Pipes { pairs, conductance, ..Default::default() };
             let q = &p;
             let t_necks = t1.elapsed().as_secs_f64();
             let kmax = pipes.conductance.iter().copied().fold(0.0, f64::max);
@@ -139,9 +139,9 @@ pub fn run_step_case(base: &toml::Value, sets: &[String], out: &std::path::Path)
     for s in sets {
         crate::config::apply_override(&mut v, s)?;
     }
-    let prep = crate::heat::run::prepare(v, std::path::Path::new("."))?;
+    let prep = crate::kinds::heat::prepare(v, std::path::Path::new("."))?;
     let t0 = Instant::now();
-    let (s, temps) = crate::heat::run::run_returning_temperatures(prep, out, false, &mut |_| {}, None, None, true)?;
+    let (s, temps) = crate::kinds::heat::run_returning_temperatures(prep, out, false, &mut |_| {}, None, None, true)?;
     Ok((s, temps, t0.elapsed().as_secs_f64()))
 }
 

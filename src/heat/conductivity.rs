@@ -15,7 +15,7 @@ use crate::heat::Conductance;
 use crate::linsolve::{SpdPattern, set_parallelism_for};
 use crate::material::Material;
 use crate::particles::Particles;
-use crate::scene::{self, Pipes};
+use crate::heat::pipes::{self, Pipes};
 use nalgebra::{Matrix3, Vector3};
 
 /// Result of one axis of the faces method.
@@ -245,7 +245,7 @@ pub fn periodic_pipes(p: &Particles, bbox: Vector3<f64>, materials: &[Material],
         pairs.push([a as u32, j]);
         branch.push(pos[b] - pos[a]);
     }
-    let pipes = scene::pipes_from_pairs(pairs, &branch, p, materials, law)?;
+    let pipes = pipes::pipes_from_pairs(pairs, &branch, p, materials, law)?;
     Ok((pipes, branch))
 }
 
@@ -276,77 +276,4 @@ pub fn periodic(p: &Particles, pipes: &Pipes, branch: &[Vector3<f64>], bbox: Vec
         kappa.set_column(axis, &(-q));
     }
     Ok(kappa)
-}
-
-/// `sinterdem conductivity CASE`: the tensor [W/(m·K)] and κ_eff/κ as JSON.
-pub fn run_case(value: toml::Value, base: &std::path::Path) -> Result<serde_json::Value, Error> {
-    use crate::config;
-    use crate::error::ConfigError;
-    let prep = crate::heat::run::prepare(value, base)?;
-    let spec = &prep.case.conductivity;
-    let dt = config::check("conductivity.temperature_difference", spec.temperature_difference)?;
-    let p = &prep.scene.particles;
-    let kappa_mat = prep.scene.materials[0].conductivity;
-    let axes: Vec<usize> = spec
-        .axes
-        .iter()
-        .map(|a| match a.as_str() {
-            "x" => Ok(0),
-            "y" => Ok(1),
-            "z" => Ok(2),
-            o => Err(ConfigError::invalid(format!("conductivity.axes: \"{o}\" (x, y or z)"))),
-        })
-        .collect::<Result<_, _>>()?;
-    let mut out = serde_json::Map::new();
-    let tensor = match spec.boundary.as_str() {
-        "faces" => {
-            let depth = match config::check_opt("conductivity.layer_fraction", spec.layer_fraction)? {
-                Some(f) => {
-                    let (lo, hi) = p.bounding_box();
-                    axes.iter().map(|&a| f * (hi[a] - lo[a])).collect::<Vec<_>>()
-                }
-                None => vec![0.5 * p.mean_radius(); axes.len()],
-            };
-            let mut t = Matrix3::zeros();
-            let mut details = Vec::new();
-            for (k, &a) in axes.iter().enumerate() {
-                let r = faces(p, &prep.pipes, a, depth[k], dt)?;
-                t[(a, a)] = r.kappa;
-                details.push(serde_json::to_value(r).unwrap());
-            }
-            out.insert("axes".into(), serde_json::Value::Array(details));
-            t
-        }
-        "periodic" => {
-            let bbox = prep
-                .scene
-                .periodic_box
-                .ok_or_else(|| ConfigError::inconsistent("conductivity.boundary", "\"periodic\" needs a periodic box (particles.source = \"lattice\")"))?;
-            let (pipes, branch) = periodic_pipes(p, bbox, &prep.scene.materials, &prep.conductance)?;
-            out.insert("periodic_contacts".into(), pipes.pairs.len().into());
-            periodic(p, &pipes, &branch, bbox)?
-        }
-        o => return Err(ConfigError::invalid(format!("conductivity.boundary = \"{o}\": expected faces or periodic")).into()),
-    };
-    let rows: Vec<Vec<f64>> = (0..3).map(|i| (0..3).map(|j| tensor[(i, j)]).collect()).collect();
-    let ratio: Vec<Vec<f64>> = rows.iter().map(|r| r.iter().map(|v| v / kappa_mat).collect()).collect();
-    out.insert("boundary".into(), spec.boundary.clone().into());
-    out.insert("kappa_eff_W_per_mK".into(), serde_json::to_value(rows).unwrap());
-    out.insert("kappa_eff_over_kappa".into(), serde_json::to_value(ratio).unwrap());
-    out.insert("kappa_material_W_per_mK".into(), kappa_mat.into());
-    out.insert("particles".into(), p.len().into());
-    out.insert("contacts".into(), prep.pipes.pairs.len().into());
-    if let Some((lat, d)) = prep.scene.lattice {
-        // closed forms of docs/heat-model.md for the pipe conductance of the lattice's nearest neighbours
-        let r = p.radius[0];
-        let neck = crate::neck::solve(r, r, 2.0 * r - d)?;
-        let kp = prep.conductance.pipe(kappa_mat, kappa_mat, r, r, neck.a).pair;
-        let f = match lat {
-            crate::scene::Lattice::SimpleCubic => 1.0,
-            crate::scene::Lattice::BodyCentred => 3f64.sqrt(),
-            crate::scene::Lattice::FaceCentred => 2.0 * 2f64.sqrt(),
-        };
-        out.insert("lattice_closed_form_W_per_mK".into(), (f * kp / d).into());
-    }
-    Ok(serde_json::Value::Object(out))
 }

@@ -8,8 +8,9 @@ pub mod conductivity;
 pub mod fe_fit;
 pub mod gap;
 pub mod network;
+pub mod pipes;
 pub mod properties;
-pub mod run;
 
 pub use conductance::{Conductance, ConductanceLaw, PipeConductance};
+pub use pipes::{Pipes, pipes, pipes_from_pairs};
 pub use network::{Furnace, HeatNetwork, HeatSources, HeatStepInfo, Scheme};

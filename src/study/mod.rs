@@ -1,5 +1,5 @@
 //! Studies: many runs of one or more cases over a design of parameters, executed through the run
-//! API ([`crate::run`]) by the embedded local engine or as a SLURM job array, resumable and
+//! API ([`crate::kinds`]) by the embedded local engine or as a SLURM job array, resumable and
 //! idempotent (docs/studies.md).
 //!
 //! `sinterdem study STUDY.toml [--engine local|slurm] [--jobs N] [--out DIR] [--wait] [--retry-failed]`:

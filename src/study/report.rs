@@ -78,14 +78,14 @@ pub fn gather(study: &Study, dir: &Path, plan: &[PlannedRun]) -> Vec<Row> {
     let widths: Vec<Option<usize>> = study
         .collect_summary
         .iter()
-        .map(|k| records.iter().flatten().filter_map(|r| crate::run::lookup(&r.summary, k)).filter_map(|v| v.as_array().map(Vec::len)).max())
+        .map(|k| records.iter().flatten().filter_map(|r| crate::kinds::lookup(&r.summary, k)).filter_map(|v| v.as_array().map(Vec::len)).max())
         .collect();
     plan.par_iter()
         .zip(records)
         .map(|(run, record)| {
             let mut outputs = Vec::new();
             for (k, w) in study.collect_summary.iter().zip(&widths) {
-                let v = record.as_ref().and_then(|r| crate::run::lookup(&r.summary, k));
+                let v = record.as_ref().and_then(|r| crate::kinds::lookup(&r.summary, k));
                 match w {
                     Some(n) => {
                         for i in 0..*n {

@@ -49,9 +49,9 @@ fn estimate_run_seconds(dir: &Path, plan: &[PlannedRun]) -> f64 {
     if !walls.is_empty() {
         return walls.iter().sum::<f64>() / walls.len() as f64;
     }
-    let kind = plan.first().and_then(|r| crate::config::load_case(&r.case_path, &[]).ok()).and_then(|v| crate::run::Kind::of(&v).ok());
+    let kind = plan.first().and_then(|r| crate::config::load_case(&r.case_path, &[]).ok()).and_then(|v| crate::kinds::Kind::of(&v).ok());
     match kind {
-        Some(crate::run::Kind::Pair) => 0.01,
+        Some(crate::kinds::Kind::Pair) => 0.01,
         _ => 60.0,
     }
 }

@@ -8,7 +8,7 @@
 
 use super::design::Point;
 use crate::error::{Error, IoError};
-use crate::run::{self, RunParams};
+use crate::kinds::{self, RunParams};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::io::Write;
@@ -71,7 +71,7 @@ pub fn plan(cases: &[PathBuf], labels_from_cases: bool, base_overrides: &[String
             let base = case_path.parent().unwrap_or(Path::new("/"));
             // the resolved case when the overrides apply; otherwise its inputs (the run then
             // fails with the override's message, recorded like any failure)
-            let key = match run::resolve(&case, &overrides) {
+            let key = match kinds::resolve(&case, &overrides) {
                 Ok(v) => toml::to_string(&v).unwrap_or_default(),
                 Err(_) => format!("{}\n{}", toml::to_string(&case).unwrap_or_default(), overrides.join("\n")),
             };
@@ -141,7 +141,7 @@ pub fn execute(dir: &Path, run: &PlannedRun) -> RunRecord {
     let out = run_dir(dir, run.index);
     let _ = std::fs::remove_dir_all(&out);
     let wall = Instant::now();
-    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| -> Result<run::RunSummary, Error> {
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| -> Result<kinds::RunSummary, Error> {
         let case = crate::config::load_case(&run.case_path, &[])?;
         let params = RunParams {
             base_dir: run.case_path.parent().unwrap_or(Path::new("/")).to_path_buf(),
@@ -150,7 +150,7 @@ pub fn execute(dir: &Path, run: &PlannedRun) -> RunRecord {
             plots: false,
             wall_limit: None,
         };
-        run::run(&case, &run.overrides, &out, &params)
+        kinds::run(&case, &run.overrides, &out, &params)
     }));
     let (status, error, summary) = match result {
         Ok(Ok(s)) => ("ok", None, s.summary),

@@ -19,7 +19,6 @@ pub mod geometry;
 pub mod kinetics;
 pub mod lanes;
 pub mod material;
-pub mod pair;
 pub mod ranges;
 pub mod titanium;
 

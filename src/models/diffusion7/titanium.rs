@@ -3,7 +3,7 @@
 //! (`t = 0` when the furnace passes 793 K), or starts at 313 K for the full curve. Each experiment
 //! uses its own mean particle diameter. Bundled as `cases/titanium/E1B.toml` … `E28B.toml`.
 
-use super::pair::{PairSpec, parse_pair_case, run_pair, summarize};
+use crate::kinds::pair::{PairSpec, parse_pair_case, run_pair, summarize};
 use crate::error::{Error, IoError};
 use crate::plot::{Plot, Series};
 use std::io::Write;

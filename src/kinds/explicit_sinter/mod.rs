@@ -30,9 +30,9 @@
 //! (`compression_*.csv`), the normal forces of all contacts after sintering and after
 //! cool-down/relax (`forces_*.csv`), PNG plots of all of them, and `summary.json`.
 
-use super::law::ContactModel;
-use super::sinter::{FrenkelLaw, LudingLaw, LudingSlot};
-use super::{Explicit, Settings, Wall, WallControl, time_step};
+use crate::explicit::law::ContactModel;
+use crate::explicit::sinter::{FrenkelLaw, LudingLaw, LudingSlot};
+use crate::explicit::{Explicit, Settings, Wall, WallControl, time_step};
 use crate::config::ranges::{Range, c, p};
 use crate::config::{check, from_value};
 use crate::error::{ConfigError, Error, IoError, ModelError};
@@ -981,7 +981,7 @@ struct SampleState<S> {
     temperature: Vec<f64>,
     /// The law's particle friction at the checkpoint (the preparation runs frictionless).
     friction: f64,
-    driver: super::DriverState<S>,
+    driver: crate::explicit::DriverState<S>,
     fixed: Vec<bool>,
     heat_solves: u64,
     since_heat: u64,

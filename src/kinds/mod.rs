@@ -6,6 +6,13 @@
 //! `sinterdem run`, `resume`, `check`, `study`, the benches and `calibrate` all go through here,
 //! so a run inside a study is exactly the run a user starts alone.
 
+pub mod compact;
+pub mod conductivity;
+pub mod explicit_sinter;
+pub mod generate;
+pub mod heat;
+pub mod pair;
+
 use crate::config;
 use crate::error::{ConfigError, Error, IoError};
 use std::io::Write;
@@ -149,8 +156,8 @@ impl RunLog {
         }
         if self.echo {
             match msg.strip_prefix("warning: ") {
-                Some(w) => tracing::warn!(target: "sinterdem::run", "{w}"),
-                None => tracing::info!(target: "sinterdem::run", "{msg}"),
+                Some(w) => tracing::warn!(target: "sinterdem::kinds", "{w}"),
+                None => tracing::info!(target: "sinterdem::kinds", "{msg}"),
             }
         }
     }
@@ -178,23 +185,23 @@ pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunPar
     let summary = match kind {
         Kind::Heat => {
             let text = toml::to_string(&value).map_err(|e| ConfigError::invalid(format!("case cannot be re-serialised: {e}")))?;
-            let mut prep = crate::heat::run::prepare(value, base)?;
+            let mut prep = crate::kinds::heat::prepare(value, base)?;
             prep.source = Some((text, base.canonicalize().unwrap_or_else(|_| base.to_path_buf())));
-            crate::heat::run::run(prep, out, params.progress, &mut logf)?
+            crate::kinds::heat::run(prep, out, params.progress, &mut logf)?
         }
         Kind::Compact => {
             let mut sim = crate::coupled::prepare(value, base, &mut logf)?;
             sim.settings.plots = params.plots;
             sim.settings.wall_limit = params.wall_limit;
-            crate::coupled::run(sim, out, params.progress, &mut logf)?
+            crate::kinds::compact::run(sim, out, params.progress, &mut logf)?
         }
         Kind::Pair => {
-            let mut spec = crate::models::diffusion7::pair::parse_pair_case(&value)?;
+            let mut spec = crate::kinds::pair::parse_pair_case(&value)?;
             if !params.plots && spec.plot {
                 spec.plot = false;
                 logf("plot skipped (turned off by the caller)");
             }
-            let s = crate::models::diffusion7::pair::run_pair_spec(&spec, out, params.progress, &mut |w| logf(&format!("warning: {w}")))?;
+            let s = crate::kinds::pair::run_pair_spec(&spec, out, params.progress, &mut |w| logf(&format!("warning: {w}")))?;
             logf(&format!(
                 "done: {} to t = {} s in {} steps ({} rejected): neck ratio y1/R = {:.6}, shrinkage ΔL/L0 = {:.6e}",
                 s.title, s.final_time_s, s.steps, s.rejected_steps, s.neck_ratio, s.shrinkage
@@ -202,12 +209,12 @@ pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunPar
             serde_json::to_value(&s).map_err(|e| IoError::new(out.join("summary.json"), e))?
         }
         Kind::ExplicitSinter => {
-            let s = crate::explicit::protocol::run_explicit_from(&value, out, &mut logf, None)?;
+            let s = crate::kinds::explicit_sinter::run_explicit_from(&value, out, &mut logf, None)?;
             logf("done: explicit sintering protocol finished (summary.json)");
             s
         }
         Kind::Generate => {
-            let s = crate::packing::generate_case(&value, out, params.progress)?;
+            let s = crate::kinds::generate::generate_case(&value, out, params.progress)?;
             logf(&format!("done: {} particles, solid fraction {:.4}, coordination {:.3}", s.particles, s.solid_fraction, s.coordination_mean));
             serde_json::to_value(&s).map_err(|e| IoError::new(out.join("summary.json"), e))?
         }
@@ -255,16 +262,16 @@ pub fn resume(dir: &Path, params: &RunParams) -> Result<RunSummary, Error> {
     let mut log = RunLog::open(dir, true, params.echo_log);
     let mut logf = |m: &str| log.line(m);
     let (kind, summary) = match format.as_str() {
-        crate::heat::run::HEAT_CHECKPOINT_FORMAT => (Kind::Heat, crate::heat::run::resume(dir, params.progress, &mut logf)?),
-        crate::explicit::protocol::EXPLICIT_CHECKPOINT_FORMAT => (Kind::ExplicitSinter, crate::explicit::protocol::resume(dir, &mut logf)?),
-        crate::coupled::CHECKPOINT_FORMAT => (Kind::Compact, crate::coupled::resume(dir, params.progress, &mut logf)?),
+        crate::kinds::heat::HEAT_CHECKPOINT_FORMAT => (Kind::Heat, crate::kinds::heat::resume(dir, params.progress, &mut logf)?),
+        crate::kinds::explicit_sinter::EXPLICIT_CHECKPOINT_FORMAT => (Kind::ExplicitSinter, crate::kinds::explicit_sinter::resume(dir, &mut logf)?),
+        crate::kinds::compact::CHECKPOINT_FORMAT => (Kind::Compact, crate::kinds::compact::resume(dir, params.progress, &mut logf)?),
         f => {
             return Err(ConfigError::invalid(format!(
                 "{}: format \"{f}\" is not a checkpoint this sinterdem continues ({}, {} or {})",
                 path.display(),
-                crate::coupled::CHECKPOINT_FORMAT,
-                crate::heat::run::HEAT_CHECKPOINT_FORMAT,
-                crate::explicit::protocol::EXPLICIT_CHECKPOINT_FORMAT
+                crate::kinds::compact::CHECKPOINT_FORMAT,
+                crate::kinds::heat::HEAT_CHECKPOINT_FORMAT,
+                crate::kinds::explicit_sinter::EXPLICIT_CHECKPOINT_FORMAT
             ))
             .into());
         }
@@ -287,7 +294,7 @@ pub fn check(case: &toml::Value, overrides: &[String], base: &Path) -> Result<St
     let value = resolve(&case, overrides)?;
     Ok(match Kind::of(&value)? {
         Kind::Heat => {
-            let prep = crate::heat::run::prepare(value, base)?;
+            let prep = crate::kinds::heat::prepare(value, base)?;
             format!("heat case, {} particles, {} contacts", prep.scene.particles.len(), prep.pipes.pairs.len())
         }
         Kind::Compact => {
@@ -295,15 +302,15 @@ pub fn check(case: &toml::Value, overrides: &[String], base: &Path) -> Result<St
             format!("compact case, {} particles, {} contacts", sim.prep.scene.particles.len(), sim.contacts.len())
         }
         Kind::Generate => {
-            crate::packing::check_generate_case(&value)?;
+            crate::kinds::generate::check_generate_case(&value)?;
             "packing generation case".into()
         }
         Kind::Pair => {
-            crate::models::diffusion7::pair::check_pair_case(&value)?;
+            crate::kinds::pair::check_pair_case(&value)?;
             "pair case".into()
         }
         Kind::ExplicitSinter => {
-            crate::explicit::protocol::check_explicit_case(&value)?;
+            crate::kinds::explicit_sinter::check_explicit_case(&value)?;
             "explicit_sinter case".into()
         }
     })

@@ -1,7 +1,7 @@
 //! Outputs and analyses of a compact run: snapshots, effective conductivity at chosen times,
 //! correction histograms and plots.
 
-use super::*;
+use crate::coupled::*;
 use crate::error::{Error, IoError};
 use crate::io::{Snapshot, SnapshotWriter};
 use serde_json::json;
@@ -89,7 +89,7 @@ pub(crate) fn write_snapshot(sim: &Simulation, snaps: &mut SnapshotWriter) -> Re
 pub fn compact_conductivity(sim: &Simulation) -> Result<[f64; 3], Error> {
     let p = &sim.prep.scene.particles;
     let k = sim.conductances()?;
-    let pipes = crate::scene::Pipes { pairs: sim.contacts.pairs.clone(), conductance: k, ..Default::default() };
+    let pipes = crate::heat::Pipes { pairs: sim.contacts.pairs.clone(), conductance: k, ..Default::default() };
     let mut out = [0.0; 3];
     for (a, o) in out.iter_mut().enumerate() {
         *o = crate::heat::conductivity::faces(p, &pipes, a, 0.5 * p.mean_radius(), 1.0)?.kappa;

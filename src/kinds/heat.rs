@@ -8,7 +8,8 @@ use crate::error::{ConfigError, Error, IoError};
 use crate::heat::{Conductance, Furnace, HeatNetwork, HeatSources};
 use crate::io::{self, Series, Snapshot, SnapshotWriter};
 use crate::profile::Profile;
-use crate::scene::{self, Pipes, Scene};
+use crate::heat::Pipes;
+use crate::scene::{self, Scene};
 use serde_json::json;
 use std::path::Path;
 use std::time::Instant;
@@ -199,7 +200,7 @@ pub fn prepare_scene(value: toml::Value, base: &Path) -> Result<Prepared, Error>
         }
         sources.furnace = Some(fur);
     }
-    let pipes = scene::pipes(&scene.particles, &scene.materials, &conductance)?;
+    let pipes = crate::heat::pipes(&scene.particles, &scene.materials, &conductance)?;
     Ok(Prepared { case, scene, pipes, sources, isothermal, conductance, gap, source: None })
 }
 

@@ -1,6 +1,7 @@
 //! Checkpoints of a compact run: what `DIR/checkpoint.json` holds, writing it atomically,
 //! reading and validating it, and rebuilding a [`Simulation`] from it bit for bit.
 
+use crate::coupled::*;
 use super::*;
 use crate::error::{ConfigError, Error, IoError};
 use crate::models::diffusion7::Contact7;
@@ -61,7 +62,7 @@ pub struct Checkpoint {
     pub output: OutputState,
     /// The applied load's state (docs/pressure.md); absent for runs without a load.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub load: Option<super::load::LoadCheckpoint>,
+    pub load: Option<crate::coupled::load::LoadCheckpoint>,
 }
 
 /// Format tag of compact checkpoints.

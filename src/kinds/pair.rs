@@ -3,10 +3,10 @@
 //! measurements before simulating a compact. Entry points for the CLI: [`run_pair_case`] and
 //! [`check_pair_case`]. Schema: `docs/diffusion7.md`.
 
-use super::advance::{PairMaterials, SolverOptions, TemperaturePath, advance, calibrated_range_warning};
-use super::contact::{Contact7, sintering_force};
-use super::kinetics::invariants;
-use super::material::{Material, PathFactors};
+use crate::models::diffusion7::advance::{PairMaterials, SolverOptions, TemperaturePath, advance, calibrated_range_warning};
+use crate::models::diffusion7::contact::{Contact7, sintering_force};
+use crate::models::diffusion7::kinetics::invariants;
+use crate::models::diffusion7::material::{Material, PathFactors};
 use crate::config::{check, check_opt, from_value};
 use crate::error::{ConfigError, Error, IoError, ModelError};
 use crate::models::ode::OdeStats;
@@ -67,10 +67,10 @@ struct PairSection {
 }
 
 fn default_eps() -> f64 {
-    super::contact::DEFAULT_EPSILON
+    crate::models::diffusion7::contact::DEFAULT_EPSILON
 }
 fn default_eta() -> f64 {
-    super::contact::DEFAULT_ETA
+    crate::models::diffusion7::contact::DEFAULT_ETA
 }
 
 /// `[temperature]`: exactly one of `constant`, `schedule`, `table`, or the ramp keys.
@@ -314,7 +314,7 @@ pub struct PairRun {
 impl PairRun {
     /// Relative volume drift |V(Y_end) − V(Y0)|/V(Y0) [1].
     pub fn volume_drift(&self) -> f64 {
-        let v = super::geometry::volume_and_areas(&self.contact.y).map(|x| x.0).unwrap_or(f64::NAN);
+        let v = crate::models::diffusion7::geometry::volume_and_areas(&self.contact.y).map(|x| x.0).unwrap_or(f64::NAN);
         (v - self.volume0).abs() / self.volume0
     }
 }
@@ -323,7 +323,7 @@ impl PairRun {
 /// accepted substep; `progress` prints a line every 10 % of the simulated time to stderr.
 pub fn run_pair(spec: &PairSpec, record: bool, progress: bool) -> Result<PairRun, ModelError> {
     let mut contact = spec.new_contact()?;
-    let (v0, _) = super::geometry::volume_and_areas(&contact.y).map(|(v, a, g)| (v, a + g))?;
+    let (v0, _) = crate::models::diffusion7::geometry::volume_and_areas(&contact.y).map(|(v, a, g)| (v, a + g))?;
     let mats = spec.materials();
     let path = spec.temperature.path();
     let mut times = Vec::new();

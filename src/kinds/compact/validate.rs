@@ -3,7 +3,8 @@
 //! ordered, the step in (0, dt_max], the state finite — so that a damaged or edited file ends in a
 //! [`ConfigError`] naming the entry instead of a panic, a NaN or a run that never finishes.
 
-use super::{Checkpoint, Settings};
+use super::Checkpoint;
+use crate::coupled::Settings;
 use crate::config::ranges;
 use crate::error::{ConfigError, fmt_value};
 
