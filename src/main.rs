@@ -351,7 +351,7 @@ fn real_main(cli: Cli) -> Result<(), Error> {
         }
         Command::Check { case } => located(&case, || {
             let value = sinterdem::config::load_case(&case.case, &[])?;
-            let what = sinterdem::kinds::check(&value, &case.set, &base_dir(&case.case))?;
+            let what = sinterdem::calibrate::check_file(&value, &case.set, &base_dir(&case.case))?;
             println!("{}: ok ({what})", case.case.display());
             Ok(())
         }),
@@ -442,7 +442,7 @@ fn real_main(cli: Cli) -> Result<(), Error> {
             located(&case, || sinterdem::calibrate::run_file(&case.case, &case.set, &out, quiet, generate_synthetic, validate_compact))
         }
         Command::Keys { study } => {
-            print!("{}", if study { sinterdem::study::spec::markdown() } else { sinterdem::config::ranges::markdown() });
+            print!("{}", if study { sinterdem::study::spec::markdown() } else { sinterdem::config::ranges::markdown(&sinterdem::calibrate::every_table()) });
             Ok(())
         }
         Command::Bench { which } => match which {

@@ -92,7 +92,7 @@ fn check(dir: &Path, calib: &str, data: &str) -> Result<String, String> {
     let p = dir.join("calib.toml");
     std::fs::write(&p, calib).unwrap();
     let v = load_case(&p, &[]).map_err(|e| e.to_string())?;
-    sinterdem::kinds::check(&v, &[], dir).map_err(|e| e.to_string())
+    sinterdem::calibrate::check_file(&v, &[], dir).map_err(|e| e.to_string())
 }
 
 /// A good file is recognised and described (packing built, nothing run); every kind of bad input

@@ -16,7 +16,7 @@
 
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngAlgorithm, TestCaseError, TestRng, TestRunner};
-use sinterdem::config::{apply_override, parse_case_str, ranges};
+use sinterdem::config::{apply_override, parse_case_str};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
@@ -267,7 +267,7 @@ fn override_text(v: f64) -> String {
 
 /// Range-table keys with every `*` as index 0 (arrays) — also the names a table key may take.
 fn set_keys() -> Vec<String> {
-    ranges::TABLES.iter().flat_map(|t| t.iter()).map(|r| r.key.replace('*', "0")).collect()
+    sinterdem::calibrate::every_table().iter().flat_map(|t| t.iter()).map(|r| r.key.replace('*', "0")).collect()
 }
 
 fn mutate(seed: &Seed, input: &Input, strings: &[String], keys: &[String]) -> toml::Value {
@@ -376,7 +376,7 @@ fn check_never_panics_on_mutated_cases() {
                 parse_case_str(&String::from_utf8_lossy(&text), "fuzz")
             };
             match value {
-                Ok(v) => sinterdem::kinds::check(&v, &[], &dir).is_ok(),
+                Ok(v) => sinterdem::calibrate::check_file(&v, &[], &dir).is_ok(),
                 Err(_) => false,
             }
         });

@@ -22,7 +22,7 @@ fn write(dir: &Path, name: &str, text: &[u8]) -> PathBuf {
 fn check(path: &Path, sets: &[&str]) -> Result<String, String> {
     let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
     let base = path.parent().map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from("."));
-    sinterdem::config::load_case(path, &[]).and_then(|v| sinterdem::kinds::check(&v, &sets, &base)).map_err(|e| e.to_string())
+    sinterdem::config::load_case(path, &[]).and_then(|v| sinterdem::calibrate::check_file(&v, &sets, &base)).map_err(|e| e.to_string())
 }
 
 fn check_err(path: &Path, sets: &[&str]) -> String {

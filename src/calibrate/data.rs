@@ -7,7 +7,7 @@
 //! 313 K"`) and `#` comment lines. Either measurement of a row may be empty; a given value needs its
 //! sigma (one standard deviation, same unit). Every error names the file, line and column.
 
-use crate::config::ranges::lookup;
+use super::lookup;
 use crate::error::{ConfigError, Error};
 use crate::profile::Profile;
 use std::collections::HashMap;

@@ -66,6 +66,19 @@ pub static RANGES: &[Range] = &[
     c("data.time_s", 0.0, 1e9, "s", "calibration series: time since the start of the schedule"),
 ];
 
+/// Every range table of the crate: the kinds' list ([`crate::kinds::keys::TABLES`]) and the
+/// calibration files' [`RANGES`] (for `sinterdem keys` and docs/case-file.md).
+pub fn every_table() -> Vec<&'static [Range]> {
+    let mut t = crate::kinds::keys::TABLES.to_vec();
+    t.push(RANGES);
+    t
+}
+
+/// Looks up a key of a case or of a calibration file in [`every_table`].
+pub(crate) fn lookup(key: &str) -> Option<&'static Range> {
+    crate::kinds::keys::lookup(key).or_else(|| crate::config::ranges::lookup_in(&[RANGES], key))
+}
+
 fn default_model() -> String {
     "pair".into()
 }
@@ -100,7 +113,7 @@ struct PairSection {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct CalibFile {
-    /// Optional `kind = "calibration"` (what `sinterdem check` recognises; see [`is_calibration`]).
+    /// Optional `kind = "calibration"` (what `sinterdem check` recognises; see [`crate::config::is_calibration`]).
     #[serde(default)]
     kind: Option<String>,
     #[serde(default)]
@@ -150,15 +163,6 @@ impl ModelKind {
             ModelKind::Pair => "pair",
             ModelKind::Compact => "compact",
         }
-    }
-}
-
-/// Whether a parsed TOML file is a calibration file rather than a case: `kind = "calibration"`,
-/// or no `kind` and the calibration keys `data` and `parameters` (no case kind has either).
-pub fn is_calibration(value: &toml::Value) -> bool {
-    match value.get("kind") {
-        Some(k) => k.as_str() == Some("calibration"),
-        None => value.get("data").is_some() && value.get("parameters").is_some(),
     }
 }
 
@@ -446,6 +450,19 @@ pub fn run(setup: Setup, out: &Path, log: &mut dyn FnMut(&str)) -> Result<report
         log(&format!("compact validation: {}", path.display()));
     }
     Ok(rep)
+}
+
+/// `sinterdem check FILE`: a calibration file (recognised by [`crate::config::is_calibration`])
+/// with `overrides` applied, or else a case of any kind ([`crate::kinds::check`]).
+pub fn check_file(value: &toml::Value, overrides: &[String], base: &Path) -> Result<String, Error> {
+    if !crate::config::is_calibration(value) {
+        return crate::kinds::check(value, overrides, base);
+    }
+    let mut value = value.clone();
+    for o in overrides {
+        crate::config::apply_override(&mut value, o)?;
+    }
+    check(&value, base)
 }
 
 /// Validates a calibration file without fitting (`sinterdem check CALIB.toml`): the file, its data

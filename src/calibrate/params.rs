@@ -7,7 +7,7 @@
 //! `θ = log10(value) = log10(min) + u·(log10(max) − log10(min))`. θ are the "fit coordinates" in which
 //! σ and correlations are reported.
 
-use crate::config::ranges::lookup;
+use super::lookup;
 use crate::error::ConfigError;
 use crate::models::diffusion7::{Material, PathFactors, Phase};
 use serde::Deserialize;

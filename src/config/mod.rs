@@ -104,7 +104,7 @@ pub fn expand_includes(root: &mut toml::Value, base: &Path) -> Result<(), Config
     if models.is_empty() {
         return Ok(());
     }
-    let target = if crate::calibrate::is_calibration(root) {
+    let target = if is_calibration(root) {
         "path_factors"
     } else if matches!(kind_name(root), "heat" | "compact" | "pair") {
         "model"
@@ -231,6 +231,15 @@ pub fn apply_override(root: &mut toml::Value, assignment: &str) -> Result<(), Co
     Ok(())
 }
 
+/// Whether a parsed TOML file is a calibration file rather than a case: `kind = "calibration"`,
+/// or no `kind` and the calibration keys `data` and `parameters` (no case kind has either).
+pub fn is_calibration(value: &toml::Value) -> bool {
+    match value.get("kind") {
+        Some(k) => k.as_str() == Some("calibration"),
+        None => value.get("data").is_some() && value.get("parameters").is_some(),
+    }
+}
+
 /// Deserialises a typed section (`section`: its dotted path in the case, "" for the whole case),
 /// turning serde's message (unknown key, wrong type, missing key) into a [`ConfigError`] that
 /// names the full key in a user's terms ([`messages::from_serde`]).
@@ -238,10 +247,10 @@ pub fn from_value<T: DeserializeOwned>(value: toml::Value, section: &str) -> Res
     T::deserialize(value).map_err(|e| messages::from_serde(&e.to_string(), section))
 }
 
-/// Checks `value` of `key` against the range table entry for `key` (see [`ranges::lookup`]).
+/// Checks `value` of a shared key against [`ranges::TABLE`] (see [`ranges::lookup`]); modules
+/// with keys of their own use [`ranges::check_in`] with their table.
 pub fn check(key: &str, value: f64) -> Result<f64, ConfigError> {
-    let r = ranges::lookup(key).ok_or_else(|| ConfigError::invalid(format!("internal: key {key} has no entry in the range table")))?;
-    r.check(key, value)
+    ranges::check_in(&[], key, value)
 }
 
 /// Checks an optional value (None passes).

@@ -1,4 +1,7 @@
-//! The one declarative range table: every numeric case-file key, its allowed interval and SI unit.
+//! Range tables: the mechanism ([`Range`], [`check_in`], [`lookup_in`]) and the shared table of
+//! the keys every kind reads ([`TABLE`]: time, output, materials, particles, thermal, …). A module
+//! with keys of its own keeps its table beside its code and checks against it with [`check_in`];
+//! the list of every table is `crate::keys::TABLES`.
 //! Keys are written as in the case file with array/table indices replaced by `*`
 //! (e.g. `materials.*.density`). `docs/case-file.md` is checked against this table by a test.
 
@@ -130,21 +133,21 @@ pub static TABLE: &[Range] = &[
     c("conductivity.layer_fraction", 0.0, 0.5, "1", "thickness of each Dirichlet layer as a fraction of the extent"),
 ];
 
-/// Every range table of the crate: this file's [`TABLE`] and the models' own tables
-/// (a model module may keep its keys beside its code and register the table here).
-pub static TABLES: &[&[Range]] = &[
-    TABLE,
-    crate::models::diffusion7::RANGES,
-    crate::kinds::generate::RANGES,
-    crate::models::luding::RANGES,
-    crate::models::frenkel::RANGES,
-    crate::kinds::explicit_sinter::RANGES,
-    crate::calibrate::RANGES,
-];
+/// Looks up `key` in `tables`, matching `*` against any one path segment.
+pub fn lookup_in(tables: &[&'static [Range]], key: &str) -> Option<&'static Range> {
+    tables.iter().flat_map(|t| t.iter()).find(|r| pattern_matches(r.key, key))
+}
 
-/// Looks up `key` in [`TABLES`], matching `*` against any one path segment.
+/// Looks up `key` among the shared keys of this module's [`TABLE`] (time, output, materials, …).
 pub fn lookup(key: &str) -> Option<&'static Range> {
-    TABLES.iter().flat_map(|t| t.iter()).find(|r| pattern_matches(r.key, key))
+    lookup_in(&[TABLE], key)
+}
+
+/// Checks `value` of `key` against a module's own range table `own`, then the shared [`TABLE`].
+/// A key found in neither is an internal error (the module forgot a row).
+pub fn check_in(own: &'static [Range], key: &str, value: f64) -> Result<f64, ConfigError> {
+    let r = lookup_in(&[own, TABLE], key).ok_or_else(|| ConfigError::invalid(format!("internal: key {key} has no entry in the range table")))?;
+    r.check(key, value)
 }
 
 fn pattern_matches(pattern: &str, key: &str) -> bool {
@@ -159,11 +162,12 @@ fn pattern_matches(pattern: &str, key: &str) -> bool {
     }
 }
 
-/// The range tables as a Markdown table (key, allowed range, unit, meaning), for
-/// `docs/case-file.md` (`sinterdem keys` prints it; a test keeps the document in step).
-pub fn markdown() -> String {
+/// `tables` as a Markdown table (key, allowed range, unit, meaning), for `docs/case-file.md`
+/// (`sinterdem keys` prints every table of the crate, `crate::keys::TABLES`; a test keeps the
+/// document in step).
+pub fn markdown(tables: &[&[Range]]) -> String {
     let mut s = String::from("| key | allowed | unit | meaning |\n|---|---|---|---|\n");
-    for r in TABLES.iter().flat_map(|t| t.iter()) {
+    for r in tables.iter().flat_map(|t| t.iter()) {
         s.push_str(&format!("| `{}` | {} | {} | {} |\n", r.key, r.describe(), r.unit, r.meaning));
     }
     s
@@ -183,7 +187,7 @@ mod tests {
     }
     #[test]
     fn keys_are_unique() {
-        let all: Vec<&Range> = TABLES.iter().flat_map(|t| t.iter()).collect();
+        let all: Vec<&Range> = TABLE.iter().collect();
         for (i, a) in all.iter().enumerate() {
             for b in &all[i + 1..] {
                 assert_ne!(a.key, b.key);

@@ -188,7 +188,7 @@ pub struct GenerateCase {
 }
 
 fn chk(key: &str, v: f64) -> Result<f64, ConfigError> {
-    crate::config::check(key, v)
+    crate::config::ranges::check_in(RANGES, key, v)
 }
 
 /// Parses and validates a `kind = "generate"` case (for `sinterdem check`).

@@ -11,6 +11,7 @@ pub mod conductivity;
 pub mod explicit_sinter;
 pub mod generate;
 pub mod heat;
+pub mod keys;
 pub mod pair;
 
 use crate::config;
@@ -110,6 +111,8 @@ impl RunSummary {
         self.get(path).and_then(|v| v.as_f64())
     }
 }
+
+pub use crate::config::is_calibration;
 
 /// A value of a JSON tree by dotted path; array elements by index.
 pub fn lookup<'a>(v: &'a serde_json::Value, path: &str) -> Option<&'a serde_json::Value> {
@@ -279,16 +282,9 @@ pub fn resume(dir: &Path, params: &RunParams) -> Result<RunSummary, Error> {
     Ok(RunSummary { kind, wall_seconds: wall.elapsed().as_secs_f64(), summary })
 }
 
-/// Validates a case (or a calibration file, recognised by [`crate::calibrate::is_calibration`])
-/// without running it; returns a one-line description.
+/// Validates a case without running it; returns a one-line description. (A calibration file,
+/// recognised by [`config::is_calibration`], is checked by `crate::calibrate::check`.)
 pub fn check(case: &toml::Value, overrides: &[String], base: &Path) -> Result<String, Error> {
-    if crate::calibrate::is_calibration(case) {
-        let mut value = case.clone();
-        for o in overrides {
-            config::apply_override(&mut value, o)?;
-        }
-        return crate::calibrate::check(&value, base);
-    }
     let mut case = case.clone();
     config::expand_includes(&mut case, base)?;
     let value = resolve(&case, overrides)?;

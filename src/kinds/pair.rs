@@ -7,7 +7,16 @@ use crate::models::diffusion7::advance::{PairMaterials, SolverOptions, Temperatu
 use crate::models::diffusion7::contact::{Contact7, sintering_force};
 use crate::models::diffusion7::kinetics::invariants;
 use crate::models::diffusion7::material::{Material, PathFactors};
-use crate::config::{check, check_opt, from_value};
+use crate::config::from_value;
+
+/// Checks a pair-case key (the 7-DOF model's table, then the shared keys).
+fn check(key: &str, v: f64) -> Result<f64, ConfigError> {
+    crate::config::ranges::check_in(crate::models::diffusion7::RANGES, key, v)
+}
+
+fn check_opt(key: &str, v: Option<f64>) -> Result<Option<f64>, ConfigError> {
+    v.map(|v| check(key, v)).transpose()
+}
 use crate::error::{ConfigError, Error, IoError, ModelError};
 use crate::models::ode::OdeStats;
 use crate::plot::{Plot, Series};

@@ -15,7 +15,12 @@
 //! the closed-form checks of the tests.
 
 use crate::config::ranges::{Range, c, o, p};
-use crate::config::{check, from_value};
+use crate::config::from_value;
+
+/// Checks a key of this law's [`RANGES`] (then the shared keys).
+fn check(key: &str, v: f64) -> Result<f64, ConfigError> {
+    crate::config::ranges::check_in(RANGES, key, v)
+}
 use crate::error::{ConfigError, ModelError};
 use crate::models::luding::{TangentialForce, tangential_spring};
 use crate::units::{BOLTZMANN, GAS_CONSTANT};

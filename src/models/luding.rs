@@ -20,7 +20,12 @@
 //! `−r_j n × f_t` on j. SI units throughout; temperatures in kelvin.
 
 use crate::config::ranges::{Range, c, o, p};
-use crate::config::{check, from_value};
+use crate::config::from_value;
+
+/// Checks a key of this law's [`RANGES`] (then the shared keys).
+fn check(key: &str, v: f64) -> Result<f64, ConfigError> {
+    crate::config::ranges::check_in(RANGES, key, v)
+}
 use crate::error::{ConfigError, ModelError};
 use crate::models::frenkel::MeanTemperature;
 use nalgebra::Vector3;

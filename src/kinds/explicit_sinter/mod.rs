@@ -34,7 +34,16 @@ use crate::explicit::law::ContactModel;
 use crate::explicit::sinter::{FrenkelLaw, LudingLaw, LudingSlot};
 use crate::explicit::{Explicit, Settings, Wall, WallControl, time_step};
 use crate::config::ranges::{Range, c, p};
-use crate::config::{check, from_value};
+use crate::config::from_value;
+
+/// Checks a key of this kind (its own [`RANGES`], the laws' tables, then the shared keys).
+fn check(key: &str, v: f64) -> Result<f64, ConfigError> {
+    let own = crate::config::ranges::lookup_in(&[RANGES, crate::models::luding::RANGES, crate::models::frenkel::RANGES], key);
+    match own {
+        Some(r) => r.check(key, v),
+        None => crate::config::check(key, v),
+    }
+}
 use crate::error::{ConfigError, Error, IoError, ModelError};
 use crate::heat::conductance::Conductance;
 use crate::heat::network::{HeatNetwork, HeatSources, Scheme};

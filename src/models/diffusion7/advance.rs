@@ -44,7 +44,7 @@ impl Default for SolverOptions {
 impl SolverOptions {
     /// Checks the keys against the range table (`solver.*`).
     pub fn validate(&self) -> Result<(), crate::error::ConfigError> {
-        use crate::config::check;
+        let check = |k: &str, v: f64| crate::config::ranges::check_in(super::RANGES, k, v);
         check("solver.rtol", self.rtol)?;
         check("solver.norm_floor", self.norm_floor)?;
         check("solver.max_substep", self.max_substep)?;

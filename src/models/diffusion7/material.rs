@@ -6,7 +6,12 @@
 //! next phase's (titanium: α below 1156 K, β at and above). The phase of a contact is chosen at the
 //! contact temperature, for both sides together (§3).
 
-use crate::config::{check, from_value};
+use crate::config::from_value;
+
+/// Checks a key of the 7-DOF model's table (then the shared keys).
+fn check(key: &str, v: f64) -> Result<f64, ConfigError> {
+    crate::config::ranges::check_in(super::RANGES, key, v)
+}
 use crate::error::{ConfigError, ModelError};
 use crate::units::{BOLTZMANN, arrhenius};
 use serde::{Deserialize, Serialize};
