@@ -191,11 +191,13 @@ fn every_bundled_case_runs_briefly_without_nan_inf_or_null() {
     }
     let recorded = std::fs::read_to_string(&path).unwrap();
     let recorded: Vec<&str> = recorded.lines().collect();
-    let changed: Vec<String> = sums
-        .iter()
-        .filter(|s| !recorded.contains(&s.as_str()))
-        .map(|s| s.rsplit_once('\t').map_or(s.clone(), |(k, _)| k.to_string()))
-        .collect();
-    assert!(recorded.len() == sums.len() && changed.is_empty(), "outputs differ from {CHECKSUMS} ({} recorded, {} now): {changed:?}", recorded.len(), sums.len());
+    let changed: Vec<String> =
+        sums.iter().filter(|s| !recorded.contains(&s.as_str())).map(|s| s.rsplit_once('\t').map_or(s.clone(), |(k, _)| k.to_string())).collect();
+    assert!(
+        recorded.len() == sums.len() && changed.is_empty(),
+        "outputs differ from {CHECKSUMS} ({} recorded, {} now): {changed:?}",
+        recorded.len(),
+        sums.len()
+    );
     let _ = std::fs::remove_dir_all(&out_root);
 }

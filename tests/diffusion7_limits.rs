@@ -1,9 +1,9 @@
 //! Limiting behaviour of the 7-DOF model (docs/diffusion7.md §8): no shrinkage without GB or lattice
 //! sources, Herring's scaling law, the classical neck-growth exponents, the GB-only stall.
 
+use sinterdem::kinds::pair::{PairRun, PairSpec, PairTemperature, run_pair};
 use sinterdem::models::diffusion7::SolverOptions;
 use sinterdem::models::diffusion7::material::{Material, PathFactors};
-use sinterdem::kinds::pair::{PairRun, PairSpec, PairTemperature, run_pair};
 
 /// Copper energies with constant diffusivities D_s, D_gb, D_b [m²/s] (Q = 0).
 fn material(ds: f64, dgb: f64, db: f64) -> Material {

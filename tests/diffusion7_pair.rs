@@ -1,8 +1,8 @@
 //! Two-particle runs: the copper pair of docs/diffusion7.md §11 and the invariants of §5.
 
 use sinterdem::config::{apply_override, load_case};
-use sinterdem::models::diffusion7::geometry::volume_and_areas;
 use sinterdem::kinds::pair::{PairSpec, parse_pair_case, run_pair, run_pair_case};
+use sinterdem::models::diffusion7::geometry::volume_and_areas;
 use sinterdem::models::ode::Method;
 use std::path::Path;
 

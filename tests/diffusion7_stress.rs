@@ -3,8 +3,8 @@
 //! never a NaN or a panic. Also the force (F4) and the correction (C1)–(C4) of docs/diffusion7.md §5–6.
 
 use sinterdem::error::ModelError;
-use sinterdem::models::diffusion7::material::{Material, PathFactors};
 use sinterdem::kinds::pair::{PairRun, PairSpec, PairTemperature, ramp_profile, run_pair};
+use sinterdem::models::diffusion7::material::{Material, PathFactors};
 use sinterdem::models::diffusion7::{ContactParams, SolverOptions, correct_y4_y7, load_increment, rates, sintering_force};
 use sinterdem::models::ode::Method;
 

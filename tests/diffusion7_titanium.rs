@@ -2,8 +2,8 @@
 //! invariants across the α/β switch.
 
 use sinterdem::config::load_case;
-use sinterdem::models::diffusion7::geometry::volume_and_areas;
 use sinterdem::kinds::pair::{parse_pair_case, run_pair};
+use sinterdem::models::diffusion7::geometry::volume_and_areas;
 use sinterdem::models::diffusion7::titanium::{EXPERIMENTS, Experiment, FULL_START, TRUNCATED_START, run_all_titanium};
 use std::path::Path;
 

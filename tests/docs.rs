@@ -9,7 +9,11 @@ fn case_file_reference_lists_every_numeric_key() {
     let begin = doc.find("<!-- keys:begin").expect("marker");
     let body_start = doc[begin..].find('\n').unwrap() + begin + 1;
     let end = doc.find("<!-- keys:end -->").expect("marker");
-    assert_eq!(&doc[body_start..end], sinterdem::config::ranges::markdown(&sinterdem::calibrate::every_table()), "docs/case-file.md is out of date: regenerate with `sinterdem keys`");
+    assert_eq!(
+        &doc[body_start..end],
+        sinterdem::config::ranges::markdown(&sinterdem::calibrate::every_table()),
+        "docs/case-file.md is out of date: regenerate with `sinterdem keys`"
+    );
 }
 
 #[test]
@@ -39,7 +43,7 @@ fn toml_snippets_in_docs_parse() {
             let v = toml::Value::Table(value);
             let is_heat_case = v.get("time").is_some() && v.get("particles").is_some() && v.get("kind").is_none();
             if is_heat_case {
-                sinterdem::kinds::heat::prepare(v, Path::new("cases")).unwrap_or_else(|e| panic!("{}: heat snippet rejected: {e}", path.display()));
+                sinterdem::scene::prepare(v, Path::new("cases")).unwrap_or_else(|e| panic!("{}: heat snippet rejected: {e}", path.display()));
             }
             count += 1;
             rest = &body[j + 3..];

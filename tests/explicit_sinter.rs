@@ -3,9 +3,9 @@
 //! samples, stress control, thread-count determinism, rejection of bad input.
 use nalgebra::Vector3;
 use sinterdem::explicit::law::ContactModel;
-use sinterdem::kinds::explicit_sinter::{check_explicit_case, parse_explicit_case, run_explicit, run_explicit_case};
 use sinterdem::explicit::sinter::{FrenkelLaw, LudingLaw};
 use sinterdem::explicit::{Explicit, Settings, time_step};
+use sinterdem::kinds::explicit_sinter::{check_explicit_case, parse_explicit_case, run_explicit, run_explicit_case};
 use sinterdem::models::frenkel::{FrenkelParams, FrenkelSpec};
 use sinterdem::models::luding::{LudingParams, LudingSpec};
 use sinterdem::particles::Particles;

@@ -76,7 +76,7 @@ fn step_control_bounds_and_keys() {
         for s in sets {
             sinterdem::config::apply_override(&mut v, s).unwrap();
         }
-        let e = sinterdem::kinds::heat::prepare(v, std::path::Path::new(".")).err().expect(needle).to_string();
+        let e = sinterdem::scene::prepare(v, std::path::Path::new(".")).err().expect(needle).to_string();
         assert!(e.contains(needle), "{e}");
     }
     let _ = std::fs::remove_dir_all(&out);

@@ -4,7 +4,8 @@
 
 use sinterdem::config::{apply_override, load_case};
 use sinterdem::kinds::conductivity;
-use sinterdem::kinds::heat::{prepare, run};
+use sinterdem::kinds::heat::run;
+use sinterdem::scene::prepare;
 use std::path::Path;
 
 fn case(text: &str, sets: &[&str]) -> toml::Value {

@@ -23,7 +23,7 @@ fn a_heat_run_resumed_from_its_checkpoint_equals_the_uninterrupted_run() {
     // the same run stopped right after its checkpoint at step 50 (as if killed there) ...
     let value = kinds::resolve(&case, &sets).unwrap();
     let text = toml::to_string(&value).unwrap();
-    let mut prep = sinterdem::kinds::heat::prepare(value, Path::new("cases")).unwrap();
+    let mut prep = sinterdem::scene::prepare(value, Path::new("cases")).unwrap();
     prep.source = Some((text, PathBuf::from("cases").canonicalize().unwrap()));
     let part = dir.join("part");
     let r = sinterdem::kinds::heat::run_from(prep, &part, false, &mut |_| {}, None, Some(50)).unwrap();

@@ -166,7 +166,7 @@ fn two_sphere_case(dir: &Path, rows: &str, gap: &str, extra: &str) -> toml::Valu
 
 /// Runs a heat case, returns its summary and the temperatures at the snapshot times.
 fn heat_run(v: toml::Value, out: &Path) -> (serde_json::Value, Vec<(f64, Vec<f64>)>) {
-    let prep = sinterdem::kinds::heat::prepare(v, Path::new(".")).unwrap();
+    let prep = sinterdem::scene::prepare(v, Path::new(".")).unwrap();
     sinterdem::kinds::heat::run_returning_temperatures(prep, out, false, &mut |_| {}, None, None, true).unwrap()
 }
 
@@ -370,18 +370,18 @@ fn bad_gap_keys_are_refused_with_key_value_range_and_unit() {
         ("emissivity = 1.2", "thermal.gap.emissivity", "1.2", "[0, 1]", "1"),
     ] {
         let v = two_sphere_case(&dir, rows, gap, "");
-        let e = sinterdem::kinds::heat::prepare(v, Path::new(".")).err().expect(gap).to_string();
+        let e = sinterdem::scene::prepare(v, Path::new(".")).err().expect(gap).to_string();
         for part in [key, value, range, unit] {
             assert!(e.contains(part), "{gap}: «{part}» missing in: {e}");
         }
     }
     let v = two_sphere_case(&dir, rows, "gas_conductivity = 0.02\nlayer = 0.3", "");
-    let e = sinterdem::kinds::heat::prepare(v, Path::new(".")).err().unwrap().to_string();
+    let e = sinterdem::scene::prepare(v, Path::new(".")).err().unwrap().to_string();
     assert!(e.contains("layer"), "{e}");
     let mut v = two_sphere_case(&dir, rows, "gas_conductivity = 0.02", "");
     let th = v.get_mut("thermal").unwrap().as_table_mut().unwrap();
     th.insert("mode".into(), "isothermal".into());
     th.insert("furnace".into(), toml::Value::Table("profile = { constant = 1000.0 }".parse::<toml::Table>().unwrap()));
-    let e = sinterdem::kinds::heat::prepare(v, Path::new(".")).err().unwrap().to_string();
+    let e = sinterdem::scene::prepare(v, Path::new(".")).err().unwrap().to_string();
     assert!(e.contains("thermal.gap") && e.contains("isothermal"), "{e}");
 }

@@ -185,7 +185,7 @@ fn hot_plate(sets: &[&str]) -> toml::Value {
 fn hot_plate_with_bundled_titanium_tables() {
     let dir = std::env::temp_dir().join(format!("sinterdem-props-{}", std::process::id()));
     let run = |v: toml::Value| {
-        let prep = sinterdem::kinds::heat::prepare(v, Path::new("cases")).unwrap();
+        let prep = sinterdem::scene::prepare(v, Path::new("cases")).unwrap();
         sinterdem::kinds::heat::run(prep, &dir, false, &mut |_| {}).unwrap()
     };
     let constant = run(hot_plate(&[]));
@@ -214,7 +214,7 @@ fn bad_tables_in_a_case_are_rejected_naming_the_key() {
             // a constant and a table for the same property: ambiguous
             sinterdem::config::apply_override(&mut v, "materials.0.conductivity_table=\"titanium\"").unwrap();
         }
-        let e = sinterdem::kinds::heat::prepare(v, Path::new("cases")).err().expect(set).to_string();
+        let e = sinterdem::scene::prepare(v, Path::new("cases")).err().expect(set).to_string();
         let needles = if needles.is_empty() { vec!["either", "conductivity_table"] } else { needles };
         for n in needles {
             assert!(e.contains(n), "{set}: {e}");

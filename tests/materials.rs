@@ -3,8 +3,8 @@
 //! bundled preset, and change the result when their data change; bonds between particles of two
 //! materials take their own elastic constants (two half-links in series).
 
-use sinterdem::mechanics::bond::series_elastic;
 use sinterdem::kinds::{self, RunParams};
+use sinterdem::mechanics::bond::series_elastic;
 use std::path::{Path, PathBuf};
 
 mod common;

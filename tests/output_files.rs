@@ -2,7 +2,8 @@
 //! the right counts and array names, and (with the `h5` feature) the H5MD-layout HDF5 file.
 
 use sinterdem::config::load_case;
-use sinterdem::kinds::heat::{prepare, run};
+use sinterdem::kinds::heat::run;
+use sinterdem::scene::prepare;
 use std::path::Path;
 
 #[test]

@@ -334,9 +334,9 @@ fn item15_energy_balance_is_small_when_almost_no_heat_flows() {
     assert!(q < 1e-12, "this case is meant to move almost no heat: {q} J");
     let b = s["energy_balance_rel"].as_f64().unwrap();
     assert!(b < 1e-4, "energy balance {b} with {q} J of heat flow");
-    assert!((sinterdem::kinds::heat::energy_balance_rel(1.0, 1.5, 1.0, 1e3) - 0.5).abs() < 1e-12);
+    assert!((sinterdem::heat::balance::energy_balance_rel(1.0, 1.5, 1.0, 1e3) - 0.5).abs() < 1e-12);
     // almost no flow: the floor 1e-6 × stored heat
-    assert!((sinterdem::kinds::heat::energy_balance_rel(1e-18, 2e-18, 2e-18, 1.0) - 1e-12).abs() < 1e-24);
+    assert!((sinterdem::heat::balance::energy_balance_rel(1e-18, 2e-18, 2e-18, 1.0) - 1e-12).abs() < 1e-24);
 }
 
 #[test]

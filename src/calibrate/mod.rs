@@ -541,3 +541,15 @@ pub fn run_file(path: &Path, overrides: &[String], out: &Path, quiet: bool, gene
     run(setup, out, &mut log)?;
     Ok(())
 }
+
+#[cfg(test)]
+mod table_tests {
+    #[test]
+    fn every_key_is_unique_and_found() {
+        let all: Vec<&crate::config::ranges::Range> = super::every_table().iter().flat_map(|t| t.iter()).collect();
+        for (i, a) in all.iter().enumerate() {
+            assert!(all[i + 1..].iter().all(|b| b.key != a.key), "{} twice", a.key);
+            assert_eq!(super::lookup(&a.key.replace('*', "x")).map(|r| r.key), Some(a.key));
+        }
+    }
+}

@@ -3,8 +3,8 @@
 //! than any machine will take, a step so small that `t + dt == t`, or more particles than the
 //! memory holds. These checks refuse such cases before anything is built, with an estimate.
 
-use crate::config::case::TimeSpec;
 use crate::error::{ConfigError, fmt_value};
+use crate::scene::case::TimeSpec;
 
 /// Most steps a run may imply (`end/dt`, `end/dt_max`).
 pub const MAX_STEPS: f64 = 1e9;

@@ -5,9 +5,9 @@
 //! contact's normal force (P3), which shifts the contact's GB potentials (docs/diffusion7.md
 //! (M11)); the macroscopic stress of the compact is (P4).
 
-use crate::config::case::LoadSpec;
 use crate::error::ConfigError;
 use crate::mechanics::NodalLoad;
+use crate::scene::case::LoadSpec;
 use nalgebra::Vector3;
 
 /// How the load acts.

@@ -2,13 +2,14 @@
 //! and [`Simulation::advance_step`] (topology → heat → diffusion → mechanics → correction → step
 //! control; docs/coupled.md).
 
-use crate::config::{self, case::Case};
+use crate::config;
 use crate::error::{ConfigError, Error, ModelError};
-use crate::kinds::heat::Prepared;
 use crate::heat::{Conductance, HeatNetwork};
 use crate::mechanics::{BondedSystem, Constraints, LinearSolver, MechParams, NodalLoad, StepInput};
 use crate::models::diffusion7::{self as d7, Contact7, PairMaterials, PathFactors, SolverOptions, TemperaturePath};
 use crate::models::ode::OdeStats;
+use crate::scene::Prepared;
+use crate::scene::case::Case;
 use nalgebra::Vector3;
 use rayon::prelude::*;
 use std::path::Path;
@@ -183,7 +184,7 @@ pub struct MechanicsSettings {
 }
 
 impl MechanicsSettings {
-    pub fn from_spec(m: &crate::config::case::MechanicsSpec) -> Result<Self, ConfigError> {
+    pub fn from_spec(m: &crate::scene::case::MechanicsSpec) -> Result<Self, ConfigError> {
         let margin = config::check("mechanics.plane_margin", m.plane_margin)?;
         let solver = match m.solver.as_str() {
             "auto" => LinearSolver::Auto,
@@ -568,7 +569,7 @@ impl Simulation {
             sim.skipped.push("heat solve (isothermal)");
         } else {
             let p = &mut sim.prep.scene.particles;
-            let net = crate::kinds::heat::network_for(&sim.prep.case, &sim.prep.sources, p, &sim.prep.scene.materials, &sim.prep.conductance);
+            let net = crate::scene::network_for(&sim.prep.case, &sim.prep.sources, p, &sim.prep.scene.materials, &sim.prep.conductance);
             net.apply_fixed(0.0, &mut p.temperature);
             sim.heat = Some(net);
         }
@@ -772,8 +773,7 @@ impl Simulation {
             let mut heat_info = None;
             if self.heat.is_some() {
                 let k = self.pipe_parts()?;
-                let control =
-                    crate::kinds::heat::step_control(&self.prep.case)?.map(|c| crate::heat::adaptive::StepControl { dt_min: 1e-6 * dt, dt_max: dt, ..c });
+                let control = crate::scene::step_control(&self.prep.case)?.map(|c| crate::heat::adaptive::StepControl { dt_min: 1e-6 * dt, dt_max: dt, ..c });
                 if let Some(net) = self.heat.as_mut() {
                     // contact pipes, then the gap pipes of the current positions (heat-model.md (H18)–(H23))
                     let p = &self.prep.scene.particles;
@@ -1377,7 +1377,7 @@ impl Simulation {
 /// Parse → validate → build a compact case.
 pub fn prepare(value: toml::Value, base: &Path, log: &mut dyn FnMut(&str)) -> Result<Simulation, Error> {
     let text = toml::to_string(&value).map_err(|e| ConfigError::invalid(format!("case cannot be re-serialised: {e}")))?;
-    let prep = crate::kinds::heat::prepare_scene(value, base)?;
+    let prep = crate::scene::prepare_scene(value, base)?;
     if prep.case.kind.as_deref() != Some("compact") {
         return Err(ConfigError::invalid("a compact run needs kind = \"compact\"").into());
     }

@@ -139,7 +139,7 @@ pub fn run_step_case(base: &toml::Value, sets: &[String], out: &std::path::Path)
     for s in sets {
         crate::config::apply_override(&mut v, s)?;
     }
-    let prep = crate::kinds::heat::prepare(v, std::path::Path::new("."))?;
+    let prep = crate::scene::prepare(v, std::path::Path::new("."))?;
     let t0 = Instant::now();
     let (s, temps) = crate::kinds::heat::run_returning_temperatures(prep, out, false, &mut |_| {}, None, None, true)?;
     Ok((s, temps, t0.elapsed().as_secs_f64()))

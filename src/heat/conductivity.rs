@@ -12,10 +12,10 @@
 
 use crate::error::{Error, SolveError};
 use crate::heat::Conductance;
+use crate::heat::pipes::{self, Pipes};
 use crate::linsolve::{SpdPattern, set_parallelism_for};
 use crate::material::Material;
 use crate::particles::Particles;
-use crate::heat::pipes::{self, Pipes};
 use nalgebra::{Matrix3, Vector3};
 
 /// Result of one axis of the faces method.

@@ -34,7 +34,7 @@ pub struct GapModel {
 impl GapModel {
     /// The model of `[thermal.gap]`, range-checked (key, value, range and unit in the error);
     /// `None` when it transfers nothing (k_g = 0 and ε = 0).
-    pub fn from_spec(spec: &crate::config::case::GapSpec) -> Result<Option<GapModel>, ConfigError> {
+    pub fn from_spec(spec: &crate::scene::case::GapSpec) -> Result<Option<GapModel>, ConfigError> {
         let m = GapModel {
             gas_conductivity: crate::config::check("thermal.gap.gas_conductivity", spec.gas_conductivity)?,
             layer_thickness: crate::config::check("thermal.gap.layer_thickness", spec.layer_thickness)?,

@@ -2,6 +2,7 @@
 //! effective conductivity of a compact.
 
 pub mod adaptive;
+pub mod balance;
 pub mod bench;
 pub mod conductance;
 pub mod conductivity;
@@ -12,5 +13,5 @@ pub mod pipes;
 pub mod properties;
 
 pub use conductance::{Conductance, ConductanceLaw, PipeConductance};
-pub use pipes::{Pipes, pipes, pipes_from_pairs};
 pub use network::{Furnace, HeatNetwork, HeatSources, HeatStepInfo, Scheme};
+pub use pipes::{Pipes, pipes, pipes_from_pairs};

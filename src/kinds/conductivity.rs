@@ -8,7 +8,7 @@ use nalgebra::Matrix3;
 
 /// `sinterdem conductivity CASE`: the tensor [W/(m·K)] and κ_eff/κ as JSON.
 pub fn run_case(value: toml::Value, base: &std::path::Path) -> Result<serde_json::Value, Error> {
-    let prep = crate::kinds::heat::prepare(value, base)?;
+    let prep = crate::scene::prepare(value, base)?;
     let spec = &prep.case.conductivity;
     let dt = config::check("conductivity.temperature_difference", spec.temperature_difference)?;
     let p = &prep.scene.particles;

@@ -29,11 +29,11 @@
 //!    the largest overlap below `max_overlap_rel·r̄`. Once the walls are final and the overlaps
 //!    below the threshold, a background viscous damping drains the kinetic energy.
 
-use crate::packing::{Rng, SizeDistribution, report};
 use crate::config::ranges::Range;
 use crate::error::{ConfigError, Error, IoError, SolveError};
 use crate::explicit::law::{Damping, LinearSpringDashpot};
 use crate::explicit::{Explicit, Settings, Wall, WallControl, time_step};
+use crate::packing::{Rng, SizeDistribution, report};
 use crate::particles::Particles;
 use nalgebra::Vector3;
 use serde::Deserialize;

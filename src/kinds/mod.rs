@@ -188,7 +188,7 @@ pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunPar
     let summary = match kind {
         Kind::Heat => {
             let text = toml::to_string(&value).map_err(|e| ConfigError::invalid(format!("case cannot be re-serialised: {e}")))?;
-            let mut prep = crate::kinds::heat::prepare(value, base)?;
+            let mut prep = crate::scene::prepare(value, base)?;
             prep.source = Some((text, base.canonicalize().unwrap_or_else(|_| base.to_path_buf())));
             crate::kinds::heat::run(prep, out, params.progress, &mut logf)?
         }
@@ -290,7 +290,7 @@ pub fn check(case: &toml::Value, overrides: &[String], base: &Path) -> Result<St
     let value = resolve(&case, overrides)?;
     Ok(match Kind::of(&value)? {
         Kind::Heat => {
-            let prep = crate::kinds::heat::prepare(value, base)?;
+            let prep = crate::scene::prepare(value, base)?;
             format!("heat case, {} particles, {} contacts", prep.scene.particles.len(), prep.pipes.pairs.len())
         }
         Kind::Compact => {

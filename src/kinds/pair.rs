@@ -3,11 +3,11 @@
 //! measurements before simulating a compact. Entry points for the CLI: [`run_pair_case`] and
 //! [`check_pair_case`]. Schema: `docs/diffusion7.md`.
 
+use crate::config::from_value;
 use crate::models::diffusion7::advance::{PairMaterials, SolverOptions, TemperaturePath, advance, calibrated_range_warning};
 use crate::models::diffusion7::contact::{Contact7, sintering_force};
 use crate::models::diffusion7::kinetics::invariants;
 use crate::models::diffusion7::material::{Material, PathFactors};
-use crate::config::from_value;
 
 /// Checks a pair-case key (the 7-DOF model's table, then the shared keys).
 fn check(key: &str, v: f64) -> Result<f64, ConfigError> {

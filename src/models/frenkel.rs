@@ -14,8 +14,8 @@
 //! [`free_sintering_pair`] integrates a free two-particle pair (velocity-Verlet in the overlap) for
 //! the closed-form checks of the tests.
 
-use crate::config::ranges::{Range, c, o, p};
 use crate::config::from_value;
+use crate::config::ranges::{Range, c, o, p};
 
 /// Checks a key of this law's [`RANGES`] (then the shared keys).
 fn check(key: &str, v: f64) -> Result<f64, ConfigError> {

@@ -19,8 +19,8 @@
 //! tangential force returned acts on i (−f_t on j), with torques `−r_i n × f_t` on i and
 //! `−r_j n × f_t` on j. SI units throughout; temperatures in kelvin.
 
-use crate::config::ranges::{Range, c, o, p};
 use crate::config::from_value;
+use crate::config::ranges::{Range, c, o, p};
 
 /// Checks a key of this law's [`RANGES`] (then the shared keys).
 fn check(key: &str, v: f64) -> Result<f64, ConfigError> {

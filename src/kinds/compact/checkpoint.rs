@@ -1,8 +1,8 @@
 //! Checkpoints of a compact run: what `DIR/checkpoint.json` holds, writing it atomically,
 //! reading and validating it, and rebuilding a [`Simulation`] from it bit for bit.
 
-use crate::coupled::*;
 use super::*;
+use crate::coupled::*;
 use crate::error::{ConfigError, Error, IoError};
 use crate::models::diffusion7::Contact7;
 use crate::models::ode::OdeStats;

@@ -1,8 +1,8 @@
 //! The driver loop of a compact run: steps to the end time (or a stop criterion), writes the series,
 //! the due outputs and the checkpoints, then the summary.
 
-use crate::coupled::*;
 use super::*;
+use crate::coupled::*;
 use crate::error::{Error, IoError};
 use crate::io::{self, Series, SnapshotWriter};
 use serde_json::json;
@@ -229,7 +229,7 @@ pub fn run_from(
     }
     let sh = sim.shrinkage();
     let stored_total: f64 = sim.prep.scene.particles.capacity.iter().zip(&sim.prep.scene.particles.temperature).map(|(c, t)| c * t).sum();
-    let balance = if sim.heat.is_some() { crate::kinds::heat::energy_balance_rel(sim.heat_stored, sim.heat_in, sim.heat_scale, stored_total) } else { 0.0 };
+    let balance = if sim.heat.is_some() { crate::heat::balance::energy_balance_rel(sim.heat_stored, sim.heat_in, sim.heat_scale, stored_total) } else { 0.0 };
     let isolated = sim.isolated_particles();
     let t_stats = sim.temperature_stats(&isolated);
     let dl: Vec<f64> = sim.contacts.dl_bar.clone();

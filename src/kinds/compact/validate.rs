@@ -4,8 +4,8 @@
 //! [`ConfigError`] naming the entry instead of a panic, a NaN or a run that never finishes.
 
 use super::Checkpoint;
-use crate::coupled::Settings;
 use crate::config::ranges;
+use crate::coupled::Settings;
 use crate::error::{ConfigError, fmt_value};
 
 /// Largest step counter a checkpoint may carry (no run takes 10¹² steps).

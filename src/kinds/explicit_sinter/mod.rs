@@ -30,11 +30,11 @@
 //! (`compression_*.csv`), the normal forces of all contacts after sintering and after
 //! cool-down/relax (`forces_*.csv`), PNG plots of all of them, and `summary.json`.
 
+use crate::config::from_value;
+use crate::config::ranges::{Range, c, p};
 use crate::explicit::law::ContactModel;
 use crate::explicit::sinter::{FrenkelLaw, LudingLaw, LudingSlot};
 use crate::explicit::{Explicit, Settings, Wall, WallControl, time_step};
-use crate::config::ranges::{Range, c, p};
-use crate::config::from_value;
 
 /// Checks a key of this kind (its own [`RANGES`], the laws' tables, then the shared keys).
 fn check(key: &str, v: f64) -> Result<f64, ConfigError> {

@@ -3,9 +3,9 @@
 //! ΔL/L0 against the tightest Dormand–Prince run (rtol 1e-10), against wall time and right-hand-side
 //! count. Writes `work_precision.csv` and PNG diagrams; returns the printed table.
 
-use crate::kinds::pair::{PairSpec, parse_pair_case, run_pair};
 use super::titanium::{Experiment, TRUNCATED_START};
 use crate::error::{ConfigError, Error, IoError};
+use crate::kinds::pair::{PairSpec, parse_pair_case, run_pair};
 use crate::models::ode::Method;
 use crate::plot::{Plot, Series};
 use std::fmt::Write as _;

@@ -3,8 +3,8 @@
 //! (`t = 0` when the furnace passes 793 K), or starts at 313 K for the full curve. Each experiment
 //! uses its own mean particle diameter. Bundled as `cases/titanium/E1B.toml` … `E28B.toml`.
 
-use crate::kinds::pair::{PairSpec, parse_pair_case, run_pair, summarize};
 use crate::error::{Error, IoError};
+use crate::kinds::pair::{PairSpec, parse_pair_case, run_pair, summarize};
 use crate::plot::{Plot, Series};
 use std::io::Write;
 use std::path::Path;

@@ -1,11 +1,16 @@
 //! Building a scene from a case: particles (lattices, a pair, a packing file), regions, and the
 //! contact pipes of the heat network with their volume-conserving necks.
 
-use crate::config::case::{ParticlesSpec, RegionSpec};
+pub mod case;
+mod prepare;
+
+pub use prepare::{Prepared, conductance_of, network_for, prepare, prepare_scene, step_control};
+
 use crate::config::{self};
 use crate::error::{ConfigError, Error};
 use crate::material::Material;
 use crate::particles::Particles;
+use crate::scene::case::{ParticlesSpec, RegionSpec};
 use nalgebra::Vector3;
 use std::path::Path;
 
