@@ -106,6 +106,56 @@ pub fn csv_field(value: f64, count: bool) -> String {
     }
 }
 
+/// One column of a kind's series: its name as written in the CSV header (unit suffix included,
+/// `time_s`), its SI unit as plots and HDF5 attributes show it (`"s"`, `"1"` for dimensionless),
+/// and the getter that reads it from the kind's row state `S`. A kind keeps one list of columns
+/// ([`header`], [`values`], [`label`] derive everything from it), so adding a column is one line.
+pub struct Column<S: ?Sized> {
+    pub name: &'static str,
+    pub unit: &'static str,
+    pub get: fn(&S) -> f64,
+}
+
+/// The CSV header of `columns`.
+pub fn header<S: ?Sized>(columns: &[Column<S>]) -> Vec<&'static str> {
+    columns.iter().map(|c| c.name).collect()
+}
+
+/// One row of `columns` read from `state`.
+pub fn values<S: ?Sized>(columns: &[Column<S>], state: &S) -> Vec<f64> {
+    columns.iter().map(|c| (c.get)(state)).collect()
+}
+
+/// The plot label of the column `name` of `columns`: `name [unit]` (None: no such column).
+pub fn label<S: ?Sized>(columns: &[Column<S>], name: &str) -> Option<String> {
+    columns.iter().find(|c| c.name == name).map(|c| if c.unit == "1" { c.name.to_string() } else { format!("{} [{}]", c.name, c.unit) })
+}
+
+#[cfg(test)]
+mod column_tests {
+    use super::*;
+    struct Row {
+        t: f64,
+        n: usize,
+    }
+    const COLS: &[Column<Row>] = &[Column { name: "time_s", unit: "s", get: |r| r.t }, Column { name: "contacts", unit: "1", get: |r| r.n as f64 }];
+    #[test]
+    fn columns_give_header_row_and_labels_and_a_short_row_is_an_error() {
+        assert_eq!(header(COLS), ["time_s", "contacts"]);
+        assert_eq!(values(COLS, &Row { t: 2.5, n: 7 }), [2.5, 7.0]);
+        assert_eq!(label(COLS, "time_s").as_deref(), Some("time_s [s]"));
+        let dir = std::env::temp_dir().join(format!("sinterdem-columns-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut s = Series::create(&dir.join("s.csv"), &header(COLS)).unwrap();
+        s.row(&values(COLS, &Row { t: 1.0, n: 3 })).unwrap();
+        let e = s.row(&[1.0]).unwrap_err().to_string();
+        assert!(e.contains("a row of 1 values for 2 columns"), "{e}");
+        drop(s);
+        assert_eq!(std::fs::read_to_string(dir.join("s.csv")).unwrap(), "time_s,contacts\n1e0,3\n");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
+
 /// A CSV time series written row by row (flushed at every row, so an interrupted run keeps its rows).
 ///
 /// Every CSV the project writes has one plain header line (no comment line before it, so
@@ -146,9 +196,12 @@ impl Series {
         Ok(Series { path: path.to_path_buf(), file: std::io::BufWriter::new(f), counts })
     }
 
-    /// Appends one row (full precision; counts as integers).
+    /// Appends one row (full precision; counts as integers). A row whose length is not the
+    /// header's is an error (the columns are kept aligned by name, [`Column`], never by position).
     pub fn row(&mut self, values: &[f64]) -> Result<(), IoError> {
-        debug_assert_eq!(values.len(), self.counts.len());
+        if values.len() != self.counts.len() {
+            return Err(IoError::new(&self.path, format!("internal: a row of {} values for {} columns", values.len(), self.counts.len())));
+        }
         let line: Vec<String> = values.iter().zip(&self.counts).map(|(&v, &c)| csv_field(v, c)).collect();
         writeln!(self.file, "{}", line.join(",")).map_err(|e| IoError::new(&self.path, e))?;
         self.file.flush().map_err(|e| IoError::new(&self.path, e))
