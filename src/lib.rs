@@ -14,6 +14,7 @@
 // `partial_cmp` chain would hide that intent); the lint is off on purpose.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod bench;
 pub mod calibrate;
 pub mod config;
 pub mod contacts;

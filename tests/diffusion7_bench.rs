@@ -1,7 +1,7 @@
 //! The work-precision benchmark runs end to end (the numbers are measured by `sinterdem bench pair`,
 //! not asserted here beyond sanity): errors fall as the tolerance tightens.
 
-use sinterdem::models::diffusion7::bench::{copper_spec, work_precision};
+use sinterdem::bench::diffusion7::{copper_spec, work_precision};
 use sinterdem::models::ode::Method;
 
 #[test]
@@ -25,6 +25,6 @@ fn work_precision_errors_fall_with_tolerance() {
 #[ignore]
 fn bench_pair_full() {
     let out = std::env::var("SINTERDEM_BENCH_OUT").unwrap_or_else(|_| "target/bench-pair".into());
-    let t = sinterdem::models::diffusion7::bench::bench_pair(std::path::Path::new(&out)).unwrap();
+    let t = sinterdem::bench::diffusion7::bench_pair(std::path::Path::new(&out)).unwrap();
     println!("{t}");
 }

@@ -3,8 +3,8 @@
 
 use sinterdem::config::load_case;
 use sinterdem::kinds::pair::{parse_pair_case, run_pair};
+use sinterdem::kinds::titanium::{EXPERIMENTS, Experiment, FULL_START, TRUNCATED_START, run_all_titanium};
 use sinterdem::models::diffusion7::geometry::volume_and_areas;
-use sinterdem::models::diffusion7::titanium::{EXPERIMENTS, Experiment, FULL_START, TRUNCATED_START, run_all_titanium};
 use std::path::Path;
 
 /// `cases/titanium/*.toml` are the table's case texts (regenerate with SINTERDEM_WRITE_CASES=1).
@@ -48,7 +48,7 @@ fn check_all(diameter: Option<f64>) {
         assert!(r.neck_ratio > 0.0 && r.neck_ratio < 1.0 && r.shrinkage > 0.0 && r.shrinkage < 0.5, "{r:?}");
         assert!(r.volume_drift_rel < 1e-5, "{}: drift {}", r.experiment.id, r.volume_drift_rel);
     }
-    let mut groups: Vec<Vec<&sinterdem::models::diffusion7::titanium::TitaniumResult>> = Vec::new();
+    let mut groups: Vec<Vec<&sinterdem::kinds::titanium::TitaniumResult>> = Vec::new();
     for r in &res {
         match groups.last_mut() {
             Some(g) if g[0].experiment.peak_temperature == r.experiment.peak_temperature && g[0].experiment.rate == r.experiment.rate => g.push(r),

@@ -4,7 +4,7 @@
 //! the adaptive run needs several times fewer steps than a fixed Δt of the same error, and it
 //! lands exactly on the output times and the end.
 
-use sinterdem::heat::bench::{max_error, run_step_case, step_bench_case};
+use sinterdem::bench::heat::{max_error, run_step_case, step_bench_case};
 use std::path::PathBuf;
 
 fn dir(name: &str) -> PathBuf {
@@ -17,7 +17,7 @@ fn adaptive_error_follows_the_tolerance_and_beats_fixed_steps() {
     let base = step_bench_case([3, 3, 6], end).unwrap();
     let out = dir("wp");
     let (_, reference, _) = run_step_case(&base, &["time.heat_tolerance=1e-7".into(), "time.dt=1e-7".into()], &out).unwrap();
-    assert_eq!(reference.len(), sinterdem::heat::bench::STEP_BENCH_OUTPUTS);
+    assert_eq!(reference.len(), sinterdem::bench::heat::STEP_BENCH_OUTPUTS);
     let mut adaptive = Vec::new();
     for tol in [1e-1, 1e-2, 1e-3, 1e-4] {
         let (s, temps, _) = run_step_case(&base, &[format!("time.heat_tolerance={tol:e}"), "time.dt=1e-7".into()], &out).unwrap();

@@ -2,7 +2,7 @@
 //! `MECH_BENCH_SIZES=1000,10000,100000 cargo test --release --test mechanics_bench -- --ignored --nocapture`.
 //! The non-ignored test runs the bench code on a tiny packing so it cannot rot.
 
-use sinterdem::mechanics::bench::bench_mechanics;
+use sinterdem::bench::mechanics::bench_mechanics;
 
 #[test]
 #[ignore]

@@ -5,7 +5,7 @@
 //! thread-count determinism.
 
 use nalgebra::Vector3;
-use sinterdem::mechanics::bench::fcc_packing;
+use sinterdem::mechanics::fixtures::fcc_packing;
 use sinterdem::mechanics::{BondedSystem, Constraints, LinearSolver, MechParams, NodalLoad, SolverUsed, StepInput, dof, link_stiffness};
 use sinterdem::models::diffusion7::{
     self, Material, PairMaterials, PathFactors, SolverOptions, TemperaturePath, advance, correct_y4_y7, load_increment, sintering_force,

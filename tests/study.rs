@@ -3,8 +3,8 @@
 //! study killed with SIGKILL and started again loses nothing and runs nothing twice, bad study
 //! files are rejected naming key, value and range.
 
+use sinterdem::kinds::titanium::{TRUNCATED_START, run_all_titanium};
 use sinterdem::kinds::{self, RunParams};
-use sinterdem::models::diffusion7::titanium::{TRUNCATED_START, run_all_titanium};
 use sinterdem::study::{self, StudyOptions};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};

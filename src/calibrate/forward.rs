@@ -118,7 +118,7 @@ mod tests {
     use super::*;
     use crate::calibrate::synthetic::titanium_experiments;
     use crate::kinds::pair::run_pair;
-    use crate::models::diffusion7::titanium::{Experiment as Table3, TRUNCATED_START};
+    use crate::kinds::titanium::{Experiment as Table3, TRUNCATED_START};
 
     /// The calibration's pair run of E14B (schedule string) is the bundled `kind = "pair"` case's run.
     #[test]

@@ -10,7 +10,7 @@
 use super::data::{Experiment, Measured, Observation};
 use super::forward::{PairGeometry, run_experiment};
 use crate::error::Error;
-use crate::models::diffusion7::titanium::{EXPERIMENTS, TRUNCATED_START};
+use crate::kinds::titanium::{EXPERIMENTS, TRUNCATED_START};
 use crate::models::diffusion7::{Material, PathFactors, SolverOptions};
 use crate::profile::Profile;
 use rand::{Rng, SeedableRng};

@@ -10,11 +10,8 @@
 //! Determinism: every contact writes only its own slot in the parallel sweep and all reductions
 //! run sequentially in contact order, so results are bit-identical for any thread count.
 
-mod bench;
 pub mod expansion;
 pub mod load;
-pub mod precision;
 mod step;
 
-pub use bench::bench_coupled;
 pub use step::*;

@@ -3,7 +3,6 @@
 
 pub mod adaptive;
 pub mod balance;
-pub mod bench;
 pub mod conductance;
 pub mod conductivity;
 pub mod fe_fit;

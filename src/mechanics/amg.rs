@@ -848,7 +848,7 @@ pub fn rigid_modes(pos: &[Vector3<f64>], fixed: &[u8], c: &Vector3<f64>, r_scale
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mechanics::bench::fcc_packing;
+    use crate::mechanics::fixtures::fcc_packing;
     use crate::mechanics::{BondedSystem, Constraints, LinearSolver, MechParams, StepInput};
 
     struct Case {
@@ -1053,7 +1053,7 @@ mod tests {
 
 #[cfg(test)]
 mod stale_factor_tests {
-    use crate::mechanics::bench::fcc_packing;
+    use crate::mechanics::fixtures::fcc_packing;
     use crate::mechanics::{BondedSystem, Constraints, LinearSolver, MechParams, StepInput};
     use nalgebra::Vector3;
 

@@ -278,7 +278,7 @@ pub fn equation_order(pos: &[Vector3<f64>], pairs: &[[u32; 2]], fixed: &[u8], eq
 #[cfg(test)]
 mod tests {
     use super::Ordering;
-    use crate::mechanics::bench::fcc_packing;
+    use crate::mechanics::fixtures::fcc_packing;
     use crate::mechanics::{BondedSystem, Constraints, LinearSolver, MechParams, StepInput};
 
     /// The particle-graph AMD ordering solves to the tolerance with the same displacements as the

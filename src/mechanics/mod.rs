@@ -21,11 +21,11 @@
 
 pub mod amg;
 pub mod assembly;
-pub mod bench;
 pub mod bond;
 pub mod cg;
 pub mod cholesky;
 pub mod constraints;
+pub mod fixtures;
 pub mod solve;
 
 pub use bond::{BondGeometry, element_matrix, frame, h_matrix, kinematics, link_stiffness, skew};

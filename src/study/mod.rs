@@ -8,7 +8,6 @@
 //! 3. the runs without a result record are executed ([`local`] or [`slurm`]);
 //! 4. [`report`] gathers `study.csv`, `study.json` and the plots.
 
-pub mod bench;
 pub mod design;
 pub mod local;
 pub mod report;

@@ -8,19 +8,14 @@
 //! - [`material`]: material data (§9), phases, resolution per contact (§3), coefficients (M9);
 //! - [`contact`]: per-contact state, initial state (I1)–(I4), force (F4), (F5), correction (C1)–(C4);
 //! - [`advance`]: adaptive per-contact integration over an interval, split at kinks and phase changes;
-//! - [`pair`]: the two-particle run (`kind = "pair"` case files);
-//! - [`titanium`]: the 28 titanium schedules of [IV22] Table 3;
-//! - [`bench`]: the work-precision benchmark.
 
 pub mod advance;
-pub mod bench;
 pub mod contact;
 pub mod geometry;
 pub mod kinetics;
 pub mod lanes;
 pub mod material;
 pub mod ranges;
-pub mod titanium;
 
 pub use advance::{PairMaterials, SolverOptions, TemperaturePath, advance};
 pub use contact::{Contact7, Correction, correct_y4_y7, initial_state, initial_state_with_neck, load_increment, sintering_force};

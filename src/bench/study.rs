@@ -3,8 +3,8 @@
 //! the integration itself, the rest of the run API (parsing, series.csv, summary.json, log) and
 //! the engine around it (planning, hashing, result records, gathering, study.csv, plots).
 
-use super::{StudyOptions, run_study, store};
 use crate::error::{Error, IoError};
+use crate::study::{StudyOptions, run_study, store};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -12,7 +12,7 @@ use std::path::Path;
 pub fn bench_study(runs: usize, jobs: Option<usize>, out: &Path) -> Result<String, Error> {
     let _ = std::fs::remove_dir_all(out);
     crate::io::ensure_dir(out)?;
-    let case = crate::models::diffusion7::titanium::Experiment::by_id("E14B").map(|e| e.case_toml()).unwrap_or_default();
+    let case = crate::kinds::titanium::Experiment::by_id("E14B").map(|e| e.case_toml()).unwrap_or_default();
     let case_path = out.join("e14b.toml");
     std::fs::write(&case_path, case).map_err(|e| IoError::new(&case_path, e))?;
     let study = format!(
@@ -28,7 +28,7 @@ pub fn bench_study(runs: usize, jobs: Option<usize>, out: &Path) -> Result<Strin
     let n = recs.len().max(1) as f64;
     let api: f64 = recs.iter().map(|r| r.wall_seconds).sum();
     let integ: f64 = recs.iter().filter_map(|r| r.summary["wall_seconds"].as_f64()).sum();
-    let jobs_used = jobs.filter(|&j| j > 0).unwrap_or_else(|| super::local::default_jobs(1)) as f64;
+    let jobs_used = jobs.filter(|&j| j > 0).unwrap_or_else(|| crate::study::local::default_jobs(1)) as f64;
     let mut s = String::new();
     let _ = writeln!(s, "# sinterdem bench study: {runs} E14B pair runs, local engine, {jobs_used} at a time");
     let _ = writeln!(s, "runs ok/failed            {}/{}", info.counts.ok, info.counts.failed);

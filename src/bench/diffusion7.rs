@@ -3,16 +3,16 @@
 //! ΔL/L0 against the tightest Dormand–Prince run (rtol 1e-10), against wall time and right-hand-side
 //! count. Writes `work_precision.csv` and PNG diagrams; returns the printed table.
 
-use super::titanium::{Experiment, TRUNCATED_START};
 use crate::error::{ConfigError, Error, IoError};
 use crate::kinds::pair::{PairSpec, parse_pair_case, run_pair};
+use crate::kinds::titanium::{Experiment, TRUNCATED_START};
 use crate::models::ode::Method;
 use crate::plot::{Plot, Series};
 use std::fmt::Write as _;
 use std::path::Path;
 
 /// The bundled copper pair case text.
-pub const COPPER_CASE: &str = include_str!("../../../cases/pair-copper.toml");
+pub const COPPER_CASE: &str = include_str!("../../cases/pair-copper.toml");
 
 /// One benchmark run.
 #[derive(Debug, Clone, PartialEq)]
@@ -193,14 +193,14 @@ pub fn bench_pair(out_dir: &Path) -> Result<String, Error> {
 
 /// `sinterdem bench sweep`: the 7-DOF sweep of the coupled loop on `contacts` copper contacts
 /// (radii 20–30 µm, touching, 1293 K) over `steps` intervals of `dt` [s], integrated one contact
-/// at a time (the scalar path) and in lanes ([`super::lanes`]), each on the current rayon pool.
+/// at a time (the scalar path) and in lanes ([`crate::models::diffusion7::lanes`]), each on the current rayon pool.
 /// The first interval is the new contacts' start; the table shows it apart. Both paths must end in
 /// the same state bit for bit (checked, reported).
 pub fn bench_sweep(contacts: usize, steps: usize, dt: f64) -> Result<String, Error> {
-    use super::advance::{PairMaterials, SolverOptions, TemperaturePath, advance};
-    use super::contact::Contact7;
-    use super::lanes::{LANES, advance_lanes};
-    use super::material::{Material, PathFactors};
+    use crate::models::diffusion7::advance::{PairMaterials, SolverOptions, TemperaturePath, advance};
+    use crate::models::diffusion7::contact::Contact7;
+    use crate::models::diffusion7::lanes::{LANES, advance_lanes};
+    use crate::models::diffusion7::material::{Material, PathFactors};
     use crate::models::ode::OdeStats;
     use rayon::prelude::*;
     use std::time::Instant;

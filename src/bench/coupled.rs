@@ -1,6 +1,6 @@
 //! `sinterdem bench coupled`.
 
-use super::*;
+use crate::coupled::*;
 use crate::error::{ConfigError, Error};
 use std::path::Path;
 use std::time::Instant;

@@ -1,7 +1,7 @@
 //! `sinterdem bench mechanics`: the cost of one mechanical step on random bonded packings of N
 //! particles: topology analysis, assembly, symbolic analysis, numeric Cholesky, triangular solves,
 //! and the block-Jacobi PCG alternative, so that the automatic solver choice
-//! ([`super::PCG_ABOVE_EQUATIONS`]) rests on measurements.
+//! ([`crate::mechanics::PCG_ABOVE_EQUATIONS`]) rests on measurements.
 //!
 //! Packing: an FCC lattice with nearest-neighbour distance 2R (R = 50 µm) and radii
 //! R·(1 ± 5 %) uniform, bonds between the overlapping neighbours (about half of them: mean
@@ -9,49 +9,12 @@
 //! constraints, nested-dissection ordering of the Cholesky factor, copper links (E = 110 GPa, ν = 0.34), load increments (F5) for random approaches
 //! of 1e-4·R_m ± 50 %.
 
-use super::{BondedSystem, Constraints, LinearSolver, MechParams, StepInput};
 use crate::error::Error;
+use crate::mechanics::fixtures::{fcc_packing, rng};
+use crate::mechanics::{BondedSystem, Constraints, LinearSolver, MechParams, StepInput};
 use nalgebra::Vector3;
 use std::fmt::Write;
 use std::time::Instant;
-
-fn rng(seed: &mut u64) -> f64 {
-    *seed ^= *seed << 13;
-    *seed ^= *seed >> 7;
-    *seed ^= *seed << 17;
-    (*seed >> 11) as f64 / (1u64 << 53) as f64
-}
-
-/// A bonded packing of about `n` particles (see the module doc): positions [m], radii [m],
-/// bonds, and `[y4, y7]` per bond from the two-sphere overlap (I1) [m].
-pub fn fcc_packing(n: usize, seed: u64) -> (Vec<Vector3<f64>>, Vec<f64>, Vec<[u32; 2]>, Vec<[f64; 2]>) {
-    let r0 = 50e-6;
-    let a = 2.0 * r0 * std::f64::consts::SQRT_2;
-    let m = ((n as f64 / 4.0).cbrt().round() as usize).max(1);
-    let basis = [[0.0, 0.0, 0.0], [0.5, 0.5, 0.0], [0.5, 0.0, 0.5], [0.0, 0.5, 0.5]];
-    let mut s = seed.max(1);
-    let (mut pos, mut rad) = (Vec::new(), Vec::new());
-    for i in 0..m {
-        for j in 0..m {
-            for k in 0..m {
-                for bvec in &basis {
-                    pos.push(Vector3::new(i as f64 + bvec[0], j as f64 + bvec[1], k as f64 + bvec[2]) * a + Vector3::repeat(r0));
-                    rad.push(r0 * (1.0 + 0.05 * (2.0 * rng(&mut s) - 1.0)));
-                }
-            }
-        }
-    }
-    let pairs: Vec<[u32; 2]> = crate::contacts::detect::touching_pairs(&pos, &rad, 0.0).into_iter().map(|(i, j)| [i, j]).collect();
-    let y = pairs
-        .iter()
-        .map(|&[i, j]| {
-            let (ra, rb) = (rad[i as usize], rad[j as usize]);
-            let d = (pos[j as usize] - pos[i as usize]).norm();
-            [(d * d + ra * ra - rb * rb) / (2.0 * d), (d * d + rb * rb - ra * ra) / (2.0 * d)]
-        })
-        .collect();
-    (pos, rad, pairs, y)
-}
 
 /// Process CPU time (user + system, all threads) [s] from /proc/self/stat (0 where unavailable).
 pub fn cpu_seconds() -> f64 {
@@ -65,8 +28,8 @@ pub fn cpu_seconds() -> f64 {
 
 /// AMG parameters with the overrides of `MECH_AMG` (experiments), e.g.
 /// `MECH_AMG=smooth_p=false,sweeps=2,max_coarse=3000,strength=0.08,reuse=false,smoother_omega=1.0`.
-pub fn amg_params_from_env() -> Result<super::amg::AmgParams, Error> {
-    let mut a = super::amg::AmgParams::default();
+pub fn amg_params_from_env() -> Result<crate::mechanics::amg::AmgParams, Error> {
+    let mut a = crate::mechanics::amg::AmgParams::default();
     let Ok(spec) = std::env::var("MECH_AMG") else { return Ok(a) };
     for kv in spec.split(',').filter(|s| !s.is_empty()) {
         let (k, v) = kv.split_once('=').ok_or_else(|| crate::error::ConfigError::invalid(format!("MECH_AMG: {kv}")))?;
@@ -182,7 +145,7 @@ pub fn bench_mechanics_with(sizes: &[usize], cholesky_max: usize) -> Result<Stri
             let fourth = sys_cg.step(&StepInput { positions: &pos2, ..inp })?;
             // orderings: fill and cost of the symbolic analysis and of the numeric factorisation
             let mut ord = String::new();
-            for o in [super::cholesky::Ordering::Amd, super::cholesky::Ordering::BlockAmd] {
+            for o in [crate::mechanics::cholesky::Ordering::Amd, crate::mechanics::cholesky::Ordering::BlockAmd] {
                 let mut s = BondedSystem::new(pos.len(), MechParams { solver: LinearSolver::Cholesky, ordering: o, ..params }, cons.clone())?;
                 s.set_topology(&pairs)?;
                 let st = s.step(&inp)?;
