@@ -4,7 +4,6 @@
 //! memory holds. These checks refuse such cases before anything is built, with an estimate.
 
 use crate::error::{ConfigError, fmt_value};
-use crate::scene::case::TimeSpec;
 
 /// Most steps a run may imply (`end/dt`, `end/dt_max`).
 pub const MAX_STEPS: f64 = 1e9;
@@ -57,36 +56,6 @@ pub fn check_steps(key: &str, end: f64, dt: f64) -> Result<(), ConfigError> {
             key,
             format!("time.end / {key} = {} / {} implies about {:.0e} steps (at most {} allowed)", fmt_value(end), fmt_value(dt), steps, fmt_value(MAX_STEPS)),
         ));
-    }
-    Ok(())
-}
-
-/// The time plan of a heat or compact case: every time key in range (also those the kind does not
-/// read), `dt_min <= dt_max`, and a plausible number of steps.
-pub fn check_time(t: &TimeSpec, compact: bool) -> Result<(), ConfigError> {
-    let end = super::check("time.end", t.end)?;
-    let dt = super::check("time.dt", t.dt)?;
-    let dt_max = super::check_opt("time.dt_max", t.dt_max)?;
-    let dt_min = super::check_opt("time.dt_min", t.dt_min)?;
-    if let (Some(lo), Some(hi)) = (dt_min, dt_max)
-        && lo > hi
-    {
-        return Err(ConfigError::inconsistent("time.dt_min", format!("{} s is larger than time.dt_max = {} s", fmt_value(lo), fmt_value(hi))));
-    }
-    if compact {
-        if let Some(hi) = dt_max {
-            check_steps("time.dt_max", end, hi)?;
-        }
-        if let Some(lo) = dt_min
-            && end + lo == end
-        {
-            return Err(ConfigError::inconsistent(
-                "time.dt_min",
-                format!("{} s is below the resolution of time near time.end = {} s: a step of that size would not advance time", fmt_value(lo), fmt_value(end)),
-            ));
-        }
-    } else {
-        check_steps("time.dt", end, dt)?;
     }
     Ok(())
 }

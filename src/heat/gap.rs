@@ -16,7 +16,34 @@ use crate::heat::{HeatNetwork, PipeConductance};
 use crate::units::STEFAN_BOLTZMANN;
 use nalgebra::Vector3;
 use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
+
+/// `[thermal.gap]`: conduction through the gas, and radiation, between particles that are near but
+/// not in contact (docs/heat-model.md "Heat across gaps").
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct GapSpec {
+    /// Thermal conductivity of the furnace gas k_g [W/(m·K)] (default 0: vacuum, no gas conduction).
+    #[serde(default)]
+    pub gas_conductivity: f64,
+    /// Gas-layer thickness f relative to the larger radius of a pair [1]: pairs with surface gap
+    /// `0 < s ≤ f·max(r_i, r_j)` exchange heat (default 0.2; (H19)).
+    #[serde(default = "gap_layer")]
+    pub layer_thickness: f64,
+    /// Temperature-jump distance M of the rarefied gas, both surfaces together [m] (default 0:
+    /// continuum gas; (H18)).
+    #[serde(default)]
+    pub jump_distance: f64,
+    /// Emissivity ε of the particle surfaces for radiation across the gap [1] (default 0: no
+    /// radiation; (H22)).
+    #[serde(default)]
+    pub emissivity: f64,
+}
+
+fn gap_layer() -> f64 {
+    0.2
+}
 
 /// The gap model of a case (`[thermal.gap]`), validated.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -34,7 +61,7 @@ pub struct GapModel {
 impl GapModel {
     /// The model of `[thermal.gap]`, range-checked (key, value, range and unit in the error);
     /// `None` when it transfers nothing (k_g = 0 and ε = 0).
-    pub fn from_spec(spec: &crate::scene::case::GapSpec) -> Result<Option<GapModel>, ConfigError> {
+    pub fn from_spec(spec: &GapSpec) -> Result<Option<GapModel>, ConfigError> {
         let m = GapModel {
             gas_conductivity: crate::config::check("thermal.gap.gas_conductivity", spec.gas_conductivity)?,
             layer_thickness: crate::config::check("thermal.gap.layer_thickness", spec.layer_thickness)?,

@@ -1,6 +1,8 @@
 //! The typed case file of a packing run (`kind = "heat"`, the default). See docs/case-file.md for
 //! every key with default, unit and range.
 
+use crate::error::ConfigError;
+pub use crate::heat::gap::GapSpec;
 use crate::heat::{ConductanceLaw, Scheme};
 use crate::material::MaterialSpec;
 use crate::profile::ProfileSpec;
@@ -391,32 +393,6 @@ pub struct ThermalSpec {
     pub gap: Option<GapSpec>,
 }
 
-/// `[thermal.gap]`: conduction through the gas, and radiation, between particles that are near but
-/// not in contact (docs/heat-model.md "Heat across gaps").
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct GapSpec {
-    /// Thermal conductivity of the furnace gas k_g [W/(m·K)] (default 0: vacuum, no gas conduction).
-    #[serde(default)]
-    pub gas_conductivity: f64,
-    /// Gas-layer thickness f relative to the larger radius of a pair [1]: pairs with surface gap
-    /// `0 < s ≤ f·max(r_i, r_j)` exchange heat (default 0.2; (H19)).
-    #[serde(default = "gap_layer")]
-    pub layer_thickness: f64,
-    /// Temperature-jump distance M of the rarefied gas, both surfaces together [m] (default 0:
-    /// continuum gas; (H18)).
-    #[serde(default)]
-    pub jump_distance: f64,
-    /// Emissivity ε of the particle surfaces for radiation across the gap [1] (default 0: no
-    /// radiation; (H22)).
-    #[serde(default)]
-    pub emissivity: f64,
-}
-
-fn gap_layer() -> f64 {
-    0.2
-}
-
 impl Default for ThermalSpec {
     fn default() -> Self {
         ThermalSpec {
@@ -477,4 +453,36 @@ fn faces() -> String {
 }
 fn xyz() -> Vec<String> {
     vec!["x".into(), "y".into(), "z".into()]
+}
+
+/// The time plan of a heat or compact case: every time key in range (also those the kind does not
+/// read), `dt_min <= dt_max`, and a plausible number of steps.
+pub fn check_time(t: &TimeSpec, compact: bool) -> Result<(), ConfigError> {
+    use crate::config::plausible::check_steps;
+    use crate::error::fmt_value;
+    let end = crate::config::check("time.end", t.end)?;
+    let dt = crate::config::check("time.dt", t.dt)?;
+    let dt_max = crate::config::check_opt("time.dt_max", t.dt_max)?;
+    let dt_min = crate::config::check_opt("time.dt_min", t.dt_min)?;
+    if let (Some(lo), Some(hi)) = (dt_min, dt_max)
+        && lo > hi
+    {
+        return Err(ConfigError::inconsistent("time.dt_min", format!("{} s is larger than time.dt_max = {} s", fmt_value(lo), fmt_value(hi))));
+    }
+    if compact {
+        if let Some(hi) = dt_max {
+            check_steps("time.dt_max", end, hi)?;
+        }
+        if let Some(lo) = dt_min
+            && end + lo == end
+        {
+            return Err(ConfigError::inconsistent(
+                "time.dt_min",
+                format!("{} s is below the resolution of time near time.end = {} s: a step of that size would not advance time", fmt_value(lo), fmt_value(end)),
+            ));
+        }
+    } else {
+        check_steps("time.dt", end, dt)?;
+    }
+    Ok(())
 }

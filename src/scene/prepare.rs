@@ -97,7 +97,7 @@ pub fn prepare(value: toml::Value, base: &Path) -> Result<Prepared, Error> {
 pub fn prepare_scene(value: toml::Value, base: &Path) -> Result<Prepared, Error> {
     let case: Case = from_value(value, "")?;
     let compact = case.kind.as_deref() == Some("compact");
-    config::plausible::check_time(&case.time, compact)?;
+    crate::scene::case::check_time(&case.time, compact)?;
     config::check("output.snapshots", case.output.snapshots)?;
     config::check("output.series_every", case.output.series_every)?;
     config::check("thermal.radiation_tolerance", case.thermal.radiation_tolerance)?;
