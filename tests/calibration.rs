@@ -8,11 +8,7 @@ use sinterdem::config::load_case;
 use sinterdem::models::diffusion7::PathFactors;
 use std::path::{Path, PathBuf};
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("sinterdem-calibration-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+mod common;
 
 /// The four β parameters with the ranges of the bundled example.
 const PARAMS: &str = r#"
@@ -61,7 +57,7 @@ fn param(rep: &sinterdem::calibrate::report::CalibrationReport, key: &str, field
 /// generated and fitted at rtol 1e-9: the four β parameters come back to 1e-4 relative.
 #[test]
 fn noise_free_data_recover_the_four_beta_parameters() {
-    let dir = tmp("noise-free");
+    let dir = common::tmp_dir("noise-free");
     let ids = ["E3B", "E5B", "E8B", "E11B", "E14B", "E18B", "E21B", "E23B", "E28B"];
     let calib = setup(
         &dir,
@@ -87,7 +83,7 @@ fn noise_free_data_recover_the_four_beta_parameters() {
 /// accepted by a pair case; the D0–Q correlations are flagged.
 #[test]
 fn noisy_data_fit_within_two_sigma_with_reduced_chi2_near_one() {
-    let dir = tmp("noisy");
+    let dir = common::tmp_dir("noisy");
     let calib = Path::new("cases/calibration/titanium-synthetic.toml");
     let sets = ["optimiser.swarm_size=8", "optimiser.swarm_iterations=4"].map(String::from);
     let rep = calibrate(calib, &sets, &dir);
@@ -118,7 +114,7 @@ fn noisy_data_fit_within_two_sigma_with_reduced_chi2_near_one() {
 /// Same seed, 1 and 2 threads: bit-identical parameters, χ² and residuals.
 #[test]
 fn result_is_deterministic_for_any_thread_count() {
-    let dir = tmp("determinism");
+    let dir = common::tmp_dir("determinism");
     let calib = setup(&dir, &["E2B", "E14B", "E23B"], Some(5), "seed = 11\n[optimiser]\nswarm_size = 6\nswarm_iterations = 3\nlocal_iterations = 4\n");
     let mut out = Vec::new();
     for threads in [1, 2] {
@@ -146,7 +142,7 @@ fn parse_err(dir: &Path, calib_text: &str, data: Option<&str>) -> String {
 /// without a packing, an unknown model and bad ranges are refused with key, value, range and unit.
 #[test]
 fn bad_input_is_rejected_with_file_line_column_and_key() {
-    let dir = tmp("bad");
+    let dir = common::tmp_dir("bad");
     let head = "id,diameter_m,schedule,neck_ratio,neck_ratio_sigma,shrinkage,shrinkage_sigma\n";
     let row = "E1B,6.75e-5,\"start 793 K, heat 20 K/min to 1203 K, hold 0 min, cool 20 K/min to 313 K\",0.48,0.01,1e-4,3e-4\n";
     let ok = format!("data = \"data.csv\"\nmaterial = \"titanium\"\n{PARAMS}");
@@ -195,7 +191,7 @@ fn time_series_points_are_fitted() {
     use sinterdem::calibrate::data::{Observation, SeriesPoint};
     use sinterdem::calibrate::forward::{PairGeometry, run_experiment};
     use sinterdem::models::diffusion7::SolverOptions;
-    let dir = tmp("series");
+    let dir = common::tmp_dir("series");
     let mut ex = titanium_experiments(Some(&["E14B", "E23B"]));
     let solver = SolverOptions { rtol: 1e-9, ..SolverOptions::default() };
     // the truth's grain-boundary data, bundled surface data (those are not fitted here)
@@ -242,7 +238,7 @@ fn time_series_points_are_fitted() {
 /// counts them and says so.
 #[test]
 fn failed_runs_are_a_penalty_not_a_crash() {
-    let dir = tmp("failed");
+    let dir = common::tmp_dir("failed");
     let calib = setup(&dir, &["E1B"], None, "[optimiser]\nswarm_size = 2\nswarm_iterations = 1\nlocal_iterations = 1\n[solver]\nmax_substeps = 5\n");
     let rep = calibrate(&calib, &[], &dir.join("out"));
     assert!(rep.failed_runs >= rep.evaluations, "{} failed runs in {} evaluations", rep.failed_runs, rep.evaluations);

@@ -2,18 +2,11 @@
 //! each chosen experiment's schedule, and the packing's shrinkage is reported beside the measured
 //! and the pair's (Ivannikov et al. 2022 find packing and pair curves nearly indistinguishable).
 
-use std::path::PathBuf;
-
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("sinterdem-calcompact-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+mod common;
 
 #[test]
 fn validate_compact_runs_the_fitted_material_on_a_packing() {
-    let dir = tmp("v");
+    let dir = common::tmp_dir("v");
     // a corner of the bundled green titanium body
     let text = std::fs::read_to_string("cases/data/green-titanium.csv").unwrap();
     let mut csv = String::from("x,y,z,r\n");

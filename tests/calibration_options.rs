@@ -7,14 +7,9 @@ use sinterdem::calibrate::synthetic::{TRUTH, csv_text, generate, titanium_experi
 use sinterdem::calibrate::{parse, run};
 use sinterdem::config::load_case;
 use sinterdem::models::diffusion7::{Material, PathFactors};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("sinterdem-caloptions-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+mod common;
 
 /// Noise-free pair data at three peak temperatures (1203, 1373, 1573 K) from the truth's
 /// grain-boundary data (bundled surface data), fitted from the bundled material with Nelder–Mead
@@ -24,7 +19,7 @@ fn tmp(name: &str) -> PathBuf {
 /// one) and less in Q. Measured: see the eprintln; asserted with a factor ~10 of margin.
 #[test]
 fn nelder_mead_recovers_the_noise_free_truth() {
-    let dir = tmp("nm");
+    let dir = common::tmp_dir("nm");
     let mut ex = titanium_experiments(Some(&["E5B", "E14B", "E23B"]));
     let mut truth = truth_material();
     let bundled = Material::titanium();
@@ -99,7 +94,7 @@ fn check(dir: &Path, calib: &str, data: &str) -> Result<String, String> {
 /// is refused naming file, line, column, key, value or the valid choices.
 #[test]
 fn check_validates_calibration_files_without_running() {
-    let dir = tmp("check");
+    let dir = common::tmp_dir("check");
     packing(&dir);
     let data = format!("{HEAD}{ROW}");
     let ok = check(&dir, OK, &data).unwrap();
@@ -160,7 +155,7 @@ fn check_validates_calibration_files_without_running() {
 /// and exits with failure; `sinterdem run` on a calibration file says what to do instead.
 #[test]
 fn check_command_locates_bad_keys_of_a_calibration_file() {
-    let dir = tmp("cli");
+    let dir = common::tmp_dir("cli");
     packing(&dir);
     std::fs::write(dir.join("data.csv"), format!("{HEAD}{ROW}")).unwrap();
     std::fs::write(dir.join("calib.toml"), format!("{OK}[optimiser]\nswarm_size = 0\n")).unwrap();

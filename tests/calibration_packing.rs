@@ -15,14 +15,9 @@ use sinterdem::calibrate::{parse, report::CalibrationReport, run};
 use sinterdem::config::load_case;
 use sinterdem::models::diffusion7::{Material, PathFactors};
 use sinterdem::profile::Profile;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("sinterdem-calpacking-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+mod common;
 
 /// The particles of the bundled green titanium body with x, y, z < `edge` into `dir/corner.csv`;
 /// returns their number.
@@ -124,7 +119,7 @@ fn done_lines(fit: &Path) -> usize {
 /// it recomputes exactly those.
 #[test]
 fn packing_fit_recovers_the_truth_one_study_per_generation_and_resumes() {
-    let dir = tmp("fit");
+    let dir = common::tmp_dir("fit");
     assert_eq!(corner(&dir, 2.0e-4), 31);
     compact_case(&dir, "");
     truth_data(&dir);
@@ -191,7 +186,7 @@ fn packing_fit_recovers_the_truth_one_study_per_generation_and_resumes() {
 /// A run that fails on the packing (the schedule melts titanium) is a penalty, not a crash.
 #[test]
 fn a_failed_packing_run_is_a_penalty() {
-    let dir = tmp("fail");
+    let dir = common::tmp_dir("fail");
     corner(&dir, 1.6e-4);
     compact_case(&dir, "");
     // titanium melts at 1941 K
@@ -231,7 +226,7 @@ fn shrinkage(dir: &Path, name: &str) -> [f64; 3] {
 /// starting path factors the same way, below its own `[path_factors]`.
 #[test]
 fn included_material_path_factors_reach_the_compact() {
-    let dir = tmp("model");
+    let dir = common::tmp_dir("model");
     corner(&dir, 2.0e-4);
     let mut ti = Material::titanium();
     ti.source = "test".into();
@@ -308,7 +303,7 @@ fn bundled_packing_data_match_the_packing() {
     let truth: Vec<f64> = s.params.iter().map(|p| TRUTH.iter().find(|(k, _)| *k == p.key).unwrap().1).collect();
     let problem = Problem { experiments: s.experiments.clone(), material: s.material.clone(), factors: s.factors, params: s.params.clone() };
     let (material, factors) = problem.configured(&truth);
-    let out = tmp("bundled");
+    let out = common::tmp_dir("bundled");
     let model = CompactModel::new(&s.compact, &s.base, problem, &out).unwrap();
     let (preds, _) = model.run_batch(0, "truth", &[Point { values: truth.clone(), material, factors }]).unwrap();
     let mut text = String::from(

@@ -10,6 +10,7 @@
 use std::path::Path;
 use std::process::Command;
 
+mod common;
 mod slurm_cluster;
 use slurm_cluster::{Cluster, repo};
 
@@ -56,9 +57,7 @@ fn calibration_json(dir: &Path) -> serde_json::Value {
 #[test]
 fn packing_fit_through_slurm_matches_the_local_engine() {
     let Some(cluster) = cluster() else { return };
-    let dir = std::env::temp_dir().join(format!("sinterdem-calslurm-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = common::tmp_dir("fit");
     setup(&dir);
     let run = |file: &str, out: &str| {
         let o = Command::new(env!("CARGO_BIN_EXE_sinterdem"))

@@ -2,15 +2,10 @@
 //! count does not change a bit; a run resumed from a checkpoint equals the uninterrupted run bit
 //! for bit; strategies 1 and 2 agree; heat energy balance in a coupled run with a hot plate.
 
-use sinterdem::config::apply_override;
 use sinterdem::coupled::{self, Simulation};
 use std::path::{Path, PathBuf};
 
 mod common;
-
-fn tmp(name: &str) -> PathBuf {
-    common::fresh_dir("compact", name)
-}
 
 /// A corner of the bundled green copper packing (particles with all coordinates below `edge`).
 fn small_packing(dir: &Path, edge: f64) -> PathBuf {
@@ -25,34 +20,7 @@ fn column_packing(dir: &Path, edge: f64, height: f64) -> PathBuf {
 }
 
 fn compact_case(packing: &Path, sets: &[&str]) -> toml::Value {
-    let text = format!(
-        r#"
-kind = "compact"
-[time]
-end = 300.0
-dt = 1.0e-6
-dt_max = 10.0
-[output]
-snapshots = 0
-vtu = false
-hdf5 = false
-[[materials]]
-name = "copper"
-preset = "copper"
-[particles]
-source = "file"
-file = "{}"
-[thermal]
-mode = "isothermal"
-furnace = {{ profile = {{ constant = 1293.0 }} }}
-"#,
-        packing.display()
-    );
-    let mut v = toml::Value::Table(text.parse::<toml::Table>().unwrap());
-    for s in sets {
-        apply_override(&mut v, s).unwrap();
-    }
-    v
+    common::copper_compact(packing, 300.0, sets)
 }
 
 fn run_case(v: toml::Value, out: &Path) -> (serde_json::Value, Vec<f64>) {
@@ -65,7 +33,7 @@ fn run_case(v: toml::Value, out: &Path) -> (serde_json::Value, Vec<f64>) {
 
 #[test]
 fn pair_through_the_scheduler_equals_the_free_pair() {
-    let dir = tmp("pair");
+    let dir = common::tmp_dir("pair");
     let csv = dir.join("pair.csv");
     std::fs::write(&csv, "x,y,z,r\n0,0,0,25e-6\n50e-6,0,0,25e-6\n").unwrap();
     let v = compact_case(&csv, &["time.end=1000.0", "solver.rtol=1e-8"]);
@@ -97,7 +65,7 @@ fn pair_through_the_scheduler_equals_the_free_pair() {
 
 #[test]
 fn one_and_two_threads_are_bit_identical() {
-    let dir = tmp("threads");
+    let dir = common::tmp_dir("threads");
     let csv = small_packing(&dir, 0.2e-3);
     let mut results = Vec::new();
     for threads in [1, 2] {
@@ -117,7 +85,7 @@ fn one_and_two_threads_are_bit_identical() {
 
 #[test]
 fn resumed_run_is_bit_identical() {
-    let dir = tmp("resume");
+    let dir = common::tmp_dir("resume");
     let csv = small_packing(&dir, 0.2e-3);
     let full = dir.join("full");
     let (s_full, _) = run_case(compact_case(&csv, &["time.end=200.0", "output.checkpoint_every=40"]), &full);
@@ -149,7 +117,7 @@ fn resumed_run_is_bit_identical() {
 
 #[test]
 fn strategies_one_and_two_agree() {
-    let dir = tmp("strategies");
+    let dir = common::tmp_dir("strategies");
     let csv = small_packing(&dir, 0.2e-3);
     let (s2, _) = run_case(compact_case(&csv, &["time.end=300.0", "time.strategy=2"]), &dir.join("s2"));
     let (s1, _) = run_case(compact_case(&csv, &["time.end=300.0", "time.strategy=1", "time.dt_max=100.0"]), &dir.join("s1"));
@@ -165,7 +133,7 @@ fn strategies_one_and_two_agree() {
 /// the coupled run closes to the radiation tolerance.
 #[test]
 fn hot_plate_compact_densifies_from_the_bottom_and_conserves_heat() {
-    let dir = tmp("hotplate");
+    let dir = common::tmp_dir("hotplate");
     let csv = column_packing(&dir, 0.2e-3, 1.0);
     let v = compact_case(
         &csv,
@@ -197,7 +165,7 @@ fn hot_plate_compact_densifies_from_the_bottom_and_conserves_heat() {
 /// below it (the last series rows straddle it).
 #[test]
 fn run_stops_at_the_relative_density_asked_for() {
-    let dir = tmp("stoprho");
+    let dir = common::tmp_dir("stoprho");
     let csv = small_packing(&dir, 0.2e-3);
     let (full, _) = run_case(compact_case(&csv, &["time.end=300.0"]), &dir.join("full"));
     let (rho0, rho_end) = (full["relative_density_initial"].as_f64().unwrap(), full["relative_density"].as_f64().unwrap());
@@ -219,9 +187,8 @@ fn run_stops_at_the_relative_density_asked_for() {
 /// solve and the y4/y7 correction add nothing), and the centre lattice shrinks by the same strain.
 #[test]
 fn fcc_compact_of_equal_spheres_shrinks_like_the_free_pair() {
-    let dir = tmp("fcc");
-    let text = "kind = \"compact\"\n[time]\nend = 1000.0\ndt = 1.0e-6\ndt_max = 10.0\n[output]\nsnapshots = 0\nvtu = false\nhdf5 = false\n[[materials]]\nname = \"copper\"\npreset = \"copper\"\n[particles]\nsource = \"lattice\"\nlattice = \"fcc\"\ncells = [2, 2, 2]\nradius = 25e-6\noverlap = 0.0\n[thermal]\nmode = \"isothermal\"\nfurnace = { profile = { constant = 1293.0 } }\n[contacts]\ndetect_new = false\n";
-    let v = toml::Value::Table(text.parse::<toml::Table>().unwrap());
+    let text = common::compact_text(&common::time_to(1000.0), &[common::COPPER], &common::fcc(2), common::AT_1293_K) + "[contacts]\ndetect_new = false\n";
+    let v = common::case_value(&text, &[]);
     let mut sim = coupled::prepare(v, Path::new("."), &mut |_| {}).unwrap();
     assert!(sim.contacts.len() > 50);
     let x0 = sim.x0.clone();
@@ -244,14 +211,13 @@ fn fcc_compact_of_equal_spheres_shrinks_like_the_free_pair() {
         assert!(((1.0 - d / d0) / free_strain - 1.0).abs() < 1e-6, "centre strain {} vs {free_strain}", 1.0 - d / d0);
     }
     assert!(worst < 1e-6, "largest relative deviation of a contact's shrinkage from the free pair: {worst:e}");
-    let _ = dir;
 }
 
 /// The bundled hot-plate scene: densification and neck growth fall monotonically from the plate
 /// to the radiating top, and the heat balance closes.
 #[test]
 fn bundled_hot_plate_scene_has_a_monotone_densification_gradient() {
-    let dir = tmp("hotplate-case");
+    let dir = common::tmp_dir("hotplate-case");
     let v =
         sinterdem::config::load_case(Path::new("cases/hot-plate-compact.toml"), &["output.snapshots=0".into(), "output.checkpoint_every=0".into()]).unwrap();
     let sim = coupled::prepare(v, Path::new("cases"), &mut |_| {}).unwrap();
@@ -270,7 +236,7 @@ fn bundled_hot_plate_scene_has_a_monotone_densification_gradient() {
 /// completed step with `completed = false` and the reason.
 #[test]
 fn model_error_stops_the_run_with_a_summary() {
-    let dir = tmp("modelerror");
+    let dir = common::tmp_dir("modelerror");
     let csv = dir.join("pair.csv");
     std::fs::write(&csv, "x,y,z,r\n0,0,0,25e-6\n27.5e-6,0,0,2.5e-6\n").unwrap();
     let v = compact_case(&csv, &["time.end=5000.0"]);
@@ -290,7 +256,7 @@ fn model_error_stops_the_run_with_a_summary() {
 /// contact, whose mean is the one reported; the end of the run always gets one.
 #[test]
 fn correction_histograms_at_asked_times() {
-    let dir = tmp("histograms");
+    let dir = common::tmp_dir("histograms");
     let csv = small_packing(&dir, 0.2e-3);
     let (s, _) = run_case(compact_case(&csv, &["time.end=300.0", "output.correction_histogram_at=[100.0]"]), &dir.join("out"));
     let h = &s["correction_histograms"][0];
@@ -315,7 +281,7 @@ fn correction_histograms_at_asked_times() {
 #[cfg(feature = "h5")]
 #[test]
 fn resume_with_hdf5_snapshots_and_a_damaged_file() {
-    let dir = tmp("resume-h5");
+    let dir = common::tmp_dir("resume-h5");
     let csv = small_packing(&dir, 0.2e-3);
     let sets = ["time.end=200.0", "output.checkpoint_every=40", "output.hdf5=true", "output.snapshots=5"];
     let (s_full, _) = run_case(compact_case(&csv, &sets), &dir.join("full"));
@@ -354,7 +320,7 @@ fn resume_with_hdf5_snapshots_and_a_damaged_file() {
 /// most one extra step per requested time.
 #[test]
 fn outputs_land_exactly_on_the_requested_times() {
-    let dir = tmp("landing");
+    let dir = common::tmp_dir("landing");
     let csv = small_packing(&dir, 0.2e-3);
     let out = dir.join("with");
     let (s, _) = run_case(compact_case(&csv, &["time.end=200.0", "output.snapshots=5", "output.vtu=true", "output.conductivity_at=[33.0, 120.5]"]), &out);

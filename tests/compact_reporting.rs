@@ -8,10 +8,6 @@ use std::path::{Path, PathBuf};
 
 mod common;
 
-fn tmp(name: &str) -> PathBuf {
-    common::fresh_dir("reporting", name)
-}
-
 /// A corner of the bundled green copper packing (all coordinates below `edge`), plus `extra` rows
 /// (lines of `x,y,z,r`).
 fn packing(dir: &Path, edge: f64, extra: &str) -> PathBuf {
@@ -20,13 +16,9 @@ fn packing(dir: &Path, edge: f64, extra: &str) -> PathBuf {
 }
 
 fn isothermal(packing: &Path, material: &str, temperature: f64, end: f64) -> toml::Value {
-    let text = format!(
-        "kind = \"compact\"\n[time]\nend = {end}\ndt = 1.0e-6\ndt_max = 10.0\n[output]\nsnapshots = 0\nvtu = false\nhdf5 = false\n\
-         [[materials]]\nname = \"{material}\"\npreset = \"{material}\"\n[particles]\nsource = \"file\"\nfile = \"{}\"\n\
-         [thermal]\nmode = \"isothermal\"\nfurnace = {{ profile = {{ constant = {temperature:?} }} }}\n",
-        packing.display()
-    );
-    toml::Value::Table(text.parse::<toml::Table>().unwrap())
+    let preset = format!("name = \"{material}\"\npreset = \"{material}\"");
+    let text = common::compact_text(&common::time_to(end), &[&preset], &common::file_particles(packing), &format!("{{ constant = {temperature:?} }}"));
+    common::case_value(&text, &[])
 }
 
 fn params(dir: &Path) -> RunParams {
@@ -35,7 +27,7 @@ fn params(dir: &Path) -> RunParams {
 
 #[test]
 fn leaving_the_calibrated_range_warns_once_per_material_and_side() {
-    let dir = tmp("range");
+    let dir = common::tmp_dir("range");
     let p = packing(&dir, 1.6e-4, "");
     // copper data are calibrated for 1193–1353 K
     let s = kinds::run(&isothermal(&p, "copper", 1100.0, 50.0), &[], &dir.join("cold"), &params(&dir)).unwrap();
@@ -48,7 +40,7 @@ fn leaving_the_calibrated_range_warns_once_per_material_and_side() {
 
 #[test]
 fn a_particle_at_the_melting_temperature_stops_the_run() {
-    let dir = tmp("melt");
+    let dir = common::tmp_dir("melt");
     let p = packing(&dir, 1.6e-4, "");
     for (m, t, tm) in [("copper", 1400.0, "1358"), ("titanium", 2000.0, "1941")] {
         let e = kinds::run(&isothermal(&p, m, t, 50.0), &[], &dir.join(m), &params(&dir)).unwrap_err().to_string();
@@ -61,7 +53,7 @@ fn a_particle_at_the_melting_temperature_stops_the_run() {
 
 #[test]
 fn an_isolated_particle_is_named_and_left_out_of_the_temperatures() {
-    let dir = tmp("isolated");
+    let dir = common::tmp_dir("isolated");
     // one particle far above the corner: no contact, not on the hot face, not exposed
     let p = packing(&dir, 1.6e-4, "8.0e-5,8.0e-5,6.0e-4,2.5e-5\n");
     let text = format!(
@@ -87,15 +79,11 @@ fn an_isolated_particle_is_named_and_left_out_of_the_temperatures() {
 
 #[test]
 fn shrinkage_without_constrained_planes_agrees_with_the_constrained_run() {
-    let dir = tmp("planes");
+    let dir = common::tmp_dir("planes");
     // a symmetric packing: an FCC block
     let case = |constrain: bool| -> toml::Value {
-        let text = format!(
-            "kind = \"compact\"\n[time]\nend = 200.0\ndt = 1.0e-6\ndt_max = 10.0\n[output]\nsnapshots = 0\nvtu = false\nhdf5 = false\n\
-             [[materials]]\nname = \"copper\"\npreset = \"copper\"\n[particles]\nsource = \"lattice\"\nlattice = \"fcc\"\ncells = [3, 3, 3]\nradius = 25e-6\noverlap = 0.0\n\
-             [thermal]\nmode = \"isothermal\"\nfurnace = {{ profile = {{ constant = 1293.0 }} }}\n[mechanics]\nconstrain_planes = {constrain}\n"
-        );
-        toml::Value::Table(text.parse::<toml::Table>().unwrap())
+        let text = common::compact_text(&common::time_to(200.0), &[common::COPPER], &common::fcc(3), common::AT_1293_K);
+        common::case_value(&format!("{text}[mechanics]\nconstrain_planes = {constrain}\n"), &[])
     };
     let c = kinds::run(&case(true), &[], &dir.join("c"), &params(&dir)).unwrap();
     let f = kinds::run(&case(false), &[], &dir.join("f"), &params(&dir)).unwrap();

@@ -7,12 +7,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("sinterdem-config-errors-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+mod common;
 
 /// A copy of the bundled case `name` with `from` replaced by `to` (which must occur once).
 fn edited(dir: &Path, name: &str, from: &str, to: &str) -> PathBuf {
@@ -50,7 +45,7 @@ fn has(e: &str, want: &[&str]) {
 
 #[test]
 fn unknown_keys_name_file_line_and_the_nearest_valid_key() {
-    let d = tmp("unknown");
+    let d = common::tmp_dir("unknown");
     // a typo inside a section
     let p = edited(&d, "hot-plate.toml", "dt = 1.0 ", "dtt = 1.0 ");
     let e = check_err(&p, &[]);
@@ -84,7 +79,7 @@ fn unknown_keys_name_file_line_and_the_nearest_valid_key() {
 
 #[test]
 fn type_errors_are_said_in_plain_words_with_the_line() {
-    let d = tmp("types");
+    let d = common::tmp_dir("types");
     let cases: [(&str, &str, &str, &str, &str); 5] = [
         ("hot-plate.toml", "snapshots = 10", "snapshots = \"ten\"", "snapshots", "output.snapshots: expected a number, got the text \"ten\""),
         ("hot-plate.toml", "cells = [8, 8, 12]", "cells = [8, 8.5, 12]", "cells", "particles.cells: expected a whole number >= 0, got the number 8.5"),
@@ -112,7 +107,7 @@ fn type_errors_are_said_in_plain_words_with_the_line() {
 
 #[test]
 fn duplicate_keys_name_the_key_its_table_and_both_lines() {
-    let d = tmp("dup");
+    let d = common::tmp_dir("dup");
     let p = edited(&d, "hot-plate.toml", "dt = 1.0 ", "dt = 1.0\ndt = 2.0 ");
     let first = line_of(&p, "dt = 1.0");
     has(
@@ -128,7 +123,7 @@ fn duplicate_keys_name_the_key_its_table_and_both_lines() {
 
 #[test]
 fn time_end_is_the_end_time_of_pair_cases_too() {
-    let d = tmp("alias");
+    let d = common::tmp_dir("alias");
     // --set time.end on a pair case sets pair.end_time
     let case = sinterdem::config::load_case(Path::new("cases/pair-copper.toml"), &[]).unwrap();
     let params = sinterdem::kinds::RunParams { base_dir: PathBuf::from("cases"), plots: false, ..Default::default() };

@@ -3,16 +3,11 @@
 //! console shows, no progress bar when stderr is not a terminal, and on a terminal (a tmux pane)
 //! log lines above one progress bar that never smears into them.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 use std::time::{Duration, Instant};
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("sinterdem-console-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+mod common;
 
 fn bin() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_sinterdem"));
@@ -49,7 +44,7 @@ fn explicit(out: &Path, flags: &[&str], extra: &[&str]) -> Output {
 
 #[test]
 fn a_clean_quiet_run_prints_nothing_and_still_logs_to_its_file() {
-    let d = tmp("quiet");
+    let d = common::tmp_dir("quiet");
     let runs: [(&str, &[&str]); 3] = [
         ("cases/pair-copper.toml", &["--set", "time.end=50"]),
         ("cases/hot-plate.toml", &["--set", "time.end=20", "--set", "particles.cells=[3, 3, 4]", "--set", "output.snapshots=0"]),
@@ -75,7 +70,7 @@ fn a_clean_quiet_run_prints_nothing_and_still_logs_to_its_file() {
 
 #[test]
 fn quiet_runs_still_show_warnings_and_the_log_file_gets_them() {
-    let d = tmp("warn");
+    let d = common::tmp_dir("warn");
     let o = explicit(
         &d,
         &["-q"],
@@ -99,7 +94,7 @@ fn quiet_runs_still_show_warnings_and_the_log_file_gets_them() {
 
 #[test]
 fn verbose_adds_detail_and_plain_stderr_has_no_bar() {
-    let d = tmp("verbose");
+    let d = common::tmp_dir("verbose");
     let ck = ["--set", "output.checkpoint_every=2000"];
     let plain = explicit(&d.join("plain"), &[], &ck);
     let verbose = explicit(&d.join("v"), &["-v"], &ck);
@@ -132,7 +127,7 @@ fn on_a_terminal_log_lines_stay_above_one_bar() {
         println!("SKIPPED: tmux is not installed (apt-get install tmux); the terminal rendering is not checked");
         return;
     }
-    let d = tmp("tmux");
+    let d = common::tmp_dir("tmux");
     let session = format!("sinterdem-test-{}", std::process::id());
     let done = d.join("exit");
     let cmd = format!(

@@ -5,11 +5,10 @@ use sinterdem::models::diffusion7::geometry::{Side, sides};
 use sinterdem::models::diffusion7::material::{ContactParams, Material, PathFactors};
 use sinterdem::models::diffusion7::{evaluate, initial_state, invariants, rates};
 
-const R: f64 = 25e-6;
+mod common;
+use common::rel;
 
-fn rel(a: f64, b: f64) -> f64 {
-    (a - b).abs() / b.abs()
-}
+const R: f64 = 25e-6;
 
 fn ref_state() -> [f64; 7] {
     [0.3 * R, R, 0.05 * R, 0.97 * R, R, 0.05 * R, 0.97 * R]
@@ -201,8 +200,10 @@ fn inadmissible_states_give_model_errors() {
     let mut y = ref_state();
     y[2] = 1e-3 * R; // junction far out: the cone turns into the sphere
     y[0] = 0.05 * R;
-    let r = rates(&y, &p, 1293.0);
-    assert!(r.is_err() || r.unwrap().iter().all(|v| v.is_finite()));
+    // side A: p = d − c = 0.969 R, h = √(R² − p²) = 0.247 R, so τ = p·c − h·(h − a)
+    // = (0.00097 − 0.0487) R² < 0: the cone runs inside the cap, (A3) is violated
+    let e = rates(&y, &p, 1293.0).unwrap_err().to_string();
+    assert!(e.contains("side A") && e.contains("(A3)"), "{e}");
     assert!(rates(&ref_state(), &p, f64::NAN).is_err());
     assert!(rates(&ref_state(), &p, -5.0).is_err());
 }

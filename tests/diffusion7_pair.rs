@@ -6,6 +6,8 @@ use sinterdem::models::diffusion7::geometry::volume_and_areas;
 use sinterdem::models::ode::Method;
 use std::path::Path;
 
+mod common;
+
 fn copper_case(overrides: &[&str]) -> toml::Value {
     let o: Vec<String> = overrides.iter().map(|s| s.to_string()).collect();
     load_case(Path::new("cases/pair-copper.toml"), &o).unwrap()
@@ -85,7 +87,7 @@ fn every_method_agrees_on_the_copper_pair() {
 /// The case entry point writes the three files with the documented columns and keys.
 #[test]
 fn run_pair_case_writes_series_summary_and_plot() {
-    let dir = std::env::temp_dir().join(format!("sinterdem-pair-{}", std::process::id()));
+    let dir = common::tmp_dir("pair");
     let s = run_pair_case(&copper_case(&["pair.end_time=100"]), &dir, false).unwrap();
     assert!((s.neck_ratio / 0.21050 - 1.0).abs() < 2e-4, "{}", s.neck_ratio);
     let csv = std::fs::read_to_string(dir.join("series.csv")).unwrap();

@@ -7,6 +7,8 @@ use sinterdem::kinds::titanium::{EXPERIMENTS, Experiment, FULL_START, TRUNCATED_
 use sinterdem::models::diffusion7::geometry::volume_and_areas;
 use std::path::Path;
 
+mod common;
+
 /// `cases/titanium/*.toml` are the table's case texts (regenerate with SINTERDEM_WRITE_CASES=1).
 #[test]
 fn bundled_titanium_cases_match_the_table() {
@@ -41,7 +43,7 @@ fn all_titanium_runs_and_shrinkage_rises_with_hold_time() {
 }
 
 fn check_all(diameter: Option<f64>) {
-    let dir = std::env::temp_dir().join(format!("sinterdem-ti-{}", std::process::id()));
+    let dir = common::tmp_dir("all");
     let res = run_all_titanium(&dir, TRUNCATED_START, diameter).unwrap();
     assert_eq!(res.len(), 28);
     for r in &res {

@@ -5,14 +5,9 @@
 
 use sinterdem::kinds::explicit_sinter::run_explicit_from;
 use sinterdem::kinds::{self, RunParams};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("sinterdem-explicitck-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+mod common;
 
 /// Two pressures, two sintering times: every stage of the protocol is crossed.
 fn case(coupling: &str) -> toml::Value {
@@ -71,7 +66,7 @@ fn without_wall_time(mut s: serde_json::Value) -> serde_json::Value {
 /// Runs `value` whole, then stopped after each of `stops` steps and resumed; returns the stages
 /// the stops fell in.
 fn resumed_equals_whole(name: &str, value: &toml::Value, stops: &[u64]) -> Vec<String> {
-    let dir = tmp(name);
+    let dir = common::tmp_dir(name);
     let params = RunParams { plots: false, ..Default::default() };
     let whole = kinds::run(value, &[], &dir.join("whole"), &params).unwrap();
     let whole_csv = csv_files(&dir.join("whole"));
@@ -116,7 +111,7 @@ fn a_network_coupled_run_resumes_with_its_heat_networks() {
 
 #[test]
 fn a_damaged_or_mismatched_checkpoint_is_refused_with_the_reason() {
-    let dir = tmp("bad");
+    let dir = common::tmp_dir("bad");
     let part = dir.join("part");
     assert!(run_explicit_from(&case(""), &part, &mut |_| {}, Some(10000)).unwrap().is_null());
     let path = part.join("checkpoint.json");

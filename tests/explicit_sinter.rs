@@ -10,6 +10,8 @@ use sinterdem::models::frenkel::{FrenkelParams, FrenkelSpec};
 use sinterdem::models::luding::{LudingParams, LudingSpec};
 use sinterdem::particles::Particles;
 
+mod common;
+
 type V3 = Vector3<f64>;
 
 fn tab(text: &str) -> toml::Value {
@@ -294,7 +296,7 @@ fn writes_series_plots_and_summary() {
     let mut v = small_luding_case("[5e4]", "[0.001]", 16);
     let proto = v.as_table_mut().unwrap().get_mut("protocol").unwrap().as_table_mut().unwrap();
     proto.insert("t_prepare".into(), toml::Value::Float(0.004));
-    let dir = std::env::temp_dir().join(format!("sinterdem-explicit-sinter-{}", std::process::id()));
+    let dir = common::tmp_dir("run");
     let s = run_explicit_case(&v, &dir, false).unwrap();
     assert_eq!(s["branches"].as_array().unwrap().len(), 1);
     for f in [

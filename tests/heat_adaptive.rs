@@ -5,17 +5,14 @@
 //! lands exactly on the output times and the end.
 
 use sinterdem::bench::heat::{max_error, run_step_case, step_bench_case};
-use std::path::PathBuf;
 
-fn dir(name: &str) -> PathBuf {
-    std::env::temp_dir().join(format!("sinterdem-adaptive-{name}-{}", std::process::id()))
-}
+mod common;
 
 #[test]
 fn adaptive_error_follows_the_tolerance_and_beats_fixed_steps() {
     let end = 0.05;
     let base = step_bench_case([3, 3, 6], end).unwrap();
-    let out = dir("wp");
+    let out = common::tmp_dir("wp");
     let (_, reference, _) = run_step_case(&base, &["time.heat_tolerance=1e-7".into(), "time.dt=1e-7".into()], &out).unwrap();
     assert_eq!(reference.len(), sinterdem::bench::heat::STEP_BENCH_OUTPUTS);
     let mut adaptive = Vec::new();
@@ -59,7 +56,7 @@ fn adaptive_error_follows_the_tolerance_and_beats_fixed_steps() {
 #[test]
 fn step_control_bounds_and_keys() {
     let base = step_bench_case([2, 2, 3], 0.02).unwrap();
-    let out = dir("keys");
+    let out = common::tmp_dir("keys");
     let (s, _, _) = run_step_case(&base, &["time.heat_tolerance=1e-2".into(), "time.dt_max=1e-3".into(), "output.series_every=1".into()], &out).unwrap();
     let text = std::fs::read_to_string(out.join("series.csv")).unwrap();
     let dts: Vec<f64> = text.lines().skip(1).map(|l| l.split(',').nth(1).unwrap().parse().unwrap()).collect();

@@ -8,6 +8,8 @@ use sinterdem::kinds::heat::run;
 use sinterdem::scene::prepare;
 use std::path::Path;
 
+mod common;
+
 fn case(text: &str, sets: &[&str]) -> toml::Value {
     let mut v: toml::Value = toml::Value::Table(text.parse::<toml::Table>().unwrap());
     for s in sets {
@@ -145,7 +147,7 @@ fn hot_plate_over_six_decades_of_time_step() {
         sum_k[j as usize] += prep.pipes.conductance[e];
     }
     let limit = (0..p.len()).map(|i| p.capacity[i] / (2.0 * sum_k[i])).fold(f64::INFINITY, f64::min);
-    let dir = std::env::temp_dir().join(format!("sinterdem-hp-{}", std::process::id()));
+    let dir = common::tmp_dir("hot-plate");
     for scheme in ["backward_euler", "bdf2", "crank_nicolson"] {
         for e in [-3, -1, 1, 3] {
             let dt = limit * 10f64.powi(e);

@@ -5,16 +5,11 @@
 use sinterdem::kinds::{self, RunParams};
 use std::path::{Path, PathBuf};
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("sinterdem-heatck-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+mod common;
 
 #[test]
 fn a_heat_run_resumed_from_its_checkpoint_equals_the_uninterrupted_run() {
-    let dir = tmp("r");
+    let dir = common::tmp_dir("r");
     let case = sinterdem::config::load_case(Path::new("cases/hot-plate.toml"), &[]).unwrap();
     let sets: Vec<String> = ["time.end=120", "particles.cells=[4, 4, 6]", "output.snapshots=4", "output.checkpoint_every=25"].map(String::from).to_vec();
     let params = RunParams { base_dir: PathBuf::from("cases"), plots: false, ..Default::default() };

@@ -11,16 +11,8 @@ use sinterdem::heat::gap::{gas_conductance, gas_conductance_equal, outer_radius,
 use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("sinterdem-gap-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn rel(a: f64, b: f64) -> f64 {
-    (a - b).abs() / b.abs()
-}
+mod common;
+use common::rel;
 
 const K_G: f64 = 0.05; // W/(m K), argon near 1300 K
 
@@ -176,7 +168,7 @@ fn heat_run(v: toml::Value, out: &Path) -> (serde_json::Value, Vec<(f64, Vec<f64
 /// conductance K_c, which act on contact pipes, leave the gap pipe alone.
 #[test]
 fn two_separated_spheres_relax_at_the_lumped_rate() {
-    let dir = tmp("pair");
+    let dir = common::tmp_dir("pair");
     let (r1, r2, s) = (20e-6, 30e-6, 1e-6);
     let d = r1 + r2 + s;
     let rows = format!("0,0,0,{r1:e},400\n{d:e},0,0,{r2:e},300\n");
@@ -220,7 +212,7 @@ fn two_separated_spheres_relax_at_the_lumped_rate() {
 /// iteration on the exact secant (H23) follows it to 1e-6 relative and conserves Σ C T to 1e-9.
 #[test]
 fn radiation_across_the_gap_follows_the_quartic_exchange() {
-    let dir = tmp("rad");
+    let dir = common::tmp_dir("rad");
     let (r, s, eps) = (25e-6, 1e-6, 0.8);
     let d = 2.0 * r + s;
     let rows = format!("0,0,0,{r:e},1000\n{d:e},0,0,{r:e},1400\n");
@@ -256,7 +248,7 @@ fn radiation_across_the_gap_follows_the_quartic_exchange() {
 /// kelvin and is named as reached only across gaps; the summary's minimum then includes it.
 #[test]
 fn the_isolated_particle_of_the_hot_plate_warms_through_the_gas() {
-    let dir = tmp("hotplate");
+    let dir = common::tmp_dir("hotplate");
     let sets = ["time.end=200.0", "output.snapshots=0", "output.checkpoint_every=0", "output.vtu=false", "output.hdf5=false"];
     let load = |extra: &[&str]| {
         let all: Vec<String> = sets.iter().chain(extra).map(|s| s.to_string()).collect();
@@ -305,7 +297,7 @@ fn the_isolated_particle_of_the_hot_plate_warms_through_the_gas() {
 /// neighbour (the gap plumbing active, no pipe found).
 #[test]
 fn without_gap_pipes_the_results_are_unchanged_bit_for_bit() {
-    let dir = tmp("identical");
+    let dir = common::tmp_dir("identical");
     let params = sinterdem::kinds::RunParams { base_dir: PathBuf::from("cases"), plots: false, ..Default::default() };
     for (case, sets) in [
         ("cases/hot-plate-compact.toml", vec!["time.end=100.0", "output.snapshots=0", "output.checkpoint_every=0"]),
@@ -336,7 +328,7 @@ fn without_gap_pipes_the_results_are_unchanged_bit_for_bit() {
 /// list was built.
 #[test]
 fn a_compact_run_with_the_gap_model_resumes_bit_for_bit() {
-    let dir = tmp("resume");
+    let dir = common::tmp_dir("resume");
     let sets: Vec<String> =
         ["time.end=60.0", "output.snapshots=0", "output.checkpoint_every=7", "thermal.gap.gas_conductivity=0.05", "thermal.gap.layer_thickness=0.4"]
             .map(String::from)
@@ -359,7 +351,7 @@ fn a_compact_run_with_the_gap_model_resumes_bit_for_bit() {
 /// an isothermal scene and unknown keys are refused too.
 #[test]
 fn bad_gap_keys_are_refused_with_key_value_range_and_unit() {
-    let dir = tmp("bad");
+    let dir = common::tmp_dir("bad");
     let rows = "0,0,0,25e-6,400\n51e-6,0,0,25e-6,300\n";
     for (gap, key, value, range, unit) in [
         ("gas_conductivity = -0.1", "thermal.gap.gas_conductivity", "-0.1", "[0, 1]", "W/(m K)"),

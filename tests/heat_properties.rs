@@ -9,6 +9,8 @@ use sinterdem::material::{Quantity, Table};
 use sinterdem::profile::Profile;
 use std::path::Path;
 
+mod common;
+
 /// Two particles m1 = 1 kg, m2 = 3 kg, c(T) = 400 + 0.2 (T − 200) J/(kg K) (linear table), a
 /// constant pipe K = 50 W/K, isolated: the enthalpy Σ m H(T) is conserved and the pair ends at the
 /// T_eq of (m1 + m2) H(T_eq) = m1 H(T1) + m2 H(T2), H(T) = 80000 + 400 (T − 200) + 0.1 (T − 200)².
@@ -183,7 +185,7 @@ fn hot_plate(sets: &[&str]) -> toml::Value {
 /// 523 J/(kg K), stores more heat per kelvin: its mean temperature stays below the constant run's.
 #[test]
 fn hot_plate_with_bundled_titanium_tables() {
-    let dir = std::env::temp_dir().join(format!("sinterdem-props-{}", std::process::id()));
+    let dir = common::tmp_dir("hot-plate");
     let run = |v: toml::Value| {
         let prep = sinterdem::scene::prepare(v, Path::new("cases")).unwrap();
         sinterdem::kinds::heat::run(prep, &dir, false, &mut |_| {}).unwrap()

@@ -9,10 +9,6 @@ use std::path::{Path, PathBuf};
 
 mod common;
 
-fn tmp(name: &str) -> PathBuf {
-    common::fresh_dir("materials", name)
-}
-
 /// A corner of the bundled green copper packing, with a material column alternating 0, 1.
 fn packing(dir: &Path, edge: f64) -> PathBuf {
     let rows = common::green_copper_block(edge, edge);
@@ -43,13 +39,7 @@ q_lattice = 207.0e3
 
 /// A compact case with two materials `a` and `b` (TOML bodies of `[[materials]]` entries).
 fn case(packing: &Path, a: &str, b: &str) -> toml::Value {
-    let text = format!(
-        "kind = \"compact\"\n[time]\nend = 200.0\ndt = 1.0e-6\ndt_max = 10.0\n[output]\nsnapshots = 0\nvtu = false\nhdf5 = false\n\
-         [particles]\nsource = \"file\"\nfile = \"{}\"\n[thermal]\nmode = \"isothermal\"\nfurnace = {{ profile = {{ constant = 1293.0 }} }}\n\
-         [[materials]]\n{a}\n[[materials]]\n{b}\n",
-        packing.display()
-    );
-    toml::Value::Table(text.parse::<toml::Table>().unwrap_or_else(|e| panic!("{e}\n{text}")))
+    common::case_value(&common::compact_text(&common::time_to(200.0), &[a, b], &common::file_particles(packing), common::AT_1293_K), &[])
 }
 
 fn shrink(dir: &Path, name: &str, case: &toml::Value) -> [f64; 3] {
@@ -62,7 +52,7 @@ const PRESET_B: &str = "name = \"copper2\"\npreset = \"copper\"";
 
 #[test]
 fn inline_and_included_phases_equal_the_preset_and_their_data_matter() {
-    let dir = tmp("inline");
+    let dir = common::tmp_dir("inline");
     let p = packing(&dir, 1.6e-4);
     let preset = shrink(&dir, "preset", &case(&p, PRESET_A, PRESET_B));
     // the same data written in the case: bit-identical
@@ -114,7 +104,7 @@ fn mixed_material_bonds_use_their_own_poisson_ratio() {
     // material has another ν must differ from both uniform packings and lie between them; new
     // contacts are searched every step (as before `detect_every` defaulted to 5), so that the three
     // runs see their contact-formation events at the same times
-    let dir = tmp("mixed");
+    let dir = common::tmp_dir("mixed");
     let p = packing(&dir, 1.6e-4);
     let fixed = |v: toml::Value| {
         let mut v = v;
@@ -143,7 +133,7 @@ fn mixed_material_bonds_use_their_own_poisson_ratio() {
 fn a_calibrated_material_file_runs_in_a_compact() {
     // the file exactly as `sinterdem calibrate` writes it, with grain-boundary diffusion ten
     // times faster than the bundled copper: the compact includes it and shrinks more
-    let dir = tmp("calibrated");
+    let dir = common::tmp_dir("calibrated");
     let p = packing(&dir, 1.6e-4);
     let mut m = sinterdem::models::diffusion7::Material::copper();
     m.phases[0].d0_gb *= 10.0;

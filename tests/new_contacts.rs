@@ -4,44 +4,27 @@
 //! waits for a real overlap; the contacts of the green body are seeded under every option; a bad
 //! name is refused with the allowed ones.
 
-use sinterdem::config::apply_override;
 use sinterdem::coupled::{self, NewContactState, Simulation};
 use sinterdem::models::diffusion7::Contact7;
 use sinterdem::models::diffusion7::contact::{DEFAULT_EPSILON, DEFAULT_ETA};
-use std::path::{Path, PathBuf};
+use std::path::Path;
+
+mod common;
 
 const RA: f64 = 25e-6;
 const RB: f64 = 30e-6;
 const RC: f64 = 20e-6;
 const XB: f64 = 80e-6;
 
-/// A fresh directory per call: tests run in parallel and several build the same scene, so the
-/// name carries a call counter besides the process id (else one test removes another's files).
-fn tmp(name: &str) -> PathBuf {
-    static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-    let k = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-    let d = std::env::temp_dir().join(format!("sinterdem-{name}-{}-{k}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
 /// Three copper spheres on a line: A (25 µm) touching B (30 µm), C (20 µm) half a mean radius
 /// away from B (no contact at the start).
 fn three_spheres(sets: &[&str]) -> Result<Simulation, sinterdem::error::Error> {
-    let dir = tmp(&format!("newc-{}", sets.join("-").replace(['"', '=', '.'], "_")));
+    let dir = common::tmp_dir_per_call(&format!("newc-{}", sets.join("-").replace(['"', '=', '.'], "_")));
     let csv = dir.join("three.csv");
     let x_c = XB + RB + RC + 12.5e-6;
     std::fs::write(&csv, format!("x,y,z,r\n{RA:e},30e-6,30e-6,{RA:e}\n{XB:e},30e-6,30e-6,{RB:e}\n{x_c:e},30e-6,30e-6,{RC:e}\n")).unwrap();
-    let text = format!(
-        "kind = \"compact\"\n[time]\nend = 100.0\ndt = 1.0e-3\n[output]\nsnapshots = 0\nvtu = false\nhdf5 = false\n[[materials]]\nname = \"copper\"\npreset = \"copper\"\n[particles]\nsource = \"file\"\nfile = \"{}\"\n[thermal]\nmode = \"isothermal\"\nfurnace = {{ profile = {{ constant = 1293.0 }} }}\n",
-        csv.display()
-    );
-    let mut v = toml::Value::Table(text.parse::<toml::Table>().unwrap());
-    for s in sets {
-        apply_override(&mut v, s).unwrap();
-    }
-    coupled::prepare(v, Path::new("."), &mut |_| {})
+    let text = common::compact_text("end = 100.0\ndt = 1.0e-3", &[common::COPPER], &common::file_particles(&csv), common::AT_1293_K);
+    coupled::prepare(common::case_value(&text, sets), Path::new("."), &mut |_| {})
 }
 
 /// Moves C to surface gap `gap` [m] from B (negative: overlap), as if the run had brought it

@@ -6,13 +6,15 @@ use sinterdem::kinds::heat::run;
 use sinterdem::scene::prepare;
 use std::path::Path;
 
+mod common;
+
 #[test]
 fn heat_run_writes_summary_series_and_snapshots() {
     let sets: Vec<String> = ["particles.cells=[2, 2, 3]", "time.end=10", "time.dt=1", "output.snapshots=3"].iter().map(|s| s.to_string()).collect();
     let v = load_case(Path::new("cases/hot-plate.toml"), &sets).unwrap();
     let prep = prepare(v, Path::new("cases")).unwrap();
     let (n, m) = (prep.scene.particles.len(), prep.pipes.pairs.len());
-    let dir = std::env::temp_dir().join(format!("sinterdem-out-{}", std::process::id()));
+    let dir = common::tmp_dir("out");
     let s = run(prep, &dir, false, &mut |_| {}).unwrap();
     for key in ["final_time_s", "steps", "wall_seconds", "energy_balance_rel", "mean_temperature_K", "min_temperature_K", "max_temperature_K"] {
         assert!(s[key].is_number(), "summary lacks {key}");

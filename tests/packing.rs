@@ -2,7 +2,8 @@
 use nalgebra::Vector3;
 use sinterdem::kinds::generate as packing;
 use sinterdem::packing::{ImportFormat, import_str};
-use std::path::PathBuf;
+
+mod common;
 
 fn case(text: &str) -> toml::Value {
     toml::Value::Table(text.parse::<toml::Table>().unwrap())
@@ -21,15 +22,9 @@ mean_diameter = 50e-6
 spread = 0.1
 "#;
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("sinterdem-test-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    d
-}
-
 #[test]
 fn small_packing_is_stress_free_at_the_target_and_reproducible_from_the_seed() {
-    let (a, b, c) = (tmp("seed-a"), tmp("seed-b"), tmp("seed-c"));
+    let (a, b, c) = (common::tmp_dir("seed-a"), common::tmp_dir("seed-b"), common::tmp_dir("seed-c"));
     let sa = packing::generate_case(&case(SMALL), &a, false).unwrap();
     let sb = packing::generate_case(&case(SMALL), &b, false).unwrap();
     let csv_a = std::fs::read_to_string(a.join("packing.csv")).unwrap();

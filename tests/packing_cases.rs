@@ -3,12 +3,10 @@
 //! ignored (run with `cargo test --release --test packing_cases -- --ignored`).
 use std::path::Path;
 
+mod common;
+
 fn load(name: &str) -> toml::Value {
     sinterdem::config::load_case(&Path::new(env!("CARGO_MANIFEST_DIR")).join("cases").join(name), &[]).unwrap()
-}
-
-fn out(name: &str) -> std::path::PathBuf {
-    std::env::temp_dir().join(format!("sinterdem-{name}-{}", std::process::id()))
 }
 
 /// The acceptance numbers of a green body: box solid fraction (eq. 49) within ±0.01 of the
@@ -32,7 +30,7 @@ fn assert_green_body(s: &sinterdem::kinds::generate::GenerateSummary) {
 
 #[test]
 fn copper_green_body_reaches_the_target_stress_free_and_homogeneous() {
-    let dir = out("green-copper");
+    let dir = common::tmp_dir("green-copper");
     let s = sinterdem::kinds::generate::generate_case(&load("green-copper.toml"), &dir, false).unwrap();
     assert_eq!(s.particles, 805);
     assert_green_body(&s);
@@ -48,7 +46,7 @@ fn copper_green_body_reaches_the_target_stress_free_and_homogeneous() {
 #[test]
 #[ignore]
 fn titanium_green_body_reaches_the_target_stress_free_and_homogeneous() {
-    let dir = out("green-titanium");
+    let dir = common::tmp_dir("green-titanium");
     let s = sinterdem::kinds::generate::generate_case(&load("green-titanium.toml"), &dir, false).unwrap();
     assert_eq!(s.particles, 3619);
     assert_green_body(&s);

@@ -11,45 +11,14 @@ use std::path::{Path, PathBuf};
 
 mod common;
 
-fn tmp(name: &str) -> PathBuf {
-    common::fresh_dir("pressure", name)
-}
-
 /// A block of the bundled green copper packing: x, y below `edge`, z below `height` [m].
 fn column_packing(dir: &Path, edge: f64, height: f64) -> PathBuf {
     common::write_block(dir, "block.csv", "x,y,z,r", common::green_copper_block(edge, height).into_iter().map(|(l, _)| l))
 }
 
+/// The copper compact of the tests on `packing` until 300 s, with the `[load]` table `load`.
 fn compact_case(packing: &Path, load: &str, sets: &[&str]) -> toml::Value {
-    let text = format!(
-        r#"
-kind = "compact"
-[time]
-end = 300.0
-dt = 1.0e-6
-dt_max = 10.0
-[output]
-snapshots = 0
-vtu = false
-hdf5 = false
-[[materials]]
-name = "copper"
-preset = "copper"
-[particles]
-source = "file"
-file = "{}"
-[thermal]
-mode = "isothermal"
-furnace = {{ profile = {{ constant = 1293.0 }} }}
-{load}
-"#,
-        packing.display()
-    );
-    let mut v = toml::Value::Table(text.parse::<toml::Table>().unwrap());
-    for s in sets {
-        apply_override(&mut v, s).unwrap();
-    }
-    v
+    common::case_value(&format!("{}{load}\n", common::copper_compact_text(packing, 300.0)), sets)
 }
 
 fn run(v: toml::Value, out: &Path) -> (serde_json::Value, String) {
@@ -60,7 +29,7 @@ fn run(v: toml::Value, out: &Path) -> (serde_json::Value, String) {
 
 #[test]
 fn zero_load_is_bit_identical_to_no_load() {
-    let dir = tmp("zero");
+    let dir = common::tmp_dir("zero");
     let csv = column_packing(&dir, 0.2e-3, 0.2e-3);
     let (a, sa) = run(compact_case(&csv, "", &[]), &dir.join("none"));
     for (k, load) in [
@@ -153,7 +122,7 @@ fn pair_densifies_faster_linearly_in_a_small_force() {
 
 #[test]
 fn uniaxial_compact_shrinks_more_along_the_load_and_carries_the_stress() {
-    let dir = tmp("uniaxial");
+    let dir = common::tmp_dir("uniaxial");
     let csv = column_packing(&dir, 0.25e-3, 0.4e-3);
     let (free, _) = run(compact_case(&csv, "", &[]), &dir.join("free"));
     let sigma = 2.0e6;
@@ -207,7 +176,7 @@ fn check_err(v: toml::Value) -> String {
 
 #[test]
 fn bad_load_keys_give_clear_errors() {
-    let dir = tmp("keys");
+    let dir = common::tmp_dir("keys");
     let csv = column_packing(&dir, 0.2e-3, 0.2e-3);
     let cases = [
         ("[load]\nmode = \"press\"\nstress = 1e6", "load.mode"),
@@ -244,7 +213,7 @@ fn bad_load_keys_give_clear_errors() {
 #[ignore]
 fn hot_pressing_figure() {
     use sinterdem::plot::{Plot, Series};
-    let dir = tmp("figure");
+    let dir = common::tmp_dir("figure");
     let mut p = Plot::new("hot pressing, titanium column, E14B: shrinkage per axis").labels("time t [s]", "shrinkage 1 - L/L0 [1]");
     let mut csv = String::from("stress_MPa,time_s,shrinkage_x,shrinkage_y,shrinkage_z,relative_density\n");
     let mut finals = Vec::new();

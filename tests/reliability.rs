@@ -4,12 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("sinterdem-reliability-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+mod common;
 
 fn write(dir: &Path, name: &str, text: &[u8]) -> PathBuf {
     let p = dir.join(name);
@@ -46,24 +41,10 @@ mean_diameter = 50e-6
 spread = 0.1
 "#;
 
-const COMPACT_FILE: &str = r#"kind = "compact"
-[time]
-end = 1e-5
-dt = 1e-6
-[output]
-snapshots = 0
-vtu = false
-hdf5 = false
-[[materials]]
-name = "copper"
-preset = "copper"
-[particles]
-source = "file"
-file = "packing.csv"
-[thermal]
-mode = "isothermal"
-furnace = { profile = { constant = 1293.0 } }
-"#;
+/// The copper compact on `packing.csv` beside the case, for 10 µs in steps of 1 µs.
+fn compact_file() -> String {
+    common::compact_text("end = 1e-5\ndt = 1e-6", &[common::COPPER], &common::file_particles(Path::new("packing.csv")), common::AT_1293_K)
+}
 
 const GOOD_CSV: &str = "x,y,z,r\n0,0,0,2.5e-5\n0,4.95e-5,0,2.5e-5\n";
 
@@ -89,12 +70,12 @@ convection_coefficient = 10.0
 
 fn compact_with(dir: &Path, csv: &[u8]) -> PathBuf {
     write(dir, "packing.csv", csv);
-    write(dir, "case.toml", COMPACT_FILE.as_bytes())
+    write(dir, "case.toml", compact_file().as_bytes())
 }
 
 #[test]
 fn item01_tiny_mean_diameter_is_refused_by_range() {
-    let d = tmp("i01");
+    let d = common::tmp_dir("i01");
     let c = write(&d, "gen.toml", GENERATE.as_bytes());
     assert!(check(&c, &[]).is_ok());
     let e = check_err(&c, &["packing.size.mean_diameter=5e-324"]);
@@ -103,7 +84,7 @@ fn item01_tiny_mean_diameter_is_refused_by_range() {
 
 #[test]
 fn item02_lamina_width_far_below_a_radius_is_refused() {
-    let d = tmp("i02");
+    let d = common::tmp_dir("i02");
     let c = write(&d, "gen.toml", GENERATE.as_bytes());
     for w in ["1e-300", "1e-12"] {
         let e = check_err(&c, &[&format!("packing.lamina_width={w}")]);
@@ -117,7 +98,7 @@ fn item02_lamina_width_far_below_a_radius_is_refused() {
 
 #[test]
 fn item04_far_away_packing_coordinates_are_refused_with_their_line() {
-    let d = tmp("i04");
+    let d = common::tmp_dir("i04");
     let c = compact_with(&d, b"x,y,z,r\n1e300,0,0,2.5e-5\n1e300,4.95e-5,0,2.5e-5\n");
     let e = check_err(&c, &[]);
     assert!(e.contains("packing.csv, line 2") && e.contains("particles.position = 1e300") && e.contains("[-1000, 1000]"), "{e}");
@@ -168,14 +149,14 @@ fn no_nan(csvs: &[String]) {
 
 #[test]
 fn item05_luding_history_has_no_nan_without_contacts() {
-    let d = tmp("i05");
+    let d = common::tmp_dir("i05");
     let (_, csvs) = luding_short(&d, &[]);
     no_nan(&csvs);
 }
 
 #[test]
 fn item06_luding_extremes_stay_finite() {
-    let d = tmp("i06");
+    let d = common::tmp_dir("i06");
     let (s, csvs) = luding_short(&d.join("tmelt"), &["luding.t_melt=1.0000000000000002"]);
     no_nan(&csvs);
     assert!(s["branches"][0]["stiffness_Pa"].as_f64().unwrap().is_finite());
@@ -188,7 +169,7 @@ fn item06_luding_extremes_stay_finite() {
 
 #[test]
 fn item07_generate_mean_diameter_1e_300_refused_and_the_floor_runs_finite() {
-    let d = tmp("i07");
+    let d = common::tmp_dir("i07");
     let c = write(&d, "gen.toml", GENERATE.as_bytes());
     let e = check_err(&c, &["packing.size.mean_diameter=1e-300"]);
     assert!(e.contains("packing.size.mean_diameter = 1e-300"), "{e}");
@@ -231,7 +212,7 @@ fn item17_negative_numbers_are_values_and_get_the_range_answer() {
 
 #[test]
 fn item09_steps_that_cannot_finish_are_refused() {
-    let d = tmp("i09");
+    let d = common::tmp_dir("i09");
     let c = compact_with(&d, GOOD_CSV.as_bytes());
     let e = check_err(&c, &["time.dt_max=1e-300"]);
     assert!(e.contains("time.dt_max"), "{e}");
@@ -256,7 +237,7 @@ fn item09_steps_that_cannot_finish_are_refused() {
 
 #[test]
 fn item10_keys_unused_in_the_mode_are_range_checked() {
-    let d = tmp("i10");
+    let d = common::tmp_dir("i10");
     let c = compact_with(&d, GOOD_CSV.as_bytes());
     for v in ["nan", "-1", "inf"] {
         let e = check_err(&c, &[&format!("particles.radius={v}")]);
@@ -272,7 +253,7 @@ fn item10_keys_unused_in_the_mode_are_range_checked() {
 
 #[test]
 fn item11_lattice_beyond_the_memory_is_refused_with_an_estimate() {
-    let d = tmp("i11");
+    let d = common::tmp_dir("i11");
     let h = write(&d, "heat.toml", HEAT_PAIR.as_bytes());
     let sets = ["particles.source=lattice", "particles.lattice=fcc", "particles.cells=[200, 200, 200]", "particles.overlap=0.0"];
     let e = check_err(&h, &sets);
@@ -281,7 +262,7 @@ fn item11_lattice_beyond_the_memory_is_refused_with_an_estimate() {
 
 #[test]
 fn item12_tiny_radius_and_step_name_the_key_and_line() {
-    let d = tmp("i12");
+    let d = common::tmp_dir("i12");
     let c = compact_with(&d, b"x,y,z,r\n0,0,0,2.5e-5\n0,4.95e-5,0,1e-300\n");
     let e = check_err(&c, &[]);
     assert!(e.contains("packing.csv, line 3") && e.contains("particles.radius = 1e-300"), "{e}");
@@ -292,7 +273,7 @@ fn item12_tiny_radius_and_step_name_the_key_and_line() {
 
 #[test]
 fn item13_messages_name_line_key_and_print_tiny_values_short() {
-    let d = tmp("i13");
+    let d = common::tmp_dir("i13");
     let c = compact_with(&d, b"x,y,z,r,temperature\n0,0,0,2.5e-5,300\n0,4.95e-5,0,2.5e-5,-5\n");
     let e = check_err(&c, &[]);
     assert!(e.contains("line 3") && e.contains("particles.initial_temperature = -5"), "{e}");
@@ -307,13 +288,13 @@ fn item13_messages_name_line_key_and_print_tiny_values_short() {
 
 #[test]
 fn item14_byte_order_mark_accepted_and_header_required_as_documented() {
-    let d = tmp("i14");
+    let d = common::tmp_dir("i14");
     let mut csv = b"\xef\xbb\xbf".to_vec();
     csv.extend_from_slice(GOOD_CSV.as_bytes());
     let c = compact_with(&d, &csv);
     check(&c, &[]).unwrap();
     let mut toml = b"\xef\xbb\xbf".to_vec();
-    toml.extend_from_slice(COMPACT_FILE.as_bytes());
+    toml.extend_from_slice(compact_file().as_bytes());
     let c = write(&d, "bom.toml", &toml);
     check(&c, &[]).unwrap();
     let c = compact_with(&d, b"0,0,0,2.5e-5\n0,4.95e-5,0,2.5e-5\n");
@@ -325,7 +306,7 @@ fn item14_byte_order_mark_accepted_and_header_required_as_documented() {
 
 #[test]
 fn item15_energy_balance_is_small_when_almost_no_heat_flows() {
-    let d = tmp("i15");
+    let d = common::tmp_dir("i15");
     let h = write(&d, "heat.toml", HEAT_PAIR.as_bytes());
     let o = bin().arg("run").arg(&h).arg("--out").arg(d.join("out")).arg("--quiet").output().unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -341,7 +322,7 @@ fn item15_energy_balance_is_small_when_almost_no_heat_flows() {
 
 #[test]
 fn item16_non_regular_input_files_are_refused_at_once() {
-    let d = tmp("i16");
+    let d = common::tmp_dir("i16");
     let fifo = d.join("fifo.toml");
     assert!(Command::new("mkfifo").arg(&fifo).status().unwrap().success());
     let (tx, rx) = std::sync::mpsc::channel();
@@ -377,7 +358,7 @@ fn run_with_limit(mut cmd: Command, secs: u64) -> Option<std::process::Output> {
 
 #[test]
 fn item03_corrupted_checkpoints_are_refused_before_resuming() {
-    let d = tmp("i03");
+    let d = common::tmp_dir("i03");
     let c = compact_with(&d, GOOD_CSV.as_bytes());
     let run = d.join("run");
     let o =

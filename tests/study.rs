@@ -10,12 +10,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("sinterdem-study-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+mod common;
 
 /// Reads study.csv into (header, rows) with a plain comma split (fields here hold no commas
 /// except error messages, which sit in quoted fields near the end).
@@ -63,7 +58,7 @@ fn repo() -> PathBuf {
 
 #[test]
 fn titanium_28_study_reproduces_the_titanium_table() {
-    let dir = tmp("ti28");
+    let dir = common::tmp_dir("ti28");
     let opts = StudyOptions { out: Some(dir.join("study")), ..Default::default() };
     let info = study::run_study(&repo().join("cases/studies/titanium-28.toml"), &opts, &mut |_| {}).unwrap();
     assert_eq!((info.counts.runs, info.counts.ok), (28, 28));
@@ -93,7 +88,7 @@ fn write_small_study(dir: &Path, extra: &str) -> PathBuf {
 
 #[test]
 fn each_row_equals_the_run_done_alone_and_series_values_interpolate() {
-    let dir = tmp("alone");
+    let dir = common::tmp_dir("alone");
     let s = write_small_study(&dir, "");
     let opts = StudyOptions { out: Some(dir.join("study")), jobs: Some(2), ..Default::default() };
     let info = study::run_study(&s, &opts, &mut |_| {}).unwrap();
@@ -143,7 +138,7 @@ fn each_row_equals_the_run_done_alone_and_series_values_interpolate() {
 
 #[test]
 fn a_failing_run_is_recorded_and_the_others_finish_and_retry_reruns_only_it() {
-    let dir = tmp("fail");
+    let dir = common::tmp_dir("fail");
     let case = repo().join("cases/titanium/E14B.toml");
     let text = format!(
         "base = \"{}\"\n[[parameters]]\nkey = \"pair.radius\"\nvalues = [3.0e-5, -1.0, 3.5e-5]\n[collect]\nsummary = [\"neck_ratio\"]\n",
@@ -178,7 +173,7 @@ fn done_counts(dir: &Path) -> HashMap<String, usize> {
 
 #[test]
 fn sigkill_midway_and_rerun_gives_the_same_study_with_no_run_executed_twice() {
-    let dir = tmp("kill");
+    let dir = common::tmp_dir("kill");
     // slow runs (tight tolerance) so that the kill lands midway
     let case = repo().join("cases/titanium/E14B.toml");
     let text = format!(
@@ -218,7 +213,7 @@ fn sigkill_midway_and_rerun_gives_the_same_study_with_no_run_executed_twice() {
 
 #[test]
 fn designs_lhs_and_sobol_give_seeded_points_within_bounds() {
-    let dir = tmp("designs");
+    let dir = common::tmp_dir("designs");
     let case = repo().join("cases/titanium/E14B.toml");
     for kind in ["lhs", "sobol"] {
         let text = format!(
@@ -248,7 +243,7 @@ fn designs_lhs_and_sobol_give_seeded_points_within_bounds() {
 
 #[test]
 fn bad_study_files_name_key_value_and_range() {
-    let dir = tmp("bad");
+    let dir = common::tmp_dir("bad");
     let case = repo().join("cases/titanium/E14B.toml");
     let cases = [
         (
@@ -285,7 +280,7 @@ fn bad_study_files_name_key_value_and_range() {
 
 #[test]
 fn slurm_engine_without_slurm_commands_says_so() {
-    let dir = tmp("noslurm");
+    let dir = common::tmp_dir("noslurm");
     let s = write_small_study(&dir, "");
     let exe = env!("CARGO_BIN_EXE_sinterdem");
     let out = Command::new(exe)

@@ -11,6 +11,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+mod common;
 mod slurm_cluster;
 use slurm_cluster::{Cluster, repo};
 
@@ -56,9 +57,7 @@ fn sinterdem(cluster: &Cluster, args: &[&str]) -> std::process::Output {
 #[test]
 fn slurm_engine_matches_local_and_resubmits_a_cancelled_task() {
     let Some(cluster) = cluster() else { return };
-    let dir = std::env::temp_dir().join(format!("sinterdem-study-slurm-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = common::tmp_dir("engines");
 
     // 1. the same study on both engines: byte-identical study.csv apart from wall times
     let s = study_file(&dir, 6);

@@ -12,10 +12,6 @@ use std::path::{Path, PathBuf};
 
 mod common;
 
-fn tmp(name: &str) -> PathBuf {
-    common::fresh_dir("expansion", name)
-}
-
 /// A box of the bundled green copper packing (x, y below `edge`, z below `height`).
 fn packing(dir: &Path, edge: f64, height: f64) -> PathBuf {
     common::write_block(dir, "packing.csv", "x,y,z,r", common::green_copper_block(edge, height).into_iter().map(|(l, _)| l))
@@ -23,23 +19,8 @@ fn packing(dir: &Path, edge: f64, height: f64) -> PathBuf {
 
 /// A copper compact in a furnace following `profile` (isothermal mode), with `sets` applied.
 fn case(particles: &str, profile: &str, end: f64, sets: &[&str]) -> toml::Value {
-    let text = format!(
-        "kind = \"compact\"\n[time]\nend = {end:?}\ndt = 1.0e-6\ndt_max = 10.0\n[output]\nsnapshots = 0\nvtu = false\nhdf5 = false\n\
-         [[materials]]\nname = \"copper\"\npreset = \"copper\"\n[particles]\n{particles}\n\
-         [thermal]\nmode = \"isothermal\"\nfurnace = {{ profile = {profile} }}\n"
-    );
-    let mut v = toml::Value::Table(text.parse::<toml::Table>().unwrap());
-    for s in sets {
-        apply_override(&mut v, s).unwrap();
-    }
-    v
+    common::case_value(&common::compact_text(&common::time_to(end), &[common::COPPER], particles, profile), sets)
 }
-
-fn file_particles(p: &Path) -> String {
-    format!("source = \"file\"\nfile = \"{}\"", p.display())
-}
-
-const FCC: &str = "source = \"lattice\"\nlattice = \"fcc\"\ncells = [2, 2, 2]\nradius = 25e-6\noverlap = 0.0";
 
 fn run(v: toml::Value, out: &Path) -> (serde_json::Value, String) {
     let sim = coupled::prepare(v, Path::new("."), &mut |_| {}).unwrap();
@@ -58,10 +39,10 @@ const RAMP: &str = "{ table = [[0.0, 293.15], [100.0, 1293.0], [300.0, 1293.0]] 
 /// series.csv), under a changing temperature with sintering and new contacts.
 #[test]
 fn zero_coefficient_is_bit_identical_to_no_key() {
-    let dir = tmp("zero");
+    let dir = common::tmp_dir("zero");
     let p = packing(&dir, 0.2e-3, 0.2e-3);
-    let (a, sa) = run(case(&file_particles(&p), RAMP, 200.0, &[]), &dir.join("none"));
-    let (b, sb) = run(case(&file_particles(&p), RAMP, 200.0, &["materials.0.thermal_expansion=0.0"]), &dir.join("zero"));
+    let (a, sa) = run(case(&common::file_particles(&p), RAMP, 200.0, &[]), &dir.join("none"));
+    let (b, sb) = run(case(&common::file_particles(&p), RAMP, 200.0, &["materials.0.thermal_expansion=0.0"]), &dir.join("zero"));
     assert_eq!(sa, sb, "series.csv differs");
     for key in
         ["steps", "shrinkage_x", "shrinkage_y", "shrinkage_z", "relative_density", "neck_ratio", "contacts", "rhs_evaluations", "mechanics", "dl_bar_mean_m"]
@@ -82,12 +63,12 @@ fn zero_coefficient_is_bit_identical_to_no_key() {
 /// is unchanged.
 #[test]
 fn uniform_heating_without_sintering_expands_homogeneously_by_the_thermal_strain() {
-    let dir = tmp("uniform");
+    let dir = common::tmp_dir("uniform");
     let p = packing(&dir, 0.2e-3, 0.2e-3);
     let alpha = 1.65e-5;
     let eps = alpha * (500.0 - 293.15);
     let profile = "{ table = [[0.0, 293.15], [10.0, 500.0], [100.0, 500.0]] }";
-    for (name, particles) in [("fcc", FCC.to_string()), ("random", file_particles(&p))] {
+    for (name, particles) in [("fcc", common::fcc(2)), ("random", common::file_particles(&p))] {
         let sets = ["mechanics.rtol=1e-12"];
         let (s0, _) = run(case(&particles, profile, 100.0, &sets), &dir.join(format!("{name}-0")));
         let v = case(&particles, profile, 100.0, &["mechanics.rtol=1e-12", &format!("materials.0.thermal_expansion={alpha:e}")]);
@@ -126,16 +107,16 @@ fn uniform_heating_without_sintering_expands_homogeneously_by_the_thermal_strain
 /// with rtol = 1e-10); the run with the bundled α(T) table meets the same tolerance.
 #[test]
 fn sintering_shrinkage_equals_the_run_without_expansion_and_the_total_differs_by_the_thermal_strain() {
-    let dir = tmp("sinter");
+    let dir = common::tmp_dir("sinter");
     let p = packing(&dir, 0.2e-3, 0.2e-3);
-    let (s0, _) = run(case(&file_particles(&p), RAMP, 300.0, &[]), &dir.join("without"));
+    let (s0, _) = run(case(&common::file_particles(&p), RAMP, 300.0, &[]), &dir.join("without"));
     let alpha = 1.65e-5;
     let eps = alpha * (1293.0 - 293.15);
     let table = sinterdem::material::bundled_table("copper", sinterdem::material::Quantity::ThermalExpansion).unwrap();
     for (key, eps) in
         [(format!("materials.0.thermal_expansion={alpha:e}"), eps), ("materials.0.thermal_expansion_table=\"copper\"".into(), table.integral(293.15, 1293.0))]
     {
-        let (s, _) = run(case(&file_particles(&p), RAMP, 300.0, &[&key]), &dir.join("with"));
+        let (s, _) = run(case(&common::file_particles(&p), RAMP, 300.0, &[&key]), &dir.join("with"));
         assert!((f(&s, "thermal_strain") / eps - 1.0).abs() < 1e-12, "{key}");
         assert_eq!(s["contacts"], s0["contacts"], "{key}: the same contacts form");
         for a in ["x", "y", "z"] {
@@ -158,13 +139,13 @@ fn sintering_shrinkage_equals_the_run_without_expansion_and_the_total_differs_by
 /// the pair dilates by exactly 1 + ε.
 #[test]
 fn two_particle_compact_expands_and_sinters_like_the_unexpanded_pair() {
-    let dir = tmp("pair");
+    let dir = common::tmp_dir("pair");
     let csv = dir.join("pair.csv");
     std::fs::write(&csv, "x,y,z,r\n0,0,0,25e-6\n50e-6,0,0,25e-6\n").unwrap();
     let alpha = 1.65e-5;
     let eps = alpha * (1293.0 - 293.15);
-    let (s0, _) = run(case(&file_particles(&csv), RAMP, 300.0, &[]), &dir.join("without"));
-    let (s, _) = run(case(&file_particles(&csv), RAMP, 300.0, &[&format!("materials.0.thermal_expansion={alpha:e}")]), &dir.join("with"));
+    let (s0, _) = run(case(&common::file_particles(&csv), RAMP, 300.0, &[]), &dir.join("without"));
+    let (s, _) = run(case(&common::file_particles(&csv), RAMP, 300.0, &[&format!("materials.0.thermal_expansion={alpha:e}")]), &dir.join("with"));
     let without = f(&s0, "shrinkage_x");
     assert!(without > 3e-3, "{without}");
     assert!((f(&s, "sintering_shrinkage_x") / without - 1.0).abs() < 1e-8, "{} vs {without}", f(&s, "sintering_shrinkage_x"));
@@ -183,7 +164,7 @@ fn two_particle_compact_expands_and_sinters_like_the_unexpanded_pair() {
 /// each layer expands by its own temperature, and the sintering is what the contacts report.
 #[test]
 fn hot_plate_expands_the_hot_side_more() {
-    let dir = tmp("plate");
+    let dir = common::tmp_dir("plate");
     let p = packing(&dir, 0.2e-3, 1.0);
     let alpha = 8.6e-6;
     let ramp = "{ table = [[0.0, 293.15], [5.0, 800.0], [60.0, 800.0]] }";
@@ -231,12 +212,12 @@ fn hot_plate_expands_the_hot_side_more() {
 /// state).
 #[test]
 fn resumed_run_with_expansion_is_bit_identical() {
-    let dir = tmp("resume");
+    let dir = common::tmp_dir("resume");
     let p = packing(&dir, 0.2e-3, 0.2e-3);
     let sets = ["time.end=200.0", "output.checkpoint_every=40", "materials.0.thermal_expansion_table=\"copper\""];
-    let (full, series_full) = run(case(&file_particles(&p), RAMP, 200.0, &sets), &dir.join("full"));
+    let (full, series_full) = run(case(&common::file_particles(&p), RAMP, 200.0, &sets), &dir.join("full"));
     let part = dir.join("part");
-    let sim = coupled::prepare(case(&file_particles(&p), RAMP, 200.0, &sets), Path::new("."), &mut |_| {}).unwrap();
+    let sim = coupled::prepare(case(&common::file_particles(&p), RAMP, 200.0, &sets), Path::new("."), &mut |_| {}).unwrap();
     assert!(sinterdem::kinds::compact::run_from(sim, &part, false, &mut |_| {}, None, Some(80)).unwrap().is_null());
     let res = sinterdem::kinds::compact::resume(&part, false, &mut |_| {}).unwrap();
     for key in ["steps", "shrinkage_x", "shrinkage_z", "sintering_shrinkage_y", "thermal_strain", "relative_density", "neck_ratio", "contacts"] {
@@ -252,12 +233,12 @@ fn resumed_run_with_expansion_is_bit_identical() {
 /// same series.csv byte for byte.
 #[test]
 fn one_and_two_threads_are_bit_identical_with_expansion() {
-    let dir = tmp("threads");
+    let dir = common::tmp_dir("threads");
     let p = packing(&dir, 0.2e-3, 0.2e-3);
     let mut series = Vec::new();
     for threads in [1, 2] {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-        let v = case(&file_particles(&p), RAMP, 150.0, &["materials.0.thermal_expansion_table=\"copper\""]);
+        let v = case(&common::file_particles(&p), RAMP, 150.0, &["materials.0.thermal_expansion_table=\"copper\""]);
         let (s, text) = pool.install(|| run(v, &dir.join(format!("t{threads}"))));
         assert!(f(&s, "thermal_strain") > 1e-2);
         series.push(text);
@@ -268,10 +249,10 @@ fn one_and_two_threads_are_bit_identical_with_expansion() {
 /// Bad values name the key, the value, the range and the unit.
 #[test]
 fn bad_expansion_input_is_rejected_with_key_value_range_and_unit() {
-    let dir = tmp("bad");
+    let dir = common::tmp_dir("bad");
     let p = packing(&dir, 0.15e-3, 0.15e-3);
     let err = |set: &str| -> String {
-        match coupled::prepare(case(&file_particles(&p), RAMP, 10.0, &[set]), Path::new("."), &mut |_| {}) {
+        match coupled::prepare(case(&common::file_particles(&p), RAMP, 10.0, &[set]), Path::new("."), &mut |_| {}) {
             Ok(_) => panic!("{set} was accepted"),
             Err(e) => e.to_string(),
         }
@@ -288,7 +269,7 @@ fn bad_expansion_input_is_rejected_with_key_value_range_and_unit() {
             assert!(e.contains(w), "{set}: `{e}` lacks `{w}`");
         }
     }
-    let mut v = case(&file_particles(&p), RAMP, 10.0, &["materials.0.thermal_expansion=1.6e-5"]);
+    let mut v = case(&common::file_particles(&p), RAMP, 10.0, &["materials.0.thermal_expansion=1.6e-5"]);
     apply_override(&mut v, "materials.0.thermal_expansion_table=\"copper\"").unwrap();
     let e = coupled::prepare(v, Path::new("."), &mut |_| {}).err().unwrap().to_string();
     assert!(e.contains("thermal_expansion_table") && e.contains("not both"), "{e}");
@@ -298,7 +279,7 @@ fn bad_expansion_input_is_rejected_with_key_value_range_and_unit() {
 /// that it ignores the key (never silently).
 #[test]
 fn other_kinds_warn_that_they_ignore_thermal_expansion() {
-    let dir = tmp("heat-warning");
+    let dir = common::tmp_dir("heat-warning");
     let case = sinterdem::config::load_case(Path::new("cases/hot-plate.toml"), &[]).unwrap();
     let sets: Vec<String> =
         ["time.end=0.5", "output.snapshots=0", "output.vtu=false", "output.hdf5=false", "materials.0.thermal_expansion=8.6e-6"].map(String::from).to_vec();

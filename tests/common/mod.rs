@@ -1,7 +1,10 @@
-//! Helpers shared by the contact-law tests (`mod common;` in each test file).
+//! Helpers shared by the integration tests (`mod common;` in each test file): temporary
+//! directories, the relative error, configuration-error keys, documentation snippets, blocks of the
+//! bundled green copper packing and the copper-compact case text.
 #![allow(dead_code)]
 
 use sinterdem::error::ConfigError;
+use std::path::{Path, PathBuf};
 
 /// Relative difference |a − b| / |b| [1].
 pub fn rel(a: f64, b: f64) -> f64 {
@@ -34,11 +37,27 @@ pub fn doc_snippets(doc: &str, section: &str) -> Vec<toml::Value> {
 }
 
 /// A fresh, empty directory `sinterdem-{prefix}-{name}-{pid}` under the system temp dir.
-pub fn fresh_dir(prefix: &str, name: &str) -> std::path::PathBuf {
+pub fn fresh_dir(prefix: &str, name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("sinterdem-{prefix}-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     d
+}
+
+/// A fresh, empty directory `sinterdem-{test}-{name}-{pid}` for the test binary `test` (the
+/// test file's name, so test binaries running side by side cannot collide); within a file each
+/// test passes its own `name`.
+pub fn tmp_dir(name: &str) -> PathBuf {
+    fresh_dir(env!("CARGO_CRATE_NAME"), name)
+}
+
+/// A fresh, empty directory per call, `sinterdem-{test}-{name}-{k}-{pid}` with `k` a call counter:
+/// for helpers that several tests, running in parallel, call with the same `name` (else one test
+/// removes another's files).
+pub fn tmp_dir_per_call(name: &str) -> PathBuf {
+    static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let k = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    tmp_dir(&format!("{name}-{k}"))
 }
 
 /// The data lines of the bundled green copper packing (`cases/data/green-copper.csv`, columns
@@ -56,7 +75,7 @@ pub fn green_copper_block(edge: f64, height: f64) -> Vec<(String, [f64; 4])> {
 }
 
 /// Writes `header` and the `lines` of a packing block to `dir/file`; returns the path.
-pub fn write_block(dir: &std::path::Path, file: &str, header: &str, lines: impl IntoIterator<Item = String>) -> std::path::PathBuf {
+pub fn write_block(dir: &Path, file: &str, header: &str, lines: impl IntoIterator<Item = String>) -> PathBuf {
     let mut out = format!("{header}\n");
     for l in lines {
         out.push_str(&l);
@@ -65,4 +84,58 @@ pub fn write_block(dir: &std::path::Path, file: &str, header: &str, lines: impl 
     let path = dir.join(file);
     std::fs::write(&path, out).unwrap();
     path
+}
+
+/// The `[[materials]]` body of the bundled copper preset.
+pub const COPPER: &str = "name = \"copper\"\npreset = \"copper\"";
+
+/// The furnace profile of the copper compacts: a constant 1293 K.
+pub const AT_1293_K: &str = "{ constant = 1293.0 }";
+
+/// The `[particles]` body of a packing file.
+pub fn file_particles(packing: &Path) -> String {
+    format!("source = \"file\"\nfile = \"{}\"", packing.display())
+}
+
+/// The `[particles]` body of an FCC lattice of `cells`³ cells of touching 25 µm spheres.
+pub fn fcc(cells: u32) -> String {
+    format!("source = \"lattice\"\nlattice = \"fcc\"\ncells = [{cells}, {cells}, {cells}]\nradius = 25e-6\noverlap = 0.0")
+}
+
+/// The `[time]` body of the compact tests: until `end` [s], steps from 1 µs up to 10 s.
+pub fn time_to(end: f64) -> String {
+    format!("end = {end:?}\ndt = 1.0e-6\ndt_max = 10.0")
+}
+
+/// The text of an isothermal compact case (`kind = "compact"`): `[time]` body `time` (e.g.
+/// [`time_to`]), no snapshots, VTU or HDF5, one `[[materials]]` entry per body of `materials`,
+/// `[particles]` body `particles`, the furnace following `profile` (an inline TOML table, e.g.
+/// [`AT_1293_K`]). Tables of further sections may be appended.
+pub fn compact_text(time: &str, materials: &[&str], particles: &str, profile: &str) -> String {
+    let mut t = format!("kind = \"compact\"\n[time]\n{time}\n[output]\nsnapshots = 0\nvtu = false\nhdf5 = false\n");
+    for m in materials {
+        t.push_str(&format!("[[materials]]\n{m}\n"));
+    }
+    t.push_str(&format!("[particles]\n{particles}\n[thermal]\nmode = \"isothermal\"\nfurnace = {{ profile = {profile} }}\n"));
+    t
+}
+
+/// The text of the copper compact of the tests: the copper preset on the packing file `packing`
+/// in a furnace at 1293 K until `end` [s] (steps from 1 µs up to 10 s).
+pub fn copper_compact_text(packing: &Path, end: f64) -> String {
+    compact_text(&time_to(end), &[COPPER], &file_particles(packing), AT_1293_K)
+}
+
+/// A case `text` parsed, with the overrides `sets` (`key.path=value`) applied.
+pub fn case_value(text: &str, sets: &[&str]) -> toml::Value {
+    let mut v = toml::Value::Table(text.parse::<toml::Table>().unwrap_or_else(|e| panic!("{e}\n{text}")));
+    for s in sets {
+        sinterdem::config::apply_override(&mut v, s).unwrap();
+    }
+    v
+}
+
+/// The copper compact of the tests ([`copper_compact_text`]) with the overrides `sets` applied.
+pub fn copper_compact(packing: &Path, end: f64, sets: &[&str]) -> toml::Value {
+    case_value(&copper_compact_text(packing, end), sets)
 }
