@@ -445,45 +445,50 @@ fn real_main(cli: Cli) -> Result<(), Error> {
             print!("{}", if study { sinterdem::study::spec::markdown() } else { sinterdem::config::ranges::markdown(&sinterdem::calibrate::every_table()) });
             Ok(())
         }
-        Command::Bench { which } => match which {
-            Bench::Study { runs, jobs, out } => {
-                println!("{}", sinterdem::bench::study::bench_study(runs, jobs, &out)?);
-                Ok(())
-            }
-            Bench::Heat { particles, repeat } => sinterdem::bench::heat::bench_heat(&particles, repeat.max(1)),
-            Bench::HeatStep { out, cells, end } => sinterdem::bench::heat::bench_heat_step(&out, [cells[0], cells[1], cells[2]], end).map(|_| ()),
-            Bench::Mechanics { particles, cholesky_max } => {
-                println!("{}", sinterdem::bench::mechanics::bench_mechanics_with(&particles, cholesky_max)?);
-                Ok(())
-            }
-            Bench::Coupled { case, particles, steps, set } => {
-                let c = (case != "none").then(|| PathBuf::from(&case));
-                println!("{}", sinterdem::bench::bench_coupled(c.as_deref(), &particles, steps, &set)?);
-                Ok(())
-            }
-            Bench::Precision { copper, e14b, corner_edge, out } => {
-                let path = |c: &str| (c != "none").then(|| PathBuf::from(c));
-                let (c, e) = (path(&copper), path(&e14b));
-                let report =
-                    sinterdem::bench::precision::bench_precision(c.as_deref(), e.as_deref(), corner_edge, &out, &mut |m| eprintln!("bench precision: {m}"))?;
-                println!("{report}");
-                Ok(())
-            }
-            Bench::Generate { particles, out } => {
-                sinterdem::io::ensure_dir(&out)?;
-                println!("{}", sinterdem::kinds::generate::bench_generate(&out, &particles)?);
-                Ok(())
-            }
-            Bench::Sweep { contacts, steps, dt } => {
-                println!("{}", sinterdem::bench::diffusion7::bench_sweep(contacts, steps, dt)?);
-                Ok(())
-            }
-            Bench::Pair { out } => {
-                sinterdem::io::ensure_dir(&out)?;
-                let table = sinterdem::bench::diffusion7::bench_pair(&out)?;
-                println!("{table}");
-                Ok(())
-            }
-        },
+        Command::Bench { which } => run_bench(which),
+    }
+}
+
+/// `sinterdem bench …`: runs one benchmark of [`sinterdem::bench`] and prints its table.
+fn run_bench(which: Bench) -> Result<(), Error> {
+    match which {
+        Bench::Study { runs, jobs, out } => {
+            println!("{}", sinterdem::bench::study::bench_study(runs, jobs, &out)?);
+            Ok(())
+        }
+        Bench::Heat { particles, repeat } => sinterdem::bench::heat::bench_heat(&particles, repeat.max(1)),
+        Bench::HeatStep { out, cells, end } => sinterdem::bench::heat::bench_heat_step(&out, [cells[0], cells[1], cells[2]], end).map(|_| ()),
+        Bench::Mechanics { particles, cholesky_max } => {
+            println!("{}", sinterdem::bench::mechanics::bench_mechanics_with(&particles, cholesky_max)?);
+            Ok(())
+        }
+        Bench::Coupled { case, particles, steps, set } => {
+            let c = (case != "none").then(|| PathBuf::from(&case));
+            println!("{}", sinterdem::bench::bench_coupled(c.as_deref(), &particles, steps, &set)?);
+            Ok(())
+        }
+        Bench::Precision { copper, e14b, corner_edge, out } => {
+            let path = |c: &str| (c != "none").then(|| PathBuf::from(c));
+            let (c, e) = (path(&copper), path(&e14b));
+            let report =
+                sinterdem::bench::precision::bench_precision(c.as_deref(), e.as_deref(), corner_edge, &out, &mut |m| eprintln!("bench precision: {m}"))?;
+            println!("{report}");
+            Ok(())
+        }
+        Bench::Generate { particles, out } => {
+            sinterdem::io::ensure_dir(&out)?;
+            println!("{}", sinterdem::kinds::generate::bench_generate(&out, &particles)?);
+            Ok(())
+        }
+        Bench::Sweep { contacts, steps, dt } => {
+            println!("{}", sinterdem::bench::diffusion7::bench_sweep(contacts, steps, dt)?);
+            Ok(())
+        }
+        Bench::Pair { out } => {
+            sinterdem::io::ensure_dir(&out)?;
+            let table = sinterdem::bench::diffusion7::bench_pair(&out)?;
+            println!("{table}");
+            Ok(())
+        }
     }
 }

@@ -129,63 +129,7 @@ pub fn bench_mechanics_with(sizes: &[usize], cholesky_max: usize) -> Result<Stri
         let diff_pa = amg.du.iter().zip(&pcg.du).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
         let ia = &amg.info;
         let chol_cols = if pos.len() <= cholesky_max {
-            // Cholesky: first step (analysis + symbolic), second step (numeric only)
-            let mut sys = BondedSystem::new(pos.len(), MechParams { solver: LinearSolver::Cholesky, ..params }, cons.clone())?;
-            sys.set_topology(&pairs)?;
-            let first = sys.step(&inp)?;
-            let second = sys.step(&inp)?;
-            let fill = sys.factor_nnz().unwrap_or(0);
-            // factor reuse: the moved packing with the old factor, as modified Newton and as CG preconditioner
-            sys.set_params(MechParams { solver: LinearSolver::Cholesky, reuse_factor: true, ..params })?;
-            let third = sys.step(&StepInput { positions: &pos2, ..inp })?;
-            let mut sys_cg = BondedSystem::new(pos.len(), MechParams { solver: LinearSolver::Cholesky, ..params }, cons.clone())?;
-            sys_cg.set_topology(&pairs)?;
-            sys_cg.step(&inp)?;
-            sys_cg.set_params(MechParams { solver: LinearSolver::Cholesky, reuse_factor: true, stale_factor_cg: true, ..params })?;
-            let fourth = sys_cg.step(&StepInput { positions: &pos2, ..inp })?;
-            // orderings: fill and cost of the symbolic analysis and of the numeric factorisation
-            let mut ord = String::new();
-            for o in [crate::mechanics::cholesky::Ordering::Amd, crate::mechanics::cholesky::Ordering::BlockAmd] {
-                let mut s = BondedSystem::new(pos.len(), MechParams { solver: LinearSolver::Cholesky, ordering: o, ..params }, cons.clone())?;
-                s.set_topology(&pairs)?;
-                let st = s.step(&inp)?;
-                let _ = write!(
-                    ord,
-                    " {o:?}: nnz(L) {:.3e}, symbolic {:.4} s, factor {:.4} s;",
-                    s.factor_nnz().unwrap_or(0) as f64,
-                    st.info.symbolic_seconds,
-                    st.info.factor_seconds
-                );
-            }
-            let _ = writeln!(notes, "#   n = {}: orderings{ord}", pos.len());
-            let diff = first.du.iter().zip(&amg.du).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
-            let diff3 = third.du.iter().zip(&fourth.du).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
-            let i1 = &first.info;
-            let i2 = &second.info;
-            let _ = writeln!(
-                notes,
-                "#   n = {}: nnz(L) = {:.3e}, chol residual {:.1e}; reuse step {} Newton iterations, {} factorisations; reuse_cg {} CG iterations, {} factorisations, |Δu| difference to reuse {:.1e}; AMG vs Cholesky max |Δu| difference {:.1e} of max |Δu| {:.2e} m",
-                pos.len(),
-                fill as f64,
-                i2.residuals.last().copied().unwrap_or(0.0),
-                third.info.newton_iterations,
-                third.info.factorizations,
-                fourth.info.pcg_iterations,
-                fourth.info.factorizations,
-                diff3 / scale,
-                diff / scale,
-                scale
-            );
-            format!(
-                "{:>8.4} {:>8.4} {:>8.4} {:>8.4} {:>8.4} {:>8.4} {:>8}",
-                i1.symbolic_seconds,
-                i2.factor_seconds,
-                i2.solve_seconds,
-                i2.total_seconds,
-                third.info.total_seconds,
-                fourth.info.total_seconds,
-                fourth.info.pcg_iterations
-            )
+            cholesky_columns(&pairs, &inp, &pos2, params, &cons, &amg.du, scale, &mut notes)?
         } else {
             format!("{:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8}", "-", "-", "-", "-", "-", "-", "-")
         };
@@ -225,4 +169,76 @@ pub fn bench_mechanics_with(sizes: &[usize], cholesky_max: usize) -> Result<Stri
     }
     out.push_str(&notes);
     Ok(out)
+}
+
+/// The Cholesky columns of one row (first step: analysis + symbolic; second: numeric only; the
+/// moved packing `pos2` with the stale factor as modified Newton and as CG preconditioner) and the
+/// orderings' fill in `notes`; `amg_du` and `scale` compare against the AMG step.
+fn cholesky_columns(
+    pairs: &[[u32; 2]],
+    inp: &StepInput,
+    pos2: &[Vector3<f64>],
+    params: MechParams,
+    cons: &Constraints,
+    amg_du: &[Vector3<f64>],
+    scale: f64,
+    notes: &mut String,
+) -> Result<String, Error> {
+    // Cholesky: first step (analysis + symbolic), second step (numeric only)
+    let mut sys = BondedSystem::new(inp.positions.len(), MechParams { solver: LinearSolver::Cholesky, ..params }, cons.clone())?;
+    sys.set_topology(pairs)?;
+    let first = sys.step(inp)?;
+    let second = sys.step(inp)?;
+    let fill = sys.factor_nnz().unwrap_or(0);
+    // factor reuse: the moved packing with the old factor, as modified Newton and as CG preconditioner
+    sys.set_params(MechParams { solver: LinearSolver::Cholesky, reuse_factor: true, ..params })?;
+    let third = sys.step(&StepInput { positions: pos2, ..*inp })?;
+    let mut sys_cg = BondedSystem::new(inp.positions.len(), MechParams { solver: LinearSolver::Cholesky, ..params }, cons.clone())?;
+    sys_cg.set_topology(pairs)?;
+    sys_cg.step(inp)?;
+    sys_cg.set_params(MechParams { solver: LinearSolver::Cholesky, reuse_factor: true, stale_factor_cg: true, ..params })?;
+    let fourth = sys_cg.step(&StepInput { positions: pos2, ..*inp })?;
+    // orderings: fill and cost of the symbolic analysis and of the numeric factorisation
+    let mut ord = String::new();
+    for o in [crate::mechanics::cholesky::Ordering::Amd, crate::mechanics::cholesky::Ordering::BlockAmd] {
+        let mut s = BondedSystem::new(inp.positions.len(), MechParams { solver: LinearSolver::Cholesky, ordering: o, ..params }, cons.clone())?;
+        s.set_topology(pairs)?;
+        let st = s.step(inp)?;
+        let _ = write!(
+            ord,
+            " {o:?}: nnz(L) {:.3e}, symbolic {:.4} s, factor {:.4} s;",
+            s.factor_nnz().unwrap_or(0) as f64,
+            st.info.symbolic_seconds,
+            st.info.factor_seconds
+        );
+    }
+    let _ = writeln!(*notes, "#   n = {}: orderings{ord}", inp.positions.len());
+    let diff = first.du.iter().zip(amg_du).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
+    let diff3 = third.du.iter().zip(&fourth.du).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
+    let i1 = &first.info;
+    let i2 = &second.info;
+    let _ = writeln!(
+        notes,
+        "#   n = {}: nnz(L) = {:.3e}, chol residual {:.1e}; reuse step {} Newton iterations, {} factorisations; reuse_cg {} CG iterations, {} factorisations, |Δu| difference to reuse {:.1e}; AMG vs Cholesky max |Δu| difference {:.1e} of max |Δu| {:.2e} m",
+        inp.positions.len(),
+        fill as f64,
+        i2.residuals.last().copied().unwrap_or(0.0),
+        third.info.newton_iterations,
+        third.info.factorizations,
+        fourth.info.pcg_iterations,
+        fourth.info.factorizations,
+        diff3 / scale,
+        diff / scale,
+        scale
+    );
+    Ok(format!(
+        "{:>8.4} {:>8.4} {:>8.4} {:>8.4} {:>8.4} {:>8.4} {:>8}",
+        i1.symbolic_seconds,
+        i2.factor_seconds,
+        i2.solve_seconds,
+        i2.total_seconds,
+        third.info.total_seconds,
+        fourth.info.total_seconds,
+        fourth.info.pcg_iterations
+    ))
 }
