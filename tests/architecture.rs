@@ -378,3 +378,41 @@ fn no_file_over_900_lines_and_no_function_over_150() {
     }
     assert!(bad.is_empty(), "{} violations:\n{}", bad.len(), bad.join("\n"));
 }
+
+/// Every key a range check names as a literal (`check("time.end", …)`, `check_opt(…)`,
+/// `check_in(TABLE, "…", …)`, `check_int("…", …)`, `lookup("…")`) has a row in a range table, so a
+/// misspelt key fails here rather than as "internal: key … has no entry" when that path first runs.
+#[test]
+fn every_literal_range_key_has_a_table_row() {
+    let mut tables = sinterdem::calibrate::every_table();
+    tables.push(sinterdem::study::spec::RANGES);
+    let mut files = Vec::new();
+    sources(&root().join("src"), &mut files);
+    let mut missing = Vec::new();
+    let mut seen = 0;
+    for f in &files {
+        let whole = std::fs::read_to_string(f).unwrap();
+        // the code, not its unit tests (which also name keys that must not exist)
+        let text = whole.split("#[cfg(test)]").next().unwrap_or("");
+        for call in ["check(\"", "check_opt(\"", "check_int(\"", "lookup(\"", "check_in(RANGES, \"", "check_in(super::RANGES, \""] {
+            let mut rest = text;
+            while let Some(i) = rest.find(call) {
+                let before = rest[..i].chars().last();
+                rest = &rest[i + call.len()..];
+                if before.is_some_and(|c| c.is_alphanumeric() || c == '_') {
+                    continue; // e.g. `study_check("` or `fn check("` in a doc
+                }
+                let key: String = rest.chars().take_while(|&c| c != '"').collect();
+                if key.is_empty() || key.contains(' ') || key.contains('{') || !key.contains('.') {
+                    continue;
+                }
+                seen += 1;
+                if sinterdem::config::ranges::lookup_in(&tables, &key).is_none() {
+                    missing.push(format!("{}: {key}", f.strip_prefix(root()).unwrap().display()));
+                }
+            }
+        }
+    }
+    assert!(seen > 100, "only {seen} literal keys found: the scan is broken");
+    assert!(missing.is_empty(), "keys without a range-table row:\n{}", missing.join("\n"));
+}
