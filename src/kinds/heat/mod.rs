@@ -156,7 +156,7 @@ pub fn run_returning_temperatures(
         let step = step::advance(&plan, &mut st, &mut prep, &mut net, &parts, log)?;
         st.t += step.dt;
         st.steps += 1;
-        if st.steps % prep.case.output.series_every as usize == 0 || st.t >= plan.end * (1.0 - 1e-12) {
+        if st.steps.is_multiple_of(prep.case.output.series_every as usize) || st.t >= plan.end * (1.0 - 1e-12) {
             series.row(&io::values(COLUMNS, &HeatRow::new(&st, &step, &prep.scene.particles.temperature, &net)))?;
             st.series_lines += 1;
         }
