@@ -22,6 +22,7 @@ use crate::error::SolveError;
 use crate::heat::PipeConductance;
 use crate::heat::properties::ThermalProperties;
 use crate::linsolve::{SolveInfo, SpdFactor, SpdPattern, set_parallelism_for};
+use crate::material::Table;
 use crate::profile::Profile;
 use crate::units::STEFAN_BOLTZMANN;
 use serde::{Deserialize, Serialize};
@@ -382,6 +383,37 @@ impl HeatNetwork {
     }
 
     fn step_impl(&mut self, t: f64, dt: f64, temps: &mut [f64], conductance: &[f64], halves: Option<&[PipeConductance]>) -> Result<HeatStepInfo, SolveError> {
+        self.check_step(dt, conductance, halves)?;
+        let Some(pattern) = self.pattern.as_ref() else {
+            return Err(SolveError::new("heat step", "set_topology was not called"));
+        };
+        let t1 = t + dt;
+        let t_old: Vec<f64> = temps.to_vec();
+        let co = self.coefficients(dt, temps.len());
+        let (rhs0, g_old) = self.explicit_part(&co, t, dt, &t_old, conductance, halves);
+        self.apply_fixed(t1, temps);
+        let sys = StepSystem { co, dt, t_old: &t_old, rhs0, furnace: self.furnace_at(t1), conductance, halves };
+        // the factor is updated in place by the iteration (kept also when a later stage fails)
+        let mut factor = self.factor.take();
+        let iterated = self.iterate(&sys, pattern, &mut factor, temps);
+        self.factor = factor;
+        let (x, k_last, mut info) = iterated?;
+        for (l, &i) in self.free.iter().enumerate() {
+            temps[i as usize] = x[l];
+        }
+        if let Some(k) = temps.iter().position(|v| !v.is_finite() || *v <= 0.0) {
+            return Err(SolveError::new("heat step", format!("particle {k} reached a non-physical temperature {} K", temps[k])));
+        }
+        (info.heat_in, info.stored_change, info.stored_change_plain) = self.energy(&sys, t1, temps, &k_last, g_old);
+        if self.scheme == Scheme::Bdf2 {
+            self.prev = Some((t_old, dt));
+        }
+        Ok(info)
+    }
+
+    /// The step's inputs: a positive Δt, one conductance (and half) per pipe, radiation
+    /// coefficients matching the gap pipes.
+    fn check_step(&self, dt: f64, conductance: &[f64], halves: Option<&[PipeConductance]>) -> Result<(), SolveError> {
         if !(dt > 0.0 && dt.is_finite()) {
             return Err(SolveError::new("heat step", format!("time step {dt} s is not positive")));
         }
@@ -391,40 +423,55 @@ impl HeatNetwork {
         {
             return Err(SolveError::new("heat step", format!("{} conductances for {} pipes", conductance.len(), self.pipes.len())));
         }
-        let Some(pattern) = self.pattern.as_ref() else {
-            return Err(SolveError::new("heat step", "set_topology was not called"));
-        };
-        let t1 = t + dt;
-        let nf = self.free.len();
-        let t_old: Vec<f64> = temps.to_vec();
-        // scheme coefficients
-        let (a0, a1, a2, w, bdf_prev) = match (self.scheme, &self.prev) {
-            (Scheme::Bdf2, Some((tp, dtp))) if tp.len() == temps.len() => {
+        Ok(())
+    }
+
+    /// The scheme's coefficients for a step of `dt` over `n` particles (module docs).
+    fn coefficients(&self, dt: f64, n: usize) -> Coefficients {
+        let (a0, a1, a2, w, prev) = match (self.scheme, &self.prev) {
+            (Scheme::Bdf2, Some((tp, dtp))) if tp.len() == n => {
                 let om = dt / dtp;
                 ((1.0 + 2.0 * om) / (1.0 + om), -(1.0 + om), om * om / (1.0 + om), 1.0, Some(tp.clone()))
             }
             (Scheme::CrankNicolson, _) => (1.0, -1.0, 0.0, 0.5, None),
             _ => (1.0, -1.0, 0.0, 1.0, None),
         };
-        // particles with c(T) (enthalpy form, eqs. P1–P2) and whether κ(T) rescales the pipes
-        let table = |i: usize| self.props.as_ref().and_then(|p| p.capacity_table(i).map(|t| (t, p.mass[i])));
-        let radiative = !self.gap_radiation.is_empty();
-        let nonlinear = self.props.is_some() || radiative;
-        let (nc, rad) = (self.contact_pipes, &self.gap_radiation);
-        let pipes_now = |temps: &[f64]| -> Vec<f64> { pipe_values(&self.pipes, nc, self.props.as_ref(), rad, temps, conductance, halves) };
-        // r = storage part + explicit half for CN; with c(T) the BDF2 history term a2 ΔH^{n}
+        Coefficients { a0, a1, a2, w, prev }
+    }
+
+    /// The capacity table and mass of particle `i` if its c(T) is tabulated (enthalpy form, eqs.
+    /// P1–P2).
+    fn table(&self, i: usize) -> Option<(&Table, f64)> {
+        self.props.as_ref().and_then(|p| p.capacity_table(i).map(|t| (t, p.mass[i])))
+    }
+
+    /// Whether a step iterates (Picard): properties or gap radiation.
+    fn nonlinear(&self) -> bool {
+        self.props.is_some() || !self.gap_radiation.is_empty()
+    }
+
+    /// The pipe conductances at `temps` (κ(T) and gap radiation applied).
+    fn pipes_now(&self, temps: &[f64], conductance: &[f64], halves: Option<&[PipeConductance]>) -> Vec<f64> {
+        pipe_values(&self.pipes, self.contact_pipes, self.props.as_ref(), &self.gap_radiation, temps, conductance, halves)
+    }
+
+    /// The right-hand side known at the start of the step, `r` (storage part, with c(T) the BDF2
+    /// history term a2 ΔH^n, plus the explicit half for Crank–Nicolson), and g(T^n) [W].
+    fn explicit_part(&self, co: &Coefficients, t: f64, dt: f64, t_old: &[f64], conductance: &[f64], halves: Option<&[PipeConductance]>) -> (Vec<f64>, f64) {
+        let nf = self.free.len();
+        let (a1, a2, w) = (co.a1, co.a2, co.w);
         let mut rhs0 = vec![0.0; nf];
         for (l, &i) in self.free.iter().enumerate() {
             let i = i as usize;
-            if let Some((tab, m)) = table(i) {
-                if let Some(tp) = &bdf_prev {
+            if let Some((tab, m)) = self.table(i) {
+                if let Some(tp) = &co.prev {
                     rhs0[l] = a2 * m * tab.integral(tp[i], t_old[i]) / dt;
                 }
                 continue;
             }
             let c = self.capacity[i] / dt;
             let mut r = -c * a1 * t_old[i];
-            if let Some(tp) = &bdf_prev {
+            if let Some(tp) = &co.prev {
                 r -= c * a2 * tp[i];
             }
             rhs0[l] = r;
@@ -432,63 +479,104 @@ impl HeatNetwork {
         let mut g_old = 0.0;
         if w < 1.0 {
             let mut f_old = vec![0.0; nf];
-            let k_old = if halves.is_some() || radiative { pipes_now(&t_old) } else { conductance.to_vec() };
-            g_old = self.rates(&t_old, t, &k_old, &mut f_old);
+            let k_old = if halves.is_some() || !self.gap_radiation.is_empty() { self.pipes_now(t_old, conductance, halves) } else { conductance.to_vec() };
+            g_old = self.rates(t_old, t, &k_old, &mut f_old);
             for l in 0..nf {
                 rhs0[l] += (1.0 - w) * f_old[l];
             }
         }
-        self.apply_fixed(t1, temps);
-        let (tg, tw4, hc, eps) = self.furnace_at(t1);
+        (rhs0, g_old)
+    }
+
+    /// The matrix (diagonal `diag0`, values of `pattern_len` entries) and right-hand side without
+    /// radiation, for storage coefficients `cap` (a0 C/Δt per free particle), extra storage
+    /// right-hand side `cap_rhs` and pipe conductances `k`.
+    fn assemble(&self, sys: &StepSystem, pattern_len: usize, cap: &[f64], cap_rhs: Option<&[f64]>, k: &[f64], temps: &[f64]) -> Result<Assembled, SolveError> {
+        let nf = self.free.len();
+        let w = sys.co.w;
+        let (tg, _, hc, _) = sys.furnace;
+        let mut diag0 = vec![0.0; nf];
+        let mut vals = vec![0.0; pattern_len];
+        let mut rhs_c = sys.rhs0.clone();
+        if let Some(cr) = cap_rhs {
+            for l in 0..nf {
+                rhs_c[l] += cr[l];
+            }
+        }
+        for (l, &i) in self.free.iter().enumerate() {
+            let i = i as usize;
+            let a = self.sources.exposed_area[i];
+            diag0[l] = cap[l] + w * hc * a;
+            rhs_c[l] += w * (hc * a * tg + self.sources.power[i]);
+        }
+        for (p, &[i, j]) in self.pipes.iter().enumerate() {
+            let k = k[p];
+            if !(k >= 0.0 && k.is_finite()) {
+                return Err(SolveError::new("heat assembly", format!("pipe {p} ({i}–{j}) has conductance {k} W/K")));
+            }
+            let (li, lj) = (self.local[i as usize], self.local[j as usize]);
+            if li != NONE {
+                diag0[li as usize] += w * k;
+                if lj == NONE {
+                    rhs_c[li as usize] += w * k * temps[j as usize];
+                }
+            }
+            if lj != NONE {
+                diag0[lj as usize] += w * k;
+                if li == NONE {
+                    rhs_c[lj as usize] += w * k * temps[i as usize];
+                }
+            }
+            let e = self.pipe_entry[p];
+            if e != NONE {
+                vals[e as usize] -= w * k;
+            }
+        }
+        Ok(Assembled { diag0, vals, rhs: rhs_c })
+    }
+
+    /// Picard re-assembly at the iterate `x` (free particles' temperatures): the secant capacity
+    /// C(T^n, T*) (eq. P2) into `cap`, κ(T*) (eq. P4) and the gap radiation; `work` holds the
+    /// temperatures with the iterate. Returns the system and the pipe conductances.
+    fn picard_assembly(&self, sys: &StepSystem, pattern_len: usize, x: &[f64], cap: &mut [f64], work: &mut [f64]) -> Result<(Assembled, Vec<f64>), SolveError> {
+        let nf = self.free.len();
+        for (l, &i) in self.free.iter().enumerate() {
+            work[i as usize] = x[l];
+        }
+        let mut cap_rhs = vec![0.0; nf];
+        for (l, &i) in self.free.iter().enumerate() {
+            let i = i as usize;
+            if let Some((tab, m)) = self.table(i) {
+                let cs = sys.co.a0 * m * tab.mean(sys.t_old[i], x[l]) / sys.dt;
+                cap[l] = cs;
+                cap_rhs[l] = cs * sys.t_old[i];
+            }
+        }
+        let k = self.pipes_now(work, sys.conductance, sys.halves);
+        let a = self.assemble(sys, pattern_len, cap, Some(&cap_rhs), &k, work)?;
+        Ok((a, k))
+    }
+
+    /// The solve of the step: radiation Newton about the iterate and (with properties or gap
+    /// radiation) Picard iteration, to `radiation_tol`; `temps` are the temperatures with the
+    /// Dirichlet particles at t^{n+1}. Returns the free particles' temperatures, the last pipe
+    /// conductances and the step's report (solver part).
+    fn iterate(
+        &self,
+        sys: &StepSystem,
+        pattern: &SpdPattern,
+        factor: &mut Option<SpdFactor>,
+        temps: &[f64],
+    ) -> Result<(Vec<f64>, Vec<f64>, HeatStepInfo), SolveError> {
+        let nf = self.free.len();
+        let nonlinear = self.nonlinear();
         let radiation = self.has_radiation();
         let ta = Instant::now();
         let pattern_len = pattern.len();
-        // the matrix and rhs without radiation, for storage coefficients `cap` (a0 C/Δt per free
-        // particle), extra storage rhs `cap_rhs` and pipe conductances `k`
-        let assemble = |cap: &[f64], cap_rhs: Option<&[f64]>, k: &[f64], temps: &[f64]| -> Result<(Vec<f64>, Vec<f64>, Vec<f64>), SolveError> {
-            let mut diag0 = vec![0.0; nf];
-            let mut vals = vec![0.0; pattern_len];
-            let mut rhs_c = rhs0.clone();
-            if let Some(cr) = cap_rhs {
-                for l in 0..nf {
-                    rhs_c[l] += cr[l];
-                }
-            }
-            for (l, &i) in self.free.iter().enumerate() {
-                let i = i as usize;
-                let a = self.sources.exposed_area[i];
-                diag0[l] = cap[l] + w * hc * a;
-                rhs_c[l] += w * (hc * a * tg + self.sources.power[i]);
-            }
-            for (p, &[i, j]) in self.pipes.iter().enumerate() {
-                let k = k[p];
-                if !(k >= 0.0 && k.is_finite()) {
-                    return Err(SolveError::new("heat assembly", format!("pipe {p} ({i}–{j}) has conductance {k} W/K")));
-                }
-                let (li, lj) = (self.local[i as usize], self.local[j as usize]);
-                if li != NONE {
-                    diag0[li as usize] += w * k;
-                    if lj == NONE {
-                        rhs_c[li as usize] += w * k * temps[j as usize];
-                    }
-                }
-                if lj != NONE {
-                    diag0[lj as usize] += w * k;
-                    if li == NONE {
-                        rhs_c[lj as usize] += w * k * temps[i as usize];
-                    }
-                }
-                let e = self.pipe_entry[p];
-                if e != NONE {
-                    vals[e as usize] -= w * k;
-                }
-            }
-            Ok((diag0, vals, rhs_c))
-        };
-        let mut cap: Vec<f64> = self.free.iter().map(|&i| a0 * self.capacity[i as usize] / dt).collect();
-        let (mut diag0, mut vals, mut rhs_c) = if nonlinear { Default::default() } else { assemble(&cap, None, conductance, temps)? };
+        let mut cap: Vec<f64> = self.free.iter().map(|&i| sys.co.a0 * self.capacity[i as usize] / sys.dt).collect();
+        let mut a = if nonlinear { Assembled::default() } else { self.assemble(sys, pattern_len, &cap, None, sys.conductance, temps)? };
         let mut info = HeatStepInfo { assemble_seconds: ta.elapsed().as_secs_f64(), ..Default::default() };
-        let mut x: Vec<f64> = self.free.iter().map(|&i| t_old[i as usize]).collect();
+        let mut x: Vec<f64> = self.free.iter().map(|&i| sys.t_old[i as usize]).collect();
         let max_iter = if nonlinear {
             50
         } else if radiation {
@@ -497,94 +585,79 @@ impl HeatNetwork {
             1
         };
         let mut history = Vec::new();
-        let mut converged = false;
-        let mut k_last = conductance.to_vec();
+        let mut k_last = sys.conductance.to_vec();
         let mut work = temps.to_vec();
         for it in 1..=max_iter {
             if nonlinear {
-                // Picard: secant capacity C(T^n, T*) (eq. P2) and κ(T*) (eq. P4) at the iterate T*
                 let ta = Instant::now();
-                for (l, &i) in self.free.iter().enumerate() {
-                    work[i as usize] = x[l];
-                }
-                let mut cap_rhs = vec![0.0; nf];
-                for (l, &i) in self.free.iter().enumerate() {
-                    let i = i as usize;
-                    if let Some((tab, m)) = table(i) {
-                        let cs = a0 * m * tab.mean(t_old[i], x[l]) / dt;
-                        cap[l] = cs;
-                        cap_rhs[l] = cs * t_old[i];
-                    }
-                }
-                k_last = pipes_now(&work);
-                (diag0, vals, rhs_c) = assemble(&cap, Some(&cap_rhs), &k_last, &work)?;
+                (a, k_last) = self.picard_assembly(sys, pattern_len, &x, &mut cap, &mut work)?;
                 info.assemble_seconds += ta.elapsed().as_secs_f64();
             }
-            let mut b = rhs_c.clone();
-            vals[..nf].copy_from_slice(&diag0[..nf]);
+            let mut b = a.rhs.clone();
+            a.vals[..nf].copy_from_slice(&a.diag0[..nf]);
             if radiation {
-                for (l, &i) in self.free.iter().enumerate() {
-                    let a = self.sources.exposed_area[i as usize];
-                    if a > 0.0 {
-                        let ts = x[l];
-                        let s = w * eps * STEFAN_BOLTZMANN * a;
-                        vals[l] += 4.0 * s * ts.powi(3);
-                        b[l] += s * (tw4 + 3.0 * ts.powi(4));
-                    }
-                }
+                self.linearise_radiation(sys, &x, &mut a.vals, &mut b);
             }
-            let reuse = self.factor.as_ref().is_some_and(|f| f.values == vals);
+            let reuse = factor.as_ref().is_some_and(|f| f.values == a.vals);
             if !reuse {
-                self.factor = Some(pattern.factorize(&vals)?);
+                *factor = Some(pattern.factorize(&a.vals)?);
             }
             info.reused_factor = reuse;
-            let f = self.factor.as_ref().unwrap();
+            let f = factor.as_ref().unwrap();
             info.solve = f.solve_in_place(pattern, &mut b)?;
-            if !reuse {
-                info.solve.factor_seconds = f.factor_seconds;
-            } else {
-                info.solve.factor_seconds = 0.0;
-            }
+            info.solve.factor_seconds = if !reuse { f.factor_seconds } else { 0.0 };
             info.iterations = it;
             let dmax = b.iter().zip(&x).map(|(a, c)| (a - c).abs()).fold(0.0, f64::max);
             let tmax = b.iter().map(|v| v.abs()).fold(0.0, f64::max);
             x = b;
             history.push(dmax / tmax.max(1e-300));
             if !(radiation || nonlinear) || dmax <= self.radiation_tol * tmax {
-                converged = true;
-                break;
+                return Ok((x, k_last, info));
             }
             if x.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
                 break;
             }
         }
-        if !converged {
-            let stage = if nonlinear { "radiation Newton / temperature-dependent properties (Picard)" } else { "radiation Newton" };
-            return Err(SolveError {
-                stage: stage.into(),
-                message: format!("no convergence in {max_iter} iterations (max|ΔT| ≤ thermal.radiation_tolerance · max T)"),
-                residuals: history,
-            });
-        }
+        let stage = if nonlinear { "radiation Newton / temperature-dependent properties (Picard)" } else { "radiation Newton" };
+        Err(SolveError {
+            stage: stage.into(),
+            message: format!("no convergence in {max_iter} iterations (max|ΔT| ≤ thermal.radiation_tolerance · max T)"),
+            residuals: history,
+        })
+    }
+
+    /// Furnace radiation linearised about the iterate `x` (module docs): `+4εσA T*³` on the
+    /// diagonal of `vals`, `+εσA (T_wall⁴ + 3T*⁴)` on `b`.
+    fn linearise_radiation(&self, sys: &StepSystem, x: &[f64], vals: &mut [f64], b: &mut [f64]) {
+        let (_, tw4, _, eps) = sys.furnace;
         for (l, &i) in self.free.iter().enumerate() {
-            temps[i as usize] = x[l];
+            let a = self.sources.exposed_area[i as usize];
+            if a > 0.0 {
+                let ts = x[l];
+                let s = sys.co.w * eps * STEFAN_BOLTZMANN * a;
+                vals[l] += 4.0 * s * ts.powi(3);
+                b[l] += s * (tw4 + 3.0 * ts.powi(4));
+            }
         }
-        if let Some(k) = temps.iter().position(|v| !v.is_finite() || *v <= 0.0) {
-            return Err(SolveError::new("heat step", format!("particle {k} reached a non-physical temperature {} K", temps[k])));
-        }
-        // energy accounting
-        let mut f_new = vec![0.0; nf];
-        let g_new = self.rates(temps, t1, &k_last, &mut f_new);
-        info.heat_in = dt * (w * g_new + (1.0 - w) * g_old);
+    }
+
+    /// Energy accounts of the step ending at `t1` with `temps` (module docs): heat in, the
+    /// scheme's stored-heat change and the plain one [J].
+    fn energy(&self, sys: &StepSystem, t1: f64, temps: &[f64], k_last: &[f64], g_old: f64) -> (f64, f64, f64) {
+        let Coefficients { a0, a1, a2, w, .. } = sys.co;
+        let (t_old, bdf_prev) = (sys.t_old, &sys.co.prev);
+        let mut f_new = vec![0.0; self.free.len()];
+        let g_new = self.rates(temps, t1, k_last, &mut f_new);
+        let heat_in = sys.dt * (w * g_new + (1.0 - w) * g_old);
         let mut stored = 0.0;
         let mut plain = 0.0;
         for &i in &self.free {
             let i = i as usize;
-            if let Some((tab, m)) = table(i) {
+            if let Some((tab, m)) = self.table(i) {
                 // eq. P1: a0 (H^{n+1} − H^n) − a2 (H^n − H^{n−1})
                 let dh = m * tab.integral(t_old[i], temps[i]);
                 let mut s = a0 * dh;
-                if let Some(tp) = &bdf_prev {
+                if let Some(tp) = bdf_prev {
                     s -= a2 * m * tab.integral(tp[i], t_old[i]);
                 }
                 stored += s;
@@ -593,19 +666,44 @@ impl HeatNetwork {
             }
             let c = self.capacity[i];
             let mut s = c * (a0 * temps[i] + a1 * t_old[i]);
-            if let Some(tp) = &bdf_prev {
+            if let Some(tp) = bdf_prev {
                 s += c * a2 * tp[i];
             }
             stored += s;
             plain += c * (temps[i] - t_old[i]);
         }
-        info.stored_change = stored;
-        info.stored_change_plain = plain;
-        if self.scheme == Scheme::Bdf2 {
-            self.prev = Some((t_old, dt));
-        }
-        Ok(info)
+        (heat_in, stored, plain)
     }
+}
+
+/// The scheme's coefficients of one step: `M = a0 C/Δt`, weight `w` of f(T^{n+1}), history
+/// coefficients `a1`, `a2` and the BDF2 history T^{n−1} (module docs).
+struct Coefficients {
+    a0: f64,
+    a1: f64,
+    a2: f64,
+    w: f64,
+    prev: Option<Vec<f64>>,
+}
+
+/// What a step's iterations hold fixed: coefficients, Δt, T^n, the known right-hand side, the
+/// furnace at t^{n+1} (gas T, wall T⁴, h_c, ε) and the given pipe conductances (and halves).
+struct StepSystem<'a> {
+    co: Coefficients,
+    dt: f64,
+    t_old: &'a [f64],
+    rhs0: Vec<f64>,
+    furnace: (f64, f64, f64, f64),
+    conductance: &'a [f64],
+    halves: Option<&'a [PipeConductance]>,
+}
+
+/// An assembled system without radiation: diagonal, matrix values, right-hand side.
+#[derive(Default)]
+struct Assembled {
+    diag0: Vec<f64>,
+    vals: Vec<f64>,
+    rhs: Vec<f64>,
 }
 
 /// Conductances [W/K] of `pipes` at `temps`: the given `conductance`; with `halves` and κ(T)

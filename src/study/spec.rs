@@ -242,175 +242,21 @@ fn natural_key(s: &str) -> Vec<(u8, u64, String)> {
 
 /// Reads and validates a study file.
 pub fn load(path: &Path) -> Result<Study, Error> {
-    let text = std::fs::read_to_string(path).map_err(|e| IoError::new(path, e))?;
-    let table: toml::Table = text.parse().map_err(|e: toml::de::Error| {
-        let pos = e.span().map(|s| {
-            let line = text[..s.start.min(text.len())].matches('\n').count() + 1;
-            format!(" (line {line})")
-        });
-        ConfigError::invalid(format!("{}{}: {}", path.display(), pos.unwrap_or_default(), e.message()))
-    })?;
-    let f: StudyFile = from_value(toml::Value::Table(table), "").map_err(|e| ConfigError::invalid(format!("{}: {e}", path.display())))?;
+    let f = read_file(path)?;
     let abs = path.canonicalize().map_err(|e| IoError::new(path, e))?;
     let dir = abs.parent().unwrap_or(Path::new("/")).to_path_buf();
-    let (cases, case_column) = match (&f.base, &f.cases) {
-        (Some(b), None) => {
-            let p = dir.join(b);
-            if !p.is_file() {
-                return Err(ConfigError::invalid(format!("base = \"{b}\": no such case file ({})", p.display())).into());
-            }
-            (vec![p], false)
-        }
-        (None, Some(list)) if !list.is_empty() => {
-            let mut all = Vec::new();
-            for pat in list {
-                for p in glob_sorted(&dir, pat)? {
-                    if !all.contains(&p) {
-                        all.push(p);
-                    }
-                }
-            }
-            (all, true)
-        }
-        (None, Some(_)) => return Err(ConfigError::invalid("cases = []: name at least one case file or pattern").into()),
-        (Some(_), Some(_)) => return Err(ConfigError::invalid("base and cases are exclusive: give one base case or a list of cases").into()),
-        (None, None) => return Err(ConfigError::invalid("a study needs base = \"case.toml\" or cases = [\"pattern\", …]").into()),
-    };
-    let kind = f.design.kind.clone().unwrap_or_else(|| "grid".into());
-    let samples = |def: Option<f64>| -> Result<usize, ConfigError> {
-        Ok(check_int("design.samples", "design.samples", def.ok_or_else(|| ConfigError::invalid(format!("design.kind = \"{kind}\" needs design.samples")))?)?
-            as usize)
-    };
-    let seed = check_int("design.seed", "design.seed", f.design.seed.unwrap_or(1.0))?;
-    let design = match kind.as_str() {
-        "grid" => DesignKind::Grid,
-        "zip" => DesignKind::Zip,
-        "lhs" => DesignKind::Lhs { samples: samples(f.design.samples)?, seed },
-        "sobol" => DesignKind::Sobol { samples: samples(f.design.samples)?, seed },
-        k => return Err(ConfigError::invalid(format!("design.kind = \"{k}\": expected grid, zip, lhs or sobol")).into()),
-    };
+    let (cases, case_column) = case_files(&f, &dir)?;
+    let (kind, design) = design_of(&f.design)?;
     let sampled = matches!(design, DesignKind::Lhs { .. } | DesignKind::Sobol { .. });
-    let mut parameters = Vec::new();
-    for (i, pf) in f.parameters.iter().enumerate() {
-        let at = |field: &str| format!("parameters.{i}.{field} (key {})", pf.key);
-        if pf.key.trim().is_empty() || pf.key.split('.').any(|k| k.is_empty()) {
-            return Err(ConfigError::invalid(format!("parameters.{i}.key = \"{}\": expected a dotted case key such as time.end", pf.key)).into());
-        }
-        let values = match (&pf.values, pf.range, pf.min, pf.max) {
-            (Some(v), None, None, None) if !sampled => {
-                if v.is_empty() {
-                    return Err(ConfigError::invalid(format!("{} = []: give at least one value", at("values"))).into());
-                }
-                Values::List(v.clone())
-            }
-            (None, Some([lo, hi]), None, None) if !sampled => {
-                let num = check_int(
-                    "parameters.*.num",
-                    &at("num"),
-                    pf.num.ok_or_else(|| ConfigError::invalid(format!("{} is missing: a range needs num", at("num"))))?,
-                )? as usize;
-                for v in [lo, hi] {
-                    if !v.is_finite() || (pf.log && v <= 0.0) {
-                        return Err(ConfigError::OutOfRange {
-                            key: at("range"),
-                            value: v,
-                            range: if pf.log { "(0, inf) with log = true".into() } else { "finite".into() },
-                            unit: "key's unit".into(),
-                        }
-                        .into());
-                    }
-                }
-                Values::Range { lo, hi, num, log: pf.log }
-            }
-            (None, None, Some(lo), Some(hi)) if sampled => {
-                if !(lo.is_finite() && hi.is_finite() && lo < hi) || (pf.log && lo <= 0.0) {
-                    return Err(ConfigError::invalid(format!(
-                        "{} = {lo}, max = {hi}: need finite min < max{}",
-                        at("min"),
-                        if pf.log { " and min > 0 (log = true)" } else { "" }
-                    ))
-                    .into());
-                }
-                Values::Bounds { lo, hi, log: pf.log }
-            }
-            _ if sampled => {
-                return Err(
-                    ConfigError::invalid(format!("{}: design.kind = \"{kind}\" needs min and max (and optional log) for every parameter", at("min"))).into()
-                );
-            }
-            _ => {
-                return Err(ConfigError::invalid(format!(
-                    "{}: give either values = [..] or range = [start, stop] with num (min/max are for lhs and sobol designs)",
-                    at("values")
-                ))
-                .into());
-            }
-        };
-        parameters.push(Parameter { key: pf.key.clone(), name: pf.name.clone().unwrap_or_else(|| pf.key.clone()), values });
-    }
-    if let DesignKind::Sobol { samples, .. } = design {
-        // sobol_burley's sequence: at most 2^16 points in at most 256 dimensions
-        if samples > 65536 {
-            return Err(ConfigError::OutOfRange {
-                key: "design.samples".into(),
-                value: samples as f64,
-                range: "[1, 65536] for kind = \"sobol\"".into(),
-                unit: "1".into(),
-            }
-            .into());
-        }
-        if parameters.len() > sobol_burley::NUM_DIMENSIONS as usize {
-            return Err(ConfigError::invalid(format!(
-                "design.kind = \"sobol\": at most {} parameters, got {}",
-                sobol_burley::NUM_DIMENSIONS,
-                parameters.len()
-            ))
-            .into());
-        }
-    }
-    if sampled && parameters.is_empty() {
-        return Err(ConfigError::invalid(format!("design.kind = \"{kind}\" needs at least one [[parameters]] with min and max")).into());
-    }
-    if let DesignKind::Zip = design {
-        let lens: Vec<usize> = parameters.iter().map(|p| super::design::count(&p.values)).collect();
-        if lens.windows(2).any(|w| w[0] != w[1]) {
-            return Err(ConfigError::invalid(format!("design.kind = \"zip\" needs parameters of equal length; got {lens:?}")).into());
-        }
-    }
-    let mut names: Vec<&str> = parameters.iter().map(|p| p.name.as_str()).collect();
-    names.sort();
-    if let Some(w) = names.windows(2).find(|w| w[0] == w[1]) {
-        return Err(ConfigError::invalid(format!("parameter \"{}\" is given twice", w[0])).into());
-    }
-    let mut series = Vec::new();
-    for (i, s) in f.collect.series.iter().enumerate() {
-        if s.times.is_empty() {
-            return Err(ConfigError::invalid(format!("collect.series.{i}.times = []: give at least one time")).into());
-        }
-        for (j, &t) in s.times.iter().enumerate() {
-            check("collect.series.*.times.*", &format!("collect.series.{i}.times.{j}"), t)?;
-        }
-        series.push(SeriesCollect { column: s.column.clone(), times: s.times.clone() });
-    }
-    if f.collect.summary.is_empty() && series.is_empty() {
-        return Err(ConfigError::invalid("[collect] names nothing: give summary = [\"key\", …] and/or series = [{ column = …, times = […] }]").into());
-    }
+    let parameters = f.parameters.iter().enumerate().map(|(i, pf)| parameter(i, pf, sampled, &kind)).collect::<Result<Vec<_>, _>>()?;
+    check_design(design, &kind, &parameters)?;
+    let series = collect_series(&f.collect)?;
     for o in &f.overrides {
         if !o.contains('=') {
             return Err(ConfigError::invalid(format!("overrides: \"{o}\": expected key.path=value")).into());
         }
     }
-    let s = &f.slurm;
-    let slurm = SlurmSettings {
-        partition: s.partition.clone(),
-        time: s.time.clone(),
-        account: s.account.clone(),
-        cpus_per_task: check_int("slurm.cpus_per_task", "slurm.cpus_per_task", s.cpus_per_task.unwrap_or(1.0))? as usize,
-        chunk: s.chunk.map(|c| check_int("slurm.chunk", "slurm.chunk", c)).transpose()?.map(|c| c as usize),
-        extra: s.extra.clone(),
-        max_resubmit: check_int("slurm.max_resubmit", "slurm.max_resubmit", s.max_resubmit.unwrap_or(3.0))? as u32,
-        poll_seconds: check("slurm.poll_seconds", "slurm.poll_seconds", s.poll_seconds.unwrap_or(5.0))?,
-    };
+    let slurm = slurm_settings(&f.slurm)?;
     Ok(Study {
         title: f.title.clone().unwrap_or_else(|| path.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_default()),
         path: abs,
@@ -424,6 +270,187 @@ pub fn load(path: &Path) -> Result<Study, Error> {
         jobs: f.engine.jobs.map(|j| check_int("engine.jobs", "engine.jobs", j)).transpose()?.unwrap_or(0) as usize,
         threads: check_int("engine.threads", "engine.threads", f.engine.threads.unwrap_or(1.0))? as usize,
         slurm,
+    })
+}
+
+/// The study file parsed (TOML errors with their line).
+fn read_file(path: &Path) -> Result<StudyFile, Error> {
+    let text = std::fs::read_to_string(path).map_err(|e| IoError::new(path, e))?;
+    let table: toml::Table = text.parse().map_err(|e: toml::de::Error| {
+        let pos = e.span().map(|s| {
+            let line = text[..s.start.min(text.len())].matches('\n').count() + 1;
+            format!(" (line {line})")
+        });
+        ConfigError::invalid(format!("{}{}: {}", path.display(), pos.unwrap_or_default(), e.message()))
+    })?;
+    Ok(from_value(toml::Value::Table(table), "").map_err(|e| ConfigError::invalid(format!("{}: {e}", path.display())))?)
+}
+
+/// The case files of `base` or `cases` (relative to `dir`), and whether `case` is a column.
+fn case_files(f: &StudyFile, dir: &Path) -> Result<(Vec<PathBuf>, bool), ConfigError> {
+    match (&f.base, &f.cases) {
+        (Some(b), None) => {
+            let p = dir.join(b);
+            if !p.is_file() {
+                return Err(ConfigError::invalid(format!("base = \"{b}\": no such case file ({})", p.display())));
+            }
+            Ok((vec![p], false))
+        }
+        (None, Some(list)) if !list.is_empty() => {
+            let mut all = Vec::new();
+            for pat in list {
+                for p in glob_sorted(dir, pat)? {
+                    if !all.contains(&p) {
+                        all.push(p);
+                    }
+                }
+            }
+            Ok((all, true))
+        }
+        (None, Some(_)) => Err(ConfigError::invalid("cases = []: name at least one case file or pattern")),
+        (Some(_), Some(_)) => Err(ConfigError::invalid("base and cases are exclusive: give one base case or a list of cases")),
+        (None, None) => Err(ConfigError::invalid("a study needs base = \"case.toml\" or cases = [\"pattern\", …]")),
+    }
+}
+
+/// `[design]`: its kind as written (default grid) and the design.
+fn design_of(d: &DesignFile) -> Result<(String, DesignKind), ConfigError> {
+    let kind = d.kind.clone().unwrap_or_else(|| "grid".into());
+    let samples = |def: Option<f64>| -> Result<usize, ConfigError> {
+        Ok(check_int("design.samples", "design.samples", def.ok_or_else(|| ConfigError::invalid(format!("design.kind = \"{kind}\" needs design.samples")))?)?
+            as usize)
+    };
+    let seed = check_int("design.seed", "design.seed", d.seed.unwrap_or(1.0))?;
+    let design = match kind.as_str() {
+        "grid" => DesignKind::Grid,
+        "zip" => DesignKind::Zip,
+        "lhs" => DesignKind::Lhs { samples: samples(d.samples)?, seed },
+        "sobol" => DesignKind::Sobol { samples: samples(d.samples)?, seed },
+        k => return Err(ConfigError::invalid(format!("design.kind = \"{k}\": expected grid, zip, lhs or sobol"))),
+    };
+    Ok((kind, design))
+}
+
+/// The `i`-th `[[parameters]]` entry: values, a range or (`sampled` designs) bounds.
+fn parameter(i: usize, pf: &ParameterFile, sampled: bool, kind: &str) -> Result<Parameter, ConfigError> {
+    let at = |field: &str| format!("parameters.{i}.{field} (key {})", pf.key);
+    if pf.key.trim().is_empty() || pf.key.split('.').any(|k| k.is_empty()) {
+        return Err(ConfigError::invalid(format!("parameters.{i}.key = \"{}\": expected a dotted case key such as time.end", pf.key)));
+    }
+    let values = match (&pf.values, pf.range, pf.min, pf.max) {
+        (Some(v), None, None, None) if !sampled => {
+            if v.is_empty() {
+                return Err(ConfigError::invalid(format!("{} = []: give at least one value", at("values"))));
+            }
+            Values::List(v.clone())
+        }
+        (None, Some([lo, hi]), None, None) if !sampled => {
+            let num =
+                check_int("parameters.*.num", &at("num"), pf.num.ok_or_else(|| ConfigError::invalid(format!("{} is missing: a range needs num", at("num"))))?)?
+                    as usize;
+            for v in [lo, hi] {
+                if !v.is_finite() || (pf.log && v <= 0.0) {
+                    return Err(ConfigError::OutOfRange {
+                        key: at("range"),
+                        value: v,
+                        range: if pf.log { "(0, inf) with log = true".into() } else { "finite".into() },
+                        unit: "key's unit".into(),
+                    });
+                }
+            }
+            Values::Range { lo, hi, num, log: pf.log }
+        }
+        (None, None, Some(lo), Some(hi)) if sampled => {
+            if !(lo.is_finite() && hi.is_finite() && lo < hi) || (pf.log && lo <= 0.0) {
+                return Err(ConfigError::invalid(format!(
+                    "{} = {lo}, max = {hi}: need finite min < max{}",
+                    at("min"),
+                    if pf.log { " and min > 0 (log = true)" } else { "" }
+                )));
+            }
+            Values::Bounds { lo, hi, log: pf.log }
+        }
+        _ if sampled => {
+            return Err(ConfigError::invalid(format!("{}: design.kind = \"{kind}\" needs min and max (and optional log) for every parameter", at("min"))));
+        }
+        _ => {
+            return Err(ConfigError::invalid(format!(
+                "{}: give either values = [..] or range = [start, stop] with num (min/max are for lhs and sobol designs)",
+                at("values")
+            )));
+        }
+    };
+    Ok(Parameter { key: pf.key.clone(), name: pf.name.clone().unwrap_or_else(|| pf.key.clone()), values })
+}
+
+/// What the design asks of the parameters: Sobol limits, at least one sampled parameter, equal
+/// lengths for zip, distinct names.
+fn check_design(design: DesignKind, kind: &str, parameters: &[Parameter]) -> Result<(), ConfigError> {
+    let sampled = matches!(design, DesignKind::Lhs { .. } | DesignKind::Sobol { .. });
+    if let DesignKind::Sobol { samples, .. } = design {
+        // sobol_burley's sequence: at most 2^16 points in at most 256 dimensions
+        if samples > 65536 {
+            return Err(ConfigError::OutOfRange {
+                key: "design.samples".into(),
+                value: samples as f64,
+                range: "[1, 65536] for kind = \"sobol\"".into(),
+                unit: "1".into(),
+            });
+        }
+        if parameters.len() > sobol_burley::NUM_DIMENSIONS as usize {
+            return Err(ConfigError::invalid(format!(
+                "design.kind = \"sobol\": at most {} parameters, got {}",
+                sobol_burley::NUM_DIMENSIONS,
+                parameters.len()
+            )));
+        }
+    }
+    if sampled && parameters.is_empty() {
+        return Err(ConfigError::invalid(format!("design.kind = \"{kind}\" needs at least one [[parameters]] with min and max")));
+    }
+    if let DesignKind::Zip = design {
+        let lens: Vec<usize> = parameters.iter().map(|p| super::design::count(&p.values)).collect();
+        if lens.windows(2).any(|w| w[0] != w[1]) {
+            return Err(ConfigError::invalid(format!("design.kind = \"zip\" needs parameters of equal length; got {lens:?}")));
+        }
+    }
+    let mut names: Vec<&str> = parameters.iter().map(|p| p.name.as_str()).collect();
+    names.sort();
+    if let Some(w) = names.windows(2).find(|w| w[0] == w[1]) {
+        return Err(ConfigError::invalid(format!("parameter \"{}\" is given twice", w[0])));
+    }
+    Ok(())
+}
+
+/// `[collect]`: the series columns with their times; something must be collected.
+fn collect_series(c: &CollectFile) -> Result<Vec<SeriesCollect>, ConfigError> {
+    let mut series = Vec::new();
+    for (i, s) in c.series.iter().enumerate() {
+        if s.times.is_empty() {
+            return Err(ConfigError::invalid(format!("collect.series.{i}.times = []: give at least one time")));
+        }
+        for (j, &t) in s.times.iter().enumerate() {
+            check("collect.series.*.times.*", &format!("collect.series.{i}.times.{j}"), t)?;
+        }
+        series.push(SeriesCollect { column: s.column.clone(), times: s.times.clone() });
+    }
+    if c.summary.is_empty() && series.is_empty() {
+        return Err(ConfigError::invalid("[collect] names nothing: give summary = [\"key\", …] and/or series = [{ column = …, times = […] }]"));
+    }
+    Ok(series)
+}
+
+/// `[slurm]` with its defaults.
+fn slurm_settings(s: &SlurmFile) -> Result<SlurmSettings, ConfigError> {
+    Ok(SlurmSettings {
+        partition: s.partition.clone(),
+        time: s.time.clone(),
+        account: s.account.clone(),
+        cpus_per_task: check_int("slurm.cpus_per_task", "slurm.cpus_per_task", s.cpus_per_task.unwrap_or(1.0))? as usize,
+        chunk: s.chunk.map(|c| check_int("slurm.chunk", "slurm.chunk", c)).transpose()?.map(|c| c as usize),
+        extra: s.extra.clone(),
+        max_resubmit: check_int("slurm.max_resubmit", "slurm.max_resubmit", s.max_resubmit.unwrap_or(3.0))? as u32,
+        poll_seconds: check("slurm.poll_seconds", "slurm.poll_seconds", s.poll_seconds.unwrap_or(5.0))?,
     })
 }
 

@@ -1,0 +1,224 @@
+//! The generate run (`kind = "generate"`): seeded generation of green bodies (random sphere
+//! packings). Follows Ivannikov et al. 2022 §3.2 (after Nosewicz et al.): a loose cloud in a box,
+//! settled under gravity, then compressed triaxially by the walls to a target solid fraction;
+//! then the load is removed and the packing relaxed to a stress-free state. See `docs/packing.md`.
+//!
+//! **Scaled units.** Only the final geometry matters, so the generator runs the explicit driver in
+//! units where the mean radius r̄, the normal stiffness k_n and the mass of a sphere of radius r̄ are 1
+//! (density 3/(4π)). The physics that sets the geometry is dimensionless: overlaps relative to r̄
+//! (compaction pressure `p (2r̄)²/k_n`), friction, restitution, and the wall speed relative to the
+//! elastic time `√(m/k_n)`. Positions are multiplied by r̄ [m] on output.
+//!
+//! Protocol (`generate`):
+//! 1. **Cloud**: radii drawn from the size distribution; particles on a jittered cubic lattice
+//!    (spacing > the largest diameter, so no overlap) in random order, in a box whose footprint is
+//!    the target footprint and whose height gives `cloud_solid_fraction`. In memory the particles
+//!    are ordered along a Morton curve of their lattice cells (neighbours near in memory); the
+//!    outputs list them in the order their diameters were drawn.
+//! 2. **Settle** under gravity (−z) until the kinetic energy falls below 1 % of `m̄ g r̄` per
+//!    particle; gravity is chosen so that the impact speed is ≈ 0.2 √(k_n/m̄) r̄.
+//! 3. **Triaxial compaction**: gravity off, top wall lowered onto the highest particle; the three
+//!    upper walls move so that the box approaches the target box (the requested shape scaled to the
+//!    volume `Σ V_i / φ_target`) along a straight path in (L_x, L_y, L_z). A servo slows the walls
+//!    as the mean wall pressure approaches `p_c = compaction_overlap·k_n/(4r̄)`; while it stays
+//!    above p_c the friction coefficient is lowered step by step (Yade's "decrease friction until the
+//!    target porosity" recipe), so the packing rearranges instead of building up stress.
+//! 4. **Unload and relax**: walls held at the target box; if the largest overlap stays above
+//!    `max_overlap_rel·r̄`, the walls back off slowly (a fixed strain rate) until the pressure is ≈ 0;
+//!    then relax until the kinetic energy per particle falls below `kinetic_energy_rel·k_n r̄²` and
+//!    the largest overlap below `max_overlap_rel·r̄`. Once the walls are final and the overlaps
+//!    below the threshold, a background viscous damping drains the kinetic energy.
+
+mod case;
+mod output;
+mod protocol;
+
+pub use case::{GenerateCase, Protocol, parse_generate_case, requested_mean_diameter};
+pub use output::{coordination, write_outputs};
+pub use protocol::generate;
+
+use crate::config::ranges::Range;
+use crate::error::{Error, SolveError};
+use nalgebra::Vector3;
+use output::summarise;
+use std::path::Path;
+use std::time::Instant;
+
+type V3 = Vector3<f64>;
+
+const fn rg(key: &'static str, lo: f64, hi: f64, lo_open: bool, unit: &'static str, meaning: &'static str) -> Range {
+    Range { key, lo, hi, lo_open, hi_open: false, unit, meaning }
+}
+
+/// Range table of the `kind = "generate"` case keys (registered in `config::ranges::TABLES`).
+pub static RANGES: &[Range] = &[
+    rg("packing.particles", 2.0, 1e8, false, "1", "number of particles"),
+    rg("packing.seed", 0.0, 1.8e19, false, "1", "random seed (integer)"),
+    rg("packing.target_solid_fraction", 0.05, 0.72, false, "1", "solid fraction the walls compress to (eq. 49 with the wall box)"),
+    rg("packing.box.*", 0.0, 10.0, true, "m", "box edge; only the shape is kept, scaled to the volume of the target"),
+    rg(
+        "packing.lamina_width",
+        1e-9,
+        1.0,
+        false,
+        "m",
+        "lamina width q_s of the density report (eq. 48); default the mean radius; at least 1/100 of the mean radius",
+    ),
+    rg("packing.size.mean_diameter", 2e-9, 1.0, false, "m", "mean particle diameter"),
+    rg("packing.size.spread", 0.0, 0.9, false, "1", "uniform: relative half-width, d = mean (1 ± spread)"),
+    rg("packing.size.std_diameter", 0.0, 1.0, false, "m", "normal: standard deviation of the diameter"),
+    rg("packing.size.truncate", 0.1, 10.0, false, "1", "normal: truncation at mean ± truncate·std"),
+    rg("packing.size.diameters.*", 2e-9, 1.0, false, "m", "tabulated: diameters, increasing"),
+    rg("packing.size.cumulative.*", 0.0, 1.0, false, "1", "tabulated: cumulative number fraction at each diameter"),
+    rg("packing.protocol.friction", 0.0, 2.0, false, "1", "particle friction coefficient during settling and compaction (lowered if the packing jams)"),
+    rg("packing.protocol.wall_friction", 0.0, 2.0, false, "1", "particle-wall friction coefficient"),
+    rg("packing.protocol.restitution", 0.01, 1.0, false, "1", "normal restitution coefficient of the generator's contacts"),
+    rg("packing.protocol.local_damping", 0.0, 0.9, false, "1", "Cundall local damping of the generator"),
+    rg("packing.protocol.cloud_solid_fraction", 0.01, 0.45, false, "1", "solid fraction of the initial cloud"),
+    rg("packing.protocol.compaction_overlap", 1e-6, 0.05, false, "1", "compaction pressure as a relative overlap, p (2r)^2/k_n"),
+    rg("packing.protocol.max_overlap_rel", 1e-7, 0.5, false, "1", "final largest overlap / mean radius"),
+    rg("packing.protocol.kinetic_energy_rel", 1e-16, 1e-2, false, "1", "final kinetic energy per particle / (k_n r^2)"),
+    rg("packing.protocol.contact_gap_rel", 0.0, 0.5, false, "1", "gap / mean radius below which a pair counts as a contact in the report"),
+    rg("packing.protocol.dt_fraction", 1e-3, 0.2, false, "1", "time step / collision time"),
+    rg("packing.protocol.max_steps", 100.0, 1e9, false, "1", "step budget of the whole protocol"),
+];
+
+/// `sinterdem check` for a generate case: parse and validate only.
+pub fn check_generate_case(case: &toml::Value) -> Result<(), Error> {
+    parse_generate_case(case).map(|_| ())
+}
+
+/// What `generate` reports (also written as `summary.json`).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct GenerateSummary {
+    pub particles: usize,
+    pub seed: u64,
+    /// Σ V_i / V_box with the final wall box (eq. 49).
+    pub solid_fraction: f64,
+    pub target_solid_fraction: f64,
+    /// Mean number of contacts per particle (pairs with gap < contact_gap_rel·r̄).
+    pub coordination_mean: f64,
+    /// Mean number of strictly overlapping neighbours per particle.
+    pub coordination_overlapping: f64,
+    /// Particles with no contact.
+    pub rattlers: usize,
+    /// Largest overlap / mean radius (particle pairs and walls).
+    pub max_overlap_rel: f64,
+    /// Final kinetic energy per particle / (k_n r̄²) (scaled units).
+    pub kinetic_energy_rel: f64,
+    /// Final box edges [m] (origin at 0).
+    pub box_size: [f64; 3],
+    /// Mean radius [m] achieved and requested.
+    pub mean_radius: f64,
+    pub mean_radius_requested: f64,
+    /// Kolmogorov–Smirnov distance between achieved and requested diameter distributions.
+    pub size_ks_distance: f64,
+    /// Lamina width used [m].
+    pub lamina_width: f64,
+    /// Per axis x, y, z: largest |ρ_s − mean| over interior laminae (≥ one mean diameter from the walls).
+    pub laminae_max_deviation: [f64; 3],
+    /// Per axis: mean of the interior laminae densities.
+    pub laminae_mean: [f64; 3],
+    /// Friction coefficient at the end of compaction.
+    pub final_friction: f64,
+    pub steps: u64,
+    /// Steps per stage: settle, compaction, unload + relax.
+    pub stage_steps: [u64; 3],
+    /// Time step / collision time and wall-clock time [s].
+    pub dt_fraction: f64,
+    pub wall_time: f64,
+    pub thresholds_met: bool,
+}
+
+/// The packing itself: positions [m], radii [m], and the box [m].
+#[derive(Debug, Clone)]
+pub struct Packing {
+    pub positions: Vec<V3>,
+    pub radii: Vec<f64>,
+    pub box_size: [f64; 3],
+}
+
+/// Library entry point of `sinterdem generate CASE.toml --out DIR`: validates the case (overrides
+/// already applied), generates, writes the outputs, and returns the summary. If the relaxation did
+/// not meet its thresholds within `max_steps`, the outputs are still written and a SolveError says so.
+pub fn generate_case(case: &toml::Value, out_dir: &Path, progress: bool) -> Result<GenerateSummary, Error> {
+    let c = parse_generate_case(case)?;
+    let (packing, summary) = generate(&c, progress)?;
+    // a non-finite figure is a model error, not a summary with null in it
+    let s = &summary;
+    let figures = [
+        ("solid_fraction", s.solid_fraction),
+        ("coordination_mean", s.coordination_mean),
+        ("max_overlap_rel", s.max_overlap_rel),
+        ("kinetic_energy_rel", s.kinetic_energy_rel),
+        ("mean_radius", s.mean_radius),
+        ("size_ks_distance", s.size_ks_distance),
+    ];
+    let more = s.box_size.iter().chain(&s.laminae_max_deviation).chain(&s.laminae_mean).map(|&v| ("box_size/laminae", v));
+    if let Some((k, v)) = figures.into_iter().chain(more).find(|(_, v)| !v.is_finite()) {
+        return Err(crate::error::ModelError::new(format!("packing generation produced a non-finite {k} ({v})"))
+            .with_context(format!("{} particles, {} steps", s.particles, s.steps))
+            .into());
+    }
+    crate::finite::ensure_finite_groups("packing generation", summary.steps, 0.0, "particle", "position", packing.positions.iter().map(|x| x.as_ref()))?;
+    write_outputs(&c, &packing, &summary, out_dir)?;
+    if !summary.thresholds_met {
+        return Err(SolveError::new(
+            "packing relaxation",
+            format!(
+                "thresholds not met within packing.protocol.max_steps = {}: largest overlap {:.3e} r (limit {:.1e}), kinetic energy {:.3e} (limit {:.1e}); outputs written to {}",
+                c.protocol.max_steps,
+                summary.max_overlap_rel,
+                c.protocol.max_overlap_rel,
+                summary.kinetic_energy_rel,
+                c.protocol.kinetic_energy_rel,
+                out_dir.display()
+            ),
+        )
+        .into());
+    }
+    Ok(summary)
+}
+
+/// The benchmark case for `n` particles: copper-like (mean diameter 50 µm, uniform ±10 %), box
+/// shape 1:1:0.8, target 0.60, seed 1.
+pub fn bench_case(n: usize) -> toml::Value {
+    let text = format!(
+        "kind = \"generate\"\n[packing]\nparticles = {n}\nseed = 1\ntarget_solid_fraction = 0.60\nbox = [0.5e-3, 0.5e-3, 0.4e-3]\n[packing.size]\ndistribution = \"uniform\"\nmean_diameter = 50e-6\nspread = 0.1\n"
+    );
+    toml::Value::Table(text.parse::<toml::Table>().expect("static bench case"))
+}
+
+/// Library entry point of `sinterdem bench generate`: generates the benchmark case for each size,
+/// writing into `out_dir/bench-N`, and returns a table of wall-clock times and results.
+pub fn bench_generate(out_dir: &Path, sizes: &[usize]) -> Result<String, Error> {
+    let mut s = format!(
+        "# sinterdem bench generate ({} rayon threads)\n{:>9} {:>10} {:>9} {:>8} {:>9} {:>10} {:>10}\n",
+        rayon::current_num_threads(),
+        "particles",
+        "time [s]",
+        "steps",
+        "phi",
+        "Z_mean",
+        "overlap/r",
+        "laminae dev"
+    );
+    for &n in sizes {
+        let t = Instant::now();
+        let summary = generate_case(&bench_case(n), &out_dir.join(format!("bench-{n}")), false)?;
+        let el = t.elapsed().as_secs_f64();
+        let line = format!(
+            "{:>9} {:>10.2} {:>9} {:>8.4} {:>9.3} {:>10.2e} {:>10.3}\n",
+            n,
+            el,
+            summary.steps,
+            summary.solid_fraction,
+            summary.coordination_mean,
+            summary.max_overlap_rel,
+            summary.laminae_max_deviation.iter().copied().fold(0.0, f64::max)
+        );
+        eprint!("{line}");
+        s.push_str(&line);
+    }
+    Ok(s)
+}
