@@ -477,7 +477,7 @@ fn run_bench(which: Bench) -> Result<(), Error> {
         }
         Bench::Generate { particles, out } => {
             sinterdem::io::ensure_dir(&out)?;
-            println!("{}", sinterdem::kinds::generate::bench_generate(&out, &particles)?);
+            println!("{}", sinterdem::bench::generate::bench_generate(&out, &particles)?);
             Ok(())
         }
         Bench::Sweep { contacts, steps, dt } => {

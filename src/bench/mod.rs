@@ -7,10 +7,12 @@
 //! - [`mechanics`]: the bonded solve (Cholesky against AMG-CG);
 //! - [`coupled`]: the coupled loop per stage; [`precision`]: run time against error of it;
 //! - [`diffusion7`]: work-precision of the 7-DOF integrators and the sweep in lanes;
+//! - [`generate`]: packing generation;
 //! - [`study`]: the study engine's overhead per run.
 
 pub mod coupled;
 pub mod diffusion7;
+pub mod generate;
 pub mod heat;
 pub mod mechanics;
 pub mod precision;

@@ -42,7 +42,6 @@ use crate::error::{Error, SolveError};
 use nalgebra::Vector3;
 use output::summarise;
 use std::path::Path;
-use std::time::Instant;
 
 type V3 = Vector3<f64>;
 
@@ -178,47 +177,4 @@ pub fn generate_case(case: &toml::Value, out_dir: &Path, progress: bool) -> Resu
         .into());
     }
     Ok(summary)
-}
-
-/// The benchmark case for `n` particles: copper-like (mean diameter 50 µm, uniform ±10 %), box
-/// shape 1:1:0.8, target 0.60, seed 1.
-pub fn bench_case(n: usize) -> toml::Value {
-    let text = format!(
-        "kind = \"generate\"\n[packing]\nparticles = {n}\nseed = 1\ntarget_solid_fraction = 0.60\nbox = [0.5e-3, 0.5e-3, 0.4e-3]\n[packing.size]\ndistribution = \"uniform\"\nmean_diameter = 50e-6\nspread = 0.1\n"
-    );
-    toml::Value::Table(text.parse::<toml::Table>().expect("static bench case"))
-}
-
-/// Library entry point of `sinterdem bench generate`: generates the benchmark case for each size,
-/// writing into `out_dir/bench-N`, and returns a table of wall-clock times and results.
-pub fn bench_generate(out_dir: &Path, sizes: &[usize]) -> Result<String, Error> {
-    let mut s = format!(
-        "# sinterdem bench generate ({} rayon threads)\n{:>9} {:>10} {:>9} {:>8} {:>9} {:>10} {:>10}\n",
-        rayon::current_num_threads(),
-        "particles",
-        "time [s]",
-        "steps",
-        "phi",
-        "Z_mean",
-        "overlap/r",
-        "laminae dev"
-    );
-    for &n in sizes {
-        let t = Instant::now();
-        let summary = generate_case(&bench_case(n), &out_dir.join(format!("bench-{n}")), false)?;
-        let el = t.elapsed().as_secs_f64();
-        let line = format!(
-            "{:>9} {:>10.2} {:>9} {:>8.4} {:>9.3} {:>10.2e} {:>10.3}\n",
-            n,
-            el,
-            summary.steps,
-            summary.solid_fraction,
-            summary.coordination_mean,
-            summary.max_overlap_rel,
-            summary.laminae_max_deviation.iter().copied().fold(0.0, f64::max)
-        );
-        eprint!("{line}");
-        s.push_str(&line);
-    }
-    Ok(s)
 }
