@@ -10,11 +10,27 @@
 //! Determinism: every contact writes only its own slot in the parallel sweep and all reductions
 //! run sequentially in contact order, so results are bit-identical for any thread count.
 
+//!
+//! Files: [`settings`](Settings) (the case read), `contacts` (the contact store), `simulation`
+//! (the state and its construction), `step` ([`Simulation::advance_step`], one call per stage of
+//! `stages/`), `bonded` (the mechanics adapter), `validity` (the checks after a step),
+//! `observables` (what the outputs report), [`expansion`], [`load`].
+
 mod bench;
+mod bonded;
+mod contacts;
 pub mod expansion;
 pub mod load;
+mod observables;
 pub mod precision;
+mod settings;
+mod simulation;
+mod stages;
 mod step;
+mod validity;
 
 pub use bench::bench_coupled;
-pub use step::*;
+pub use bonded::{MechProfile, MechanicsStage};
+pub use contacts::{Contacts, new_contact_neck};
+pub use settings::{MechanicsSettings, NeckSource, NewContactState, Settings};
+pub use simulation::{Simulation, Timing, prepare};
