@@ -124,7 +124,12 @@ impl MechanicsStage {
     /// forces `loads` alone (no sintering loads), at the current geometry; returns per contact the
     /// axial force (compressive positive) [N] and the force on A exerted by B (global axes) [N].
     /// Positions and rotations are not changed.
-    pub(super) fn distribute(&mut self, p: &crate::particles::Particles, contacts: &Contacts, loads: &[NodalLoad]) -> Result<(Vec<f64>, Vec<Vector3<f64>>), Error> {
+    pub(super) fn distribute(
+        &mut self,
+        p: &crate::particles::Particles,
+        contacts: &Contacts,
+        loads: &[NodalLoad],
+    ) -> Result<(Vec<f64>, Vec<Vector3<f64>>), Error> {
         let sys = self.sys.as_mut().ok_or_else(|| ModelError::new("mechanics: the bonded system was not built"))?;
         if self.bonds != contacts.len() {
             sys.set_topology(&contacts.pairs)?;

@@ -6,7 +6,6 @@ use super::Simulation;
 use nalgebra::Vector3;
 
 impl Simulation {
-
     /// Particles without a conductive path to any heat source (no chain of contacts, or of gap
     /// pipes with the gap model (heat-model.md (H18)–(H23)), to a particle of prescribed
     /// temperature, exposed to the furnace or heated volumetrically); empty in isothermal runs.
@@ -75,7 +74,6 @@ impl Simulation {
     /// Undoes the heat step and the diffusion sweep of a step that is not kept: every contact
     /// back to its last corrected state, the particles to `temps_old` [K], the heat network's
 
-
     /// The applied stress σ(t) at the current time [Pa] (0 without a load).
     pub fn applied_stress(&self) -> f64 {
         self.load.as_ref().map_or(0.0, |l| l.settings.stress.at(self.t))
@@ -98,6 +96,16 @@ impl Simulation {
     /// Mean normal force of the contacts in the last step [N] (compressive positive).
     pub fn mean_normal_force(&self) -> f64 {
         self.contacts.state.iter().map(|c| c.normal_force).sum::<f64>() / self.contacts.len().max(1) as f64
+    }
+
+    /// Mean coordination number, 2 · contacts / particles [1].
+    pub fn coordination(&self) -> f64 {
+        2.0 * self.contacts.len() as f64 / self.prep.scene.particles.len() as f64
+    }
+
+    /// Share of the contacts whose last sweep needed more than one substep [1].
+    pub fn subdivided_fraction(&self) -> f64 {
+        self.contacts.substeps.iter().filter(|&&s| s > 1).count() as f64 / self.contacts.len().max(1) as f64
     }
 
     /// Mean neck ratio y1/R_min over contacts [1].

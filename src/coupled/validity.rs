@@ -5,7 +5,6 @@ use super::Simulation;
 use crate::error::{Error, ModelError};
 
 impl Simulation {
-
     /// After a completed step: every state finite, relative density at most 1, no particle at or
     /// above its material's melting temperature (ModelErrors naming step and particle/contact),
     /// and a warning, once per material and side, when a contact temperature leaves the range its

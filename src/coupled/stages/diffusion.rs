@@ -63,8 +63,10 @@ pub(in crate::coupled) fn diffusion(sim: &mut Simulation, w: &Window, temps_old:
         .zip(pairs_in_order.par_chunks(LANES))
         .enumerate()
         .map(|(ch, (cs, ps))| {
-            let pms: Vec<PairMaterials> =
-                ps.iter().map(|&[i, j]| PairMaterials { a: &mats[p.material[i as usize] as usize], b: &mats[p.material[j as usize] as usize], factors }).collect();
+            let pms: Vec<PairMaterials> = ps
+                .iter()
+                .map(|&[i, j]| PairMaterials { a: &mats[p.material[i as usize] as usize], b: &mats[p.material[j as usize] as usize], factors })
+                .collect();
             let paths: Vec<TemperaturePath> = ps
                 .iter()
                 .map(|&[i, j]| {

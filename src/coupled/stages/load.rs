@@ -12,7 +12,15 @@ impl Simulation {
         let ls = self.load.as_ref()?;
         let sigma = ls.settings.stress.at(t);
         let free = !self.settings.mechanics.constrain_planes;
-        Some(crate::coupled::load::nodal_forces(ls.settings.mode, sigma, &self.extents(), &self.prep.scene.particles.radius, &self.far_layer, &self.near_layer, free))
+        Some(crate::coupled::load::nodal_forces(
+            ls.settings.mode,
+            sigma,
+            &self.extents(),
+            &self.prep.scene.particles.radius,
+            &self.far_layer,
+            &self.near_layer,
+            free,
+        ))
     }
 
     /// (P2): the increment of the applied nodal forces over the step ending at `t1`, recorded as
