@@ -71,9 +71,6 @@ impl Simulation {
         (sum / n.max(1) as f64, lo, hi)
     }
 
-    /// Undoes the heat step and the diffusion sweep of a step that is not kept: every contact
-    /// back to its last corrected state, the particles to `temps_old` [K], the heat network's
-
     /// The applied stress σ(t) at the current time [Pa] (0 without a load).
     pub fn applied_stress(&self) -> f64 {
         self.load.as_ref().map_or(0.0, |l| l.settings.stress.at(self.t))

@@ -473,7 +473,7 @@ impl BondedSystem {
                 match symbolic {
                     Ok(c) => {
                         info.symbolic_seconds = t0.elapsed().as_secs_f64();
-                        c
+                        Box::new(c)
                     }
                     Err(e) => {
                         self.kept = old;
@@ -554,11 +554,11 @@ impl BondedSystem {
         let (h, fresh) = match std::mem::replace(&mut self.kept, Kept::Nothing) {
             Kept::Amg(mut h) if ap.reuse && !h.is_stale() => {
                 h.refresh_fine_smoother(&blocks.diag)?;
-                (h, false)
+                (*h, false)
             }
             old => {
                 let old = match old {
-                    Kept::Amg(h) => Some(h),
+                    Kept::Amg(h) => Some(*h),
                     _ => None,
                 };
                 let h = amg::Amg::build(fine, positions, r_scale, ap, old)?;
@@ -570,7 +570,7 @@ impl BondedSystem {
         let hierarchy = AmgSolve { fine, positions, r_scale, params: &self.params };
         let (kept, result) = hierarchy.newton(h, fresh, &mut self.amg_fresh_iterations, b, b_norm, x, r0, info);
         if let Some(h) = kept {
-            self.kept = Kept::Amg(h);
+            self.kept = Kept::Amg(Box::new(h));
         }
         result
     }

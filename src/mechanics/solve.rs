@@ -217,7 +217,7 @@ pub(super) enum Kept {
     /// `current`: it belongs to the current topology; otherwise it was kept across a topology
     /// change as the preconditioner of CG on the new stiffness (`stale_factor_cg`), and `eq`
     /// differs from the current map.
-    Cholesky { chol: super::cholesky::BondCholesky, eq: Vec<u32>, current: bool },
+    Cholesky { chol: Box<super::cholesky::BondCholesky>, eq: Vec<u32>, current: bool },
     /// An AMG hierarchy of the current topology (possibly marked stale, rebuilt at the next step).
-    Amg(super::amg::Amg),
+    Amg(Box<super::amg::Amg>),
 }
