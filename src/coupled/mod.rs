@@ -10,8 +10,24 @@
 //! Determinism: every contact writes only its own slot in the parallel sweep and all reductions
 //! run sequentially in contact order, so results are bit-identical for any thread count.
 
+//!
+//! Files: [`settings`](Settings) (the case read), `contacts` (the contact store), `simulation`
+//! (the state and its construction), `step` ([`Simulation::advance_step`], one call per stage of
+//! `stages/`), `bonded` (the mechanics adapter), `validity` (the checks after a step),
+//! `observables` (what the outputs report), [`expansion`], [`load`].
+
+mod bonded;
+mod contacts;
 pub mod expansion;
 pub mod load;
+mod observables;
+mod settings;
+mod simulation;
+mod stages;
 mod step;
+mod validity;
 
-pub use step::*;
+pub use bonded::{MechProfile, MechanicsStage};
+pub use contacts::{Contacts, new_contact_neck};
+pub use settings::{MechanicsSettings, NeckSource, NewContactState, Settings};
+pub use simulation::{Simulation, Timing, prepare};

@@ -37,6 +37,7 @@ pub use assembly::{BlockMatrix, Incidence};
 use cholesky::BondCholesky;
 use nalgebra::Vector3;
 use rayon::prelude::*;
+use solve::Kept;
 use std::time::Instant;
 
 /// An external force [N] and moment [N·m] on a particle (tests, gravity, a press; the sintering
@@ -98,16 +99,12 @@ pub struct BondedSystem {
     constraints: Constraints,
     pairs: Vec<[u32; 2]>,
     inc: Incidence,
+    /// The topology analysis of the current bonds (None: made at the next step).
     report: Option<TopologyReport>,
-    chol: Option<BondCholesky>,
-    /// Equation map (`eq` of the topology report) the factor was built for; it differs from the
-    /// current one after a topology change that kept the factor as a preconditioner.
-    chol_eq: Vec<u32>,
-    /// The factor belongs to the current topology.
-    chol_current: bool,
+    /// The factor or hierarchy of the solver in use, kept between steps.
+    kept: Kept,
     /// The last stale-factor CG was slow: factorise afresh at the next step.
     refresh: bool,
-    amg: Option<amg::Amg>,
     /// CG iterations of the first solve after the last AMG build (the stale-reuse yardstick).
     amg_fresh_iterations: usize,
     /// Per-particle (E [Pa], ν [1]) when particles differ in material; None: `params` for all.
@@ -130,11 +127,8 @@ impl BondedSystem {
             pairs: Vec::new(),
             inc: Incidence::new(n_particles, &[]),
             report: None,
-            chol: None,
-            chol_eq: Vec::new(),
-            chol_current: false,
+            kept: Kept::Nothing,
             refresh: false,
-            amg: None,
             amg_fresh_iterations: 0,
             elastic: None,
             history: Vec::new(),
@@ -153,8 +147,7 @@ impl BondedSystem {
             }
         }
         self.elastic = elastic;
-        self.chol = None;
-        self.amg = None;
+        self.kept = Kept::Nothing;
         Ok(())
     }
 
@@ -214,12 +207,11 @@ impl BondedSystem {
         self.report = None;
         // with `stale_factor_cg`, the last factor survives as the preconditioner of CG on the new
         // stiffness (a few new bonds are a low-rank change); otherwise it is dropped
-        let keep = self.params.reuse_factor && self.params.stale_factor_cg && self.chol.as_ref().is_some_and(|c| c.is_factored());
-        if !keep {
-            self.chol = None;
-        }
-        self.chol_current = false;
-        self.amg = None;
+        let keep = self.params.reuse_factor && self.params.stale_factor_cg;
+        self.kept = match std::mem::replace(&mut self.kept, Kept::Nothing) {
+            Kept::Cholesky { chol, eq, .. } if keep && chol.is_factored() => Kept::Cholesky { chol, eq, current: false },
+            _ => Kept::Nothing,
+        };
         Ok(())
     }
 
@@ -227,10 +219,8 @@ impl BondedSystem {
     /// factorises afresh, as a system built anew with these bonds would (checkpoints rely on it).
     pub fn drop_factor(&mut self) {
         self.report = None;
-        self.chol = None;
-        self.chol_current = false;
+        self.kept = Kept::Nothing;
         self.refresh = false;
-        self.amg = None;
         self.history.clear();
     }
 
@@ -241,14 +231,16 @@ impl BondedSystem {
         }
         self.constraints = constraints;
         self.report = None;
-        self.chol = None;
-        self.amg = None;
+        self.kept = Kept::Nothing;
         Ok(())
     }
 
     /// Stored values of the current Cholesky factor (None before the first Cholesky step of a topology).
     pub fn factor_nnz(&self) -> Option<usize> {
-        self.chol.as_ref().map(|c| c.nnz_l())
+        match &self.kept {
+            Kept::Cholesky { chol, .. } => Some(chol.nnz_l()),
+            _ => None,
+        }
     }
 
     /// The topology analysis of the last step (rattlers, pins, equations), if any.
@@ -290,11 +282,30 @@ impl BondedSystem {
     pub fn step(&mut self, inp: &StepInput) -> Result<MechStep, Error> {
         let t_start = Instant::now();
         self.check_input(inp)?;
-        let n = self.n;
         let mut info = MechInfo { bonds: self.pairs.len(), ..Default::default() };
+        let rep = self.analysis(inp.positions, &mut info)?;
+        let out = self.step_with(&rep, inp, info, t_start);
+        self.report = Some(rep);
+        out
+    }
 
-        let (geom, blocks, rhs, r_scale) = self.prepare(inp, &mut info)?;
-        let Some(rep) = self.report.as_ref() else { unreachable!() };
+    /// The topology analysis of the current bonds, taken out of the system (the caller puts it
+    /// back): the kept one, or made now (once per topology).
+    fn analysis(&mut self, positions: &[Vector3<f64>], info: &mut MechInfo) -> Result<TopologyReport, Error> {
+        if let Some(rep) = self.report.take() {
+            return Ok(rep);
+        }
+        let t0 = Instant::now();
+        let rep = constraints::analyse(self.n, &self.pairs, positions, &self.constraints)?;
+        info.topology_rebuilt = true;
+        info.analysis_seconds = t0.elapsed().as_secs_f64();
+        Ok(rep)
+    }
+
+    /// [`Self::step`] with the topology analysis `rep`.
+    fn step_with(&mut self, rep: &TopologyReport, inp: &StepInput, mut info: MechInfo, t_start: Instant) -> Result<MechStep, Error> {
+        let n = self.n;
+        let (geom, blocks, rhs, r_scale) = self.prepare(rep, inp, &mut info)?;
         let b_norm = cg::dot(&rhs, &rhs).sqrt();
         let mut x = vec![0.0; 6 * n];
         let above = match (self.params.reuse_factor, self.params.warm_start) {
@@ -323,9 +334,9 @@ impl BondedSystem {
         }
         if b_norm > 0.0 && rep.n_eq > 0 {
             match solver {
-                LinearSolver::Pcg => self.newton_pcg(&blocks, &rhs, b_norm, &mut x, r0, &mut info)?,
-                LinearSolver::Amg => self.newton_amg(inp.positions, r_scale, &blocks, &rhs, b_norm, &mut x, r0, &mut info)?,
-                _ => self.newton_cholesky(inp.positions, &blocks, &rhs, b_norm, &mut x, &mut info)?,
+                LinearSolver::Pcg => self.newton_pcg(rep, &blocks, &rhs, b_norm, &mut x, r0, &mut info)?,
+                LinearSolver::Amg => self.newton_amg(rep, inp.positions, r_scale, &blocks, &rhs, b_norm, &mut x, r0, &mut info)?,
+                _ => self.newton_cholesky(rep, inp.positions, &blocks, &rhs, b_norm, &mut x, &mut info)?,
             }
         }
 
@@ -345,18 +356,10 @@ impl BondedSystem {
         Ok(MechStep { du, dtheta, xi, e3: geom.iter().map(|g| g.e3).collect(), info })
     }
 
-    /// Topology analysis (once per topology), geometry, assembly and the scaled load vector:
+    /// Geometry, assembly and the scaled load vector with the topology analysis `rep`:
     /// `(geometry per bond, blocks, rhs, r̄)`.
-    fn prepare(&mut self, inp: &StepInput, info: &mut MechInfo) -> Result<(Vec<BondGeometry>, BlockMatrix, Vec<f64>, f64), Error> {
+    fn prepare(&self, rep: &TopologyReport, inp: &StepInput, info: &mut MechInfo) -> Result<(Vec<BondGeometry>, BlockMatrix, Vec<f64>, f64), Error> {
         let n = self.n;
-        // topology analysis (once per topology)
-        if self.report.is_none() {
-            let t0 = Instant::now();
-            self.report = Some(constraints::analyse(n, &self.pairs, inp.positions, &self.constraints)?);
-            info.topology_rebuilt = true;
-            info.analysis_seconds = t0.elapsed().as_secs_f64();
-        }
-        let Some(rep) = self.report.as_ref() else { unreachable!() };
         info.equations = rep.n_eq;
         info.components = rep.components;
         info.rattlers = rep.rattlers.len();
@@ -414,13 +417,16 @@ impl BondedSystem {
     pub fn assembled(&mut self, inp: &StepInput) -> Result<(BlockMatrix, Vec<f64>, f64, TopologyReport, Incidence), Error> {
         self.check_input(inp)?;
         let mut info = MechInfo::default();
-        let (_, blocks, rhs, r_scale) = self.prepare(inp, &mut info)?;
-        let Some(rep) = self.report.clone() else { unreachable!() };
+        let rep = self.analysis(inp.positions, &mut info)?;
+        let prepared = self.prepare(&rep, inp, &mut info);
+        self.report = Some(rep.clone());
+        let (_, blocks, rhs, r_scale) = prepared?;
         Ok((blocks, rhs, r_scale, rep, self.inc.clone()))
     }
 
     fn newton_cholesky(
         &mut self,
+        rep: &TopologyReport,
         positions: &[Vector3<f64>],
         blocks: &BlockMatrix,
         b: &[f64],
@@ -429,15 +435,17 @@ impl BondedSystem {
         info: &mut MechInfo,
     ) -> Result<(), Error> {
         info.solver = SolverUsed::Cholesky;
-        let Some(rep) = self.report.as_ref() else { unreachable!() };
         let op = amg::FineOp { blocks, pairs: &self.pairs, inc: &self.inc, fixed: &rep.fixed };
         crate::linsolve::set_parallelism_for(rep.n_eq);
-        let stale_usable = self.params.reuse_factor && !self.refresh && self.chol.as_ref().is_some_and(|c| c.is_factored());
-        if stale_usable && (self.params.stale_factor_cg || !self.chol_current) {
+        let stale_usable = self.params.reuse_factor && !self.refresh;
+        if let Kept::Cholesky { chol, eq: chol_eq, current } = &mut self.kept
+            && stale_usable
+            && chol.is_factored()
+            && (self.params.stale_factor_cg || !*current)
+        {
             // CG on the current stiffness, preconditioned by the last factor (possibly of an
             // older topology: DOF that were not in it get their block-Jacobi inverse)
-            let Some(chol) = self.chol.as_mut() else { unreachable!() };
-            if let Some(iterations) = stale_factor_cg(chol, &self.chol_eq, &op, &rep.eq, blocks, b, b_norm, self.params.rtol, x, info)? {
+            if let Some(iterations) = stale_factor_cg(chol, chol_eq, &op, &rep.eq, blocks, b, b_norm, self.params.rtol, x, info)? {
                 if iterations > STALE_CG_REFRESH {
                     self.refresh = true;
                 }
@@ -449,78 +457,48 @@ impl BondedSystem {
             }
             self.refresh = true;
         }
-        if self.chol.is_none() || !self.chol_current {
-            let t0 = Instant::now();
-            let mut entries = Vec::new();
-            blocks.for_each_lower(&self.pairs, rep, |r, c, _| entries.push((r, c)));
-            let perm = match self.params.ordering {
-                cholesky::Ordering::NestedDissection => Some(cholesky::equation_order(positions, &self.pairs, &rep.fixed, &rep.eq, rep.n_eq)),
-                cholesky::Ordering::BlockAmd => Some(cholesky::block_amd_order(self.n, &self.pairs, &rep.eq, rep.n_eq)?),
-                cholesky::Ordering::Amd => None,
-            };
-            let c = BondCholesky::new(rep.n_eq, &entries, perm)?;
-            info.symbolic_seconds = t0.elapsed().as_secs_f64();
-            self.chol = Some(c);
-            self.chol_eq = rep.eq.clone();
-            self.chol_current = true;
-        }
-        // the reduced lower-triangle values, gathered only when a factorisation needs them
-        let mut values: Vec<f64> = Vec::new();
-        let gather = |values: &mut Vec<f64>, info: &mut MechInfo| {
-            if values.is_empty() {
+        // the factor of the current topology: the kept one, or a new symbolic factorisation
+        let mut chol = match std::mem::replace(&mut self.kept, Kept::Nothing) {
+            Kept::Cholesky { chol, current: true, .. } => chol,
+            old => {
                 let t0 = Instant::now();
-                blocks.for_each_lower(&self.pairs, rep, |_, _, v| values.push(v));
-                info.assemble_seconds += t0.elapsed().as_secs_f64();
+                let mut entries = Vec::new();
+                blocks.for_each_lower(&self.pairs, rep, |r, c, _| entries.push((r, c)));
+                let symbolic = match self.params.ordering {
+                    cholesky::Ordering::NestedDissection => Ok(Some(cholesky::equation_order(positions, &self.pairs, &rep.fixed, &rep.eq, rep.n_eq))),
+                    cholesky::Ordering::BlockAmd => cholesky::block_amd_order(self.n, &self.pairs, &rep.eq, rep.n_eq).map(Some),
+                    cholesky::Ordering::Amd => Ok(None),
+                }
+                .and_then(|perm| BondCholesky::new(rep.n_eq, &entries, perm));
+                match symbolic {
+                    Ok(c) => {
+                        info.symbolic_seconds = t0.elapsed().as_secs_f64();
+                        Box::new(c)
+                    }
+                    Err(e) => {
+                        self.kept = old;
+                        return Err(e.into());
+                    }
+                }
             }
         };
-        let Some(chol) = self.chol.as_mut() else { unreachable!() };
-        let mut fresh = false;
-        if !self.params.reuse_factor || !chol.is_factored() || self.refresh {
-            gather(&mut values, info);
-            info.factor_seconds += chol.factorize(&values)?;
-            info.factorizations += 1;
-            fresh = true;
-            self.refresh = false;
-        }
-        let (mut r, mut rel) = initial_residual(&op, b, b_norm, x, None);
-        let mut red = vec![0.0; rep.n_eq];
-        while info.newton_iterations < self.params.max_newton {
-            for (d, &e) in rep.eq.iter().enumerate() {
-                if e != u32::MAX {
-                    red[e as usize] = r[d];
-                }
-            }
-            info.solve_seconds += chol.solve_in_place(&mut red)?;
-            for (d, &e) in rep.eq.iter().enumerate() {
-                if e != u32::MAX {
-                    x[d] += red[e as usize];
-                }
-            }
-            info.newton_iterations += 1;
-            let new_rel = op.residual(b, b_norm, x, &mut r);
-            info.residuals.push(new_rel);
-            if !new_rel.is_finite() {
-                return Err(not_finite(info).into());
-            }
-            if new_rel <= self.params.rtol {
-                return Ok(());
-            }
-            // a stale factor that converges slowly (or diverges) is replaced by a fresh one
-            if !fresh && new_rel > 0.1 * rel {
-                gather(&mut values, info);
-                info.factor_seconds += chol.factorize(&values)?;
-                info.factorizations += 1;
-                fresh = true;
-            }
-            rel = new_rel;
-        }
-        Err(solve::not_converged(info, self.params.rtol, "Cholesky").into())
+        let result = newton_on_factor(&self.params, &mut self.refresh, rep, &op, &mut chol, b, b_norm, x, info);
+        self.kept = Kept::Cholesky { chol, eq: rep.eq.clone(), current: true };
+        result
     }
 
     /// Newton with block-Jacobi PCG from `x` (the warm start, whose residual is `r0` when given).
-    fn newton_pcg(&mut self, blocks: &BlockMatrix, b: &[f64], b_norm: f64, x: &mut [f64], r0: Option<Vec<f64>>, info: &mut MechInfo) -> Result<(), Error> {
+    fn newton_pcg(
+        &mut self,
+        rep: &TopologyReport,
+        blocks: &BlockMatrix,
+        b: &[f64],
+        b_norm: f64,
+        x: &mut [f64],
+        r0: Option<Vec<f64>>,
+        info: &mut MechInfo,
+    ) -> Result<(), Error> {
         info.solver = SolverUsed::Pcg;
-        let Some(rep) = self.report.as_ref() else { unreachable!() };
         let op = amg::FineOp { blocks, pairs: &self.pairs, inc: &self.inc, fixed: &rep.fixed };
         let t0 = Instant::now();
         let prec = cg::BlockJacobi::new(&blocks.diag, &rep.fixed)?;
@@ -559,6 +537,7 @@ impl BondedSystem {
     /// smoother refreshed, until CG needs more than 1.5× the iterations of the last fresh build + 5.
     fn newton_amg(
         &mut self,
+        rep: &TopologyReport,
         positions: &[Vector3<f64>],
         r_scale: f64,
         blocks: &BlockMatrix,
@@ -569,75 +548,176 @@ impl BondedSystem {
         info: &mut MechInfo,
     ) -> Result<(), Error> {
         info.solver = SolverUsed::Amg;
-        let Some(rep) = self.report.as_ref() else { unreachable!() };
         let fine = amg::FineOp { blocks, pairs: &self.pairs, inc: &self.inc, fixed: &rep.fixed };
         let ap = self.params.amg;
-        let mut fresh = false;
         let t0 = Instant::now();
-        match self.amg.take() {
-            Some(mut h) if ap.reuse && !h.is_stale() => {
+        let (h, fresh) = match std::mem::replace(&mut self.kept, Kept::Nothing) {
+            Kept::Amg(mut h) if ap.reuse && !h.is_stale() => {
                 h.refresh_fine_smoother(&blocks.diag)?;
-                self.amg = Some(h);
+                (*h, false)
             }
             old => {
-                self.amg = Some(amg::Amg::build(fine, positions, r_scale, ap, old)?);
+                let old = match old {
+                    Kept::Amg(h) => Some(*h),
+                    _ => None,
+                };
+                let h = amg::Amg::build(fine, positions, r_scale, ap, old)?;
                 info.amg_builds += 1;
-                fresh = true;
+                (h, true)
             }
-        }
+        };
         info.factor_seconds += t0.elapsed().as_secs_f64();
+        let hierarchy = AmgSolve { fine, positions, r_scale, params: &self.params };
+        let (kept, result) = hierarchy.newton(h, fresh, &mut self.amg_fresh_iterations, b, b_norm, x, r0, info);
+        if let Some(h) = kept {
+            self.kept = Kept::Amg(Box::new(h));
+        }
+        result
+    }
+}
+
+/// What the Newton iterations of [`BondedSystem::newton_amg`] read: the fine operator, the
+/// positions and r̄ a rebuild of the hierarchy needs, the parameters.
+struct AmgSolve<'a> {
+    fine: amg::FineOp<'a>,
+    positions: &'a [Vector3<f64>],
+    r_scale: f64,
+    params: &'a MechParams,
+}
+
+impl AmgSolve<'_> {
+    /// Newton from `x` (the warm start, whose residual is `r0` when given) with the hierarchy `h`
+    /// (`fresh`: just built); `fresh_iterations`: the CG iterations of the first solve after the
+    /// last build (set here after a build, the yardstick of a reused one). Returns the hierarchy
+    /// to keep (None when a rebuild failed) and the outcome.
+    fn newton(
+        &self,
+        mut h: amg::Amg,
+        mut fresh: bool,
+        fresh_iterations: &mut usize,
+        b: &[f64],
+        b_norm: f64,
+        x: &mut [f64],
+        r0: Option<Vec<f64>>,
+        info: &mut MechInfo,
+    ) -> (Option<amg::Amg>, Result<(), Error>) {
+        let (fine, params) = (self.fine, self.params);
         let (mut r, mut rel) = initial_residual(&fine, b, b_norm, x, r0);
-        if rel <= self.params.rtol {
-            return Ok(());
+        if rel <= params.rtol {
+            return (Some(h), Ok(()));
         }
         let mut dx = vec![0.0; x.len()];
-        while info.newton_iterations < self.params.max_newton {
-            let inner = (0.5 * self.params.rtol / rel).min(0.1);
+        while info.newton_iterations < params.max_newton {
+            let inner = (0.5 * params.rtol / rel).min(0.1);
             dx.iter_mut().for_each(|v| *v = 0.0);
             let t1 = Instant::now();
-            let Some(h) = self.amg.as_mut() else { unreachable!() };
             info.amg_levels = h.info.equations.clone();
             info.amg = Some(h.info.clone());
             let mut work = h.work();
-            let pi = cg::pcg_with(|v, out| fine.matvec(v, out), |rr, z| h.apply(fine, rr, z, &mut work), &r, &mut dx, inner, self.params.pcg_max_iter);
+            let pi = cg::pcg_with(|v, out| fine.matvec(v, out), |rr, z| h.apply(fine, rr, z, &mut work), &r, &mut dx, inner, params.pcg_max_iter);
             info.solve_seconds += t1.elapsed().as_secs_f64();
             let pi = match pi {
                 Ok(pi) => pi,
-                Err(e) if !fresh => {
+                Err(_) if !fresh => {
                     // a stale hierarchy that fails: rebuild it and retry this Newton iteration
-                    let _ = e;
                     let t2 = Instant::now();
-                    let old = self.amg.take();
-                    self.amg = Some(amg::Amg::build(fine, positions, r_scale, ap, old)?);
+                    h = match amg::Amg::build(fine, self.positions, self.r_scale, params.amg, Some(h)) {
+                        Ok(h) => h,
+                        Err(e) => return (None, Err(e.into())),
+                    };
                     info.amg_builds += 1;
                     info.factor_seconds += t2.elapsed().as_secs_f64();
                     fresh = true;
                     continue;
                 }
-                Err(e) => return Err(e.into()),
+                Err(e) => return (Some(h), Err(e.into())),
             };
             info.pcg_iterations += pi.iterations;
             if fresh && info.newton_iterations == 0 {
-                self.amg_fresh_iterations = pi.iterations;
+                *fresh_iterations = pi.iterations;
             }
             x.par_iter_mut().zip(dx.par_iter()).for_each(|(xi, d)| *xi += d);
             info.newton_iterations += 1;
             rel = fine.residual(b, b_norm, x, &mut r);
             info.residuals.push(rel);
             if !rel.is_finite() {
-                return Err(not_finite(info).into());
+                return (Some(h), Err(not_finite(info).into()));
             }
-            if rel <= self.params.rtol {
+            if rel <= params.rtol {
                 // a stale hierarchy that has become slow is rebuilt at the next step
-                if !fresh && info.pcg_iterations * 2 > 3 * self.amg_fresh_iterations + 10 {
-                    let old = self.amg.take();
-                    self.amg = old.map(|h| h.into_stale());
+                if !fresh && info.pcg_iterations * 2 > 3 * *fresh_iterations + 10 {
+                    h = h.into_stale();
                 }
-                return Ok(());
+                return (Some(h), Ok(()));
             }
         }
-        Err(solve::not_converged(info, self.params.rtol, "AMG-PCG").into())
+        (Some(h), Err(solve::not_converged(info, params.rtol, "AMG-PCG").into()))
     }
+}
+
+/// Newton with the factor `chol` of the current topology, refactorised when it is not
+/// factored, not to be reused or slow (stale).
+fn newton_on_factor(
+    params: &MechParams,
+    refresh: &mut bool,
+    rep: &TopologyReport,
+    op: &amg::FineOp,
+    chol: &mut BondCholesky,
+    b: &[f64],
+    b_norm: f64,
+    x: &mut [f64],
+    info: &mut MechInfo,
+) -> Result<(), Error> {
+    // the reduced lower-triangle values, gathered only when a factorisation needs them
+    let mut values: Vec<f64> = Vec::new();
+    let gather = |values: &mut Vec<f64>, info: &mut MechInfo| {
+        if values.is_empty() {
+            let t0 = Instant::now();
+            op.blocks.for_each_lower(op.pairs, rep, |_, _, v| values.push(v));
+            info.assemble_seconds += t0.elapsed().as_secs_f64();
+        }
+    };
+    let mut fresh = false;
+    if !params.reuse_factor || !chol.is_factored() || *refresh {
+        gather(&mut values, info);
+        info.factor_seconds += chol.factorize(&values)?;
+        info.factorizations += 1;
+        fresh = true;
+        *refresh = false;
+    }
+    let (mut r, mut rel) = initial_residual(op, b, b_norm, x, None);
+    let mut red = vec![0.0; rep.n_eq];
+    while info.newton_iterations < params.max_newton {
+        for (d, &e) in rep.eq.iter().enumerate() {
+            if e != u32::MAX {
+                red[e as usize] = r[d];
+            }
+        }
+        info.solve_seconds += chol.solve_in_place(&mut red)?;
+        for (d, &e) in rep.eq.iter().enumerate() {
+            if e != u32::MAX {
+                x[d] += red[e as usize];
+            }
+        }
+        info.newton_iterations += 1;
+        let new_rel = op.residual(b, b_norm, x, &mut r);
+        info.residuals.push(new_rel);
+        if !new_rel.is_finite() {
+            return Err(not_finite(info).into());
+        }
+        if new_rel <= params.rtol {
+            return Ok(());
+        }
+        // a stale factor that converges slowly (or diverges) is replaced by a fresh one
+        if !fresh && new_rel > 0.1 * rel {
+            gather(&mut values, info);
+            info.factor_seconds += chol.factorize(&values)?;
+            info.factorizations += 1;
+            fresh = true;
+        }
+        rel = new_rel;
+    }
+    Err(solve::not_converged(info, params.rtol, "Cholesky").into())
 }
 
 /// CG iterations at most with a stale factor before a fresh factorisation takes over [1].

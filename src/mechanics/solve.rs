@@ -207,3 +207,17 @@ pub(crate) fn not_converged(info: &MechInfo, rtol: f64, what: &str) -> SolveErro
         residuals: info.residuals.clone(),
     }
 }
+
+/// What the solver in use keeps between steps: a Cholesky factor or an AMG hierarchy, never both
+/// (block-Jacobi PCG keeps nothing).
+pub(super) enum Kept {
+    /// Nothing kept: a new system, changed elastic constants or constraints, a dropped factor.
+    Nothing,
+    /// A sparse Cholesky factor built for the equation map `eq` (`eq` of the topology report).
+    /// `current`: it belongs to the current topology; otherwise it was kept across a topology
+    /// change as the preconditioner of CG on the new stiffness (`stale_factor_cg`), and `eq`
+    /// differs from the current map.
+    Cholesky { chol: Box<super::cholesky::BondCholesky>, eq: Vec<u32>, current: bool },
+    /// An AMG hierarchy of the current topology (possibly marked stale, rebuilt at the next step).
+    Amg(Box<super::amg::Amg>),
+}

@@ -1,6 +1,9 @@
 //! The driver loop of a compact run: steps to the end time (or a stop criterion), writes the series,
-//! the due outputs and the checkpoints, then the summary.
+//! the due outputs and the checkpoints, then the summary. [`run_from`] is the loop; each of its
+//! stages (announce, open or resume the outputs, a series row, a checkpoint, the stop criteria,
+//! the summary) is a function below.
 
+use super::columns::{self, Row};
 use super::*;
 use crate::coupled::*;
 use crate::error::{Error, IoError};
@@ -8,35 +11,6 @@ use crate::io::{self, Series, SnapshotWriter};
 use serde_json::json;
 use std::path::Path;
 use std::time::Instant;
-
-const SERIES_HEADER: &[&str] = &[
-    "time_s",
-    "dt_s",
-    "shrinkage_x",
-    "shrinkage_y",
-    "shrinkage_z",
-    "relative_density",
-    "coordination_mean",
-    "neck_ratio_mean",
-    "contacts",
-    "mean_temperature_K",
-    "min_temperature_K",
-    "max_temperature_K",
-    "subdivided_fraction",
-    "rhs_evaluations",
-    "thermal_strain",
-    "sintering_shrinkage_x",
-    "sintering_shrinkage_y",
-    "sintering_shrinkage_z",
-    "applied_stress_Pa",
-    "sigma_xx_Pa",
-    "sigma_yy_Pa",
-    "sigma_zz_Pa",
-    "sigma_yz_Pa",
-    "sigma_xz_Pa",
-    "sigma_xy_Pa",
-    "normal_force_mean_N",
-];
 
 /// Runs a compact simulation to its end time, writing series, snapshots, checkpoints and the summary.
 pub fn run(sim: Simulation, out: &Path, progress: bool, log: &mut dyn FnMut(&str)) -> Result<serde_json::Value, Error> {
@@ -56,11 +30,62 @@ pub fn run_from(
 ) -> Result<serde_json::Value, Error> {
     let wall = Instant::now();
     io::ensure_dir(out)?;
-    let n = sim.prep.scene.particles.len();
-    let resumed = state.is_some();
-    let st = state.unwrap_or_default();
+    announce(&sim, log);
+    let mut outputs = Outputs::open(&sim, out, state, log)?;
+    let end = sim.settings.end;
+    let bar = io::progress::Progress::new(end, progress);
+    let mut stop_reason: Option<String> = None;
+    let mut failure: Option<Error> = None;
+    loop {
+        let tic = Instant::now();
+        outputs.due.write(&sim, out, &mut outputs.snaps, log)?;
+        sim.timing.output += tic.elapsed().as_secs_f64();
+        if sim.t >= end {
+            break;
+        }
+        sim.stop_at = outputs.due.next_time(&sim);
+        let dt_used = sim.dt.min(sim.stop_at.min(end) - sim.t);
+        match sim.advance_step(log) {
+            Ok(()) => {}
+            // the model's validity ends (a contact's geometry or integrator breaks down): the
+            // run stops with the last completed step summarised, then reports the error
+            Err(Error::Model(m)) => {
+                log(&format!("stopped at t = {} s (step {}): {m}", sim.t, sim.step));
+                stop_reason = Some(format!("model error after t = {} s: {m}", sim.t));
+                failure = Some(Error::Model(m));
+                break;
+            }
+            Err(e) => return Err(e),
+        }
+        let tic = Instant::now();
+        let stop_now = stop_criterion(&sim, &wall, log);
+        if sim.step.is_multiple_of(sim.settings.series_every) || sim.t >= end || stop_now.is_some() {
+            outputs.row(&sim, dt_used)?;
+        }
+        if sim.settings.checkpoint_every > 0 && sim.step.is_multiple_of(sim.settings.checkpoint_every) && sim.t < end {
+            outputs.checkpoint(&mut sim, out, &wall, log)?;
+            if stop_after_step.is_some_and(|s| sim.step >= s) {
+                bar.finish();
+                return Ok(serde_json::Value::Null);
+            }
+        }
+        sim.timing.output += tic.elapsed().as_secs_f64();
+        if stop_now.is_some() {
+            stop_reason = stop_now;
+            break;
+        }
+        bar.set(sim.t, &format!("step {}, Δt = {:.3e} s, contacts {}", sim.step, sim.dt, sim.contacts.len()));
+    }
+    bar.finish();
+    finish(&sim, out, outputs, stop_reason, failure, &wall, log)
+}
+
+/// The start of the log: the run's size and step control, the particles without a path to a heat
+/// source and the gap model.
+fn announce(sim: &Simulation, log: &mut dyn FnMut(&str)) {
     log(&format!(
-        "compact run: {n} particles, {} initial contacts, strategy {}, Δt0 = {:e} s, Δt_max = {} s, end = {} s",
+        "compact run: {} particles, {} initial contacts, strategy {}, Δt0 = {:e} s, Δt_max = {} s, end = {} s",
+        sim.prep.scene.particles.len(),
         sim.contacts.len(),
         sim.settings.strategy,
         sim.dt,
@@ -90,159 +115,165 @@ pub fn run_from(
             via.len()
         ));
     }
-    let (vtu_on, h5_on) = (sim.prep.case.output.vtu, sim.prep.case.output.hdf5);
-    let (mut series, mut snaps, mut series_lines) = if resumed {
-        (
-            Series::resume(&out.join("series.csv"), st.series_lines, SERIES_HEADER.len())?,
-            SnapshotWriter::resume(out, vtu_on, h5_on, st.snapshots, st.vtu_entries.clone(), log)?,
-            st.series_lines,
-        )
+}
+
+/// The outputs of a run in progress: `series.csv`, the snapshots, the analyses due and the wall
+/// time spent before a resume [s].
+struct Outputs {
+    series: Series,
+    snaps: SnapshotWriter,
+    /// Lines of series.csv so far (header included).
+    series_lines: usize,
+    due: Due,
+    wall_before: f64,
+}
+
+impl Outputs {
+    /// Creates the outputs of a fresh run (and writes its initial row) or reopens those of the
+    /// checkpoint's output state `state`.
+    fn open(sim: &Simulation, out: &Path, state: Option<OutputState>, log: &mut dyn FnMut(&str)) -> Result<Outputs, Error> {
+        let resumed = state.is_some();
+        let st = state.unwrap_or_default();
+        let (vtu_on, h5_on) = (sim.prep.case.output.vtu, sim.prep.case.output.hdf5);
+        let (series, snaps, series_lines) = if resumed {
+            (
+                Series::resume(&out.join("series.csv"), st.series_lines, Row::COLUMNS.len())?,
+                SnapshotWriter::resume(out, vtu_on, h5_on, st.snapshots, st.vtu_entries.clone(), log)?,
+                st.series_lines,
+            )
+        } else {
+            (Series::create(&out.join("series.csv"), &columns::header())?, SnapshotWriter::new(out, vtu_on, h5_on, log)?, 1)
+        };
+        let end = sim.settings.end;
+        let snap_times: Vec<f64> = match sim.settings.snapshots {
+            0 => vec![],
+            1 => vec![end],
+            k => (0..k).map(|i| end * i as f64 / (k - 1) as f64).collect(),
+        };
+        let due = Due {
+            snap_times,
+            next_snap: st.next_snap,
+            next_cond: st.next_cond,
+            cond_results: st.cond_results,
+            next_hist: st.next_hist,
+            hist_results: st.hist_results,
+        };
+        let mut outputs = Outputs { series, snaps, series_lines, due, wall_before: st.wall_before };
+        if !resumed {
+            outputs.row(sim, 0.0)?;
+        }
+        Ok(outputs)
+    }
+
+    /// Appends the series row of the current state; `dt`: the step that led to it [s].
+    fn row(&mut self, sim: &Simulation, dt: f64) -> Result<(), IoError> {
+        self.series.row(&io::values(Row::COLUMNS, &Row::new(sim, dt)))?;
+        self.series_lines += 1;
+        Ok(())
+    }
+
+    /// Writes the snapshots and analyses due now, then the checkpoint (the cached factor dropped
+    /// first, so that a resumed run repeats this one bit for bit).
+    fn checkpoint(&mut self, sim: &mut Simulation, out: &Path, wall: &Instant, log: &mut dyn FnMut(&str)) -> Result<(), Error> {
+        self.due.write(sim, out, &mut self.snaps, log)?;
+        sim.mechanics.drop_factor()?;
+        let os = OutputState {
+            next_snap: self.due.next_snap,
+            next_cond: self.due.next_cond,
+            cond_results: self.due.cond_results.clone(),
+            next_hist: self.due.next_hist,
+            hist_results: self.due.hist_results.clone(),
+            series_lines: self.series_lines,
+            snapshots: self.snaps.count(),
+            vtu_entries: self.snaps.vtu_entries(),
+            wall_before: self.wall_before + wall.elapsed().as_secs_f64(),
+        };
+        write_checkpoint(out, &sim.checkpoint(os))?;
+        Ok(())
+    }
+}
+
+/// Whether the run ends after this step: the relative density asked for, or the caller's
+/// wall-time budget (benchmarks) is reached; the reason (logged), the state so far is summarised.
+fn stop_criterion(sim: &Simulation, wall: &Instant, log: &mut dyn FnMut(&str)) -> Option<String> {
+    if let Some(r) = sim.settings.stop_relative_density.filter(|&r| sim.relative_density() >= r) {
+        log(&format!("t = {} s: relative density {:.4} reached time.stop_relative_density = {r}: the run ends here", sim.t, sim.relative_density()));
+        Some(format!("relative density {r} reached"))
+    } else if let Some(limit) = sim.settings.wall_limit.filter(|&l| wall.elapsed().as_secs_f64() > l && sim.t < sim.settings.end) {
+        log(&format!("t = {} s (step {}): the wall-time limit of {limit} s is reached: the run ends here", sim.t, sim.step));
+        Some(format!("wall-time limit of {limit} s reached"))
     } else {
-        (Series::create(&out.join("series.csv"), SERIES_HEADER)?, SnapshotWriter::new(out, vtu_on, h5_on, log)?, 1)
-    };
-    let end = sim.settings.end;
-    let snap_times: Vec<f64> = match sim.settings.snapshots {
-        0 => vec![],
-        1 => vec![end],
-        k => (0..k).map(|i| end * i as f64 / (k - 1) as f64).collect(),
-    };
-    let mut due = Due {
-        snap_times,
-        next_snap: st.next_snap,
-        next_cond: st.next_cond,
-        cond_results: st.cond_results.clone(),
-        next_hist: st.next_hist,
-        hist_results: st.hist_results.clone(),
-    };
-    let bar = io::progress::Progress::new(end, progress);
-    let mut stop_reason: Option<String> = None;
-    let mut failure: Option<Error> = None;
-    let write_row = |sim: &Simulation, series: &mut Series, dt: f64| -> Result<(), IoError> {
-        let sh = sim.shrinkage();
-        let (mean, t_lo, t_hi) = sim.temperature_stats(&sim.isolated_particles());
-        let frac = sim.contacts.substeps.iter().filter(|&&s| s > 1).count() as f64 / sim.contacts.len().max(1) as f64;
-        let sg = sim.macroscopic_stress();
-        let ss = sim.sintering_shrinkage();
-        series.row(&[
-            sim.t,
-            dt,
-            sh.x,
-            sh.y,
-            sh.z,
-            sim.relative_density(),
-            2.0 * sim.contacts.len() as f64 / n as f64,
-            sim.mean_neck_ratio(),
-            sim.contacts.len() as f64,
-            mean,
-            t_lo,
-            t_hi,
-            frac,
-            sim.ode.rhs as f64,
-            sim.thermal_strain().0,
-            ss.x,
-            ss.y,
-            ss.z,
-            sim.applied_stress(),
-            sg[0],
-            sg[1],
-            sg[2],
-            sg[3],
-            sg[4],
-            sg[5],
-            sim.mean_normal_force(),
-        ])
-    };
-    if !resumed {
-        write_row(&sim, &mut series, 0.0)?;
-        series_lines += 1;
+        None
     }
-    loop {
-        let tic = Instant::now();
-        due.write(&sim, out, &mut snaps, log)?;
-        sim.timing.output += tic.elapsed().as_secs_f64();
-        if sim.t >= end {
-            break;
-        }
-        sim.stop_at = due.next_time(&sim);
-        let dt_used = sim.dt.min(sim.stop_at.min(end) - sim.t);
-        if let Err(e) = sim.advance_step(log) {
-            match e {
-                // the model's validity ends (a contact's geometry or integrator breaks down): the
-                // run stops with the last completed step summarised, then reports the error
-                Error::Model(ref m) => {
-                    log(&format!("stopped at t = {} s (step {}): {m}", sim.t, sim.step));
-                    stop_reason = Some(format!("model error after t = {} s: {m}", sim.t));
-                    failure = Some(e);
-                    break;
-                }
-                _ => return Err(e),
-            }
-        }
-        let tic = Instant::now();
-        // the run ends after this step: the relative density asked for, or the caller's wall-time
-        // budget (benchmarks) is reached; the state so far is summarised
-        let mut stop_now = false;
-        if let Some(r) = sim.settings.stop_relative_density.filter(|&r| sim.relative_density() >= r) {
-            log(&format!("t = {} s: relative density {:.4} reached time.stop_relative_density = {r}: the run ends here", sim.t, sim.relative_density()));
-            stop_reason = Some(format!("relative density {r} reached"));
-            stop_now = true;
-        } else if let Some(limit) = sim.settings.wall_limit.filter(|&l| wall.elapsed().as_secs_f64() > l && sim.t < end) {
-            log(&format!("t = {} s (step {}): the wall-time limit of {limit} s is reached: the run ends here", sim.t, sim.step));
-            stop_reason = Some(format!("wall-time limit of {limit} s reached"));
-            stop_now = true;
-        }
-        if sim.step.is_multiple_of(sim.settings.series_every) || sim.t >= end || stop_now {
-            write_row(&sim, &mut series, dt_used)?;
-            series_lines += 1;
-        }
-        if sim.settings.checkpoint_every > 0 && sim.step.is_multiple_of(sim.settings.checkpoint_every) && sim.t < end {
-            // snapshots and analyses due at this time are written before the checkpoint
-            due.write(&sim, out, &mut snaps, log)?;
-            sim.mechanics.drop_factor()?;
-            let os = OutputState {
-                next_snap: due.next_snap,
-                next_cond: due.next_cond,
-                cond_results: due.cond_results.clone(),
-                next_hist: due.next_hist,
-                hist_results: due.hist_results.clone(),
-                series_lines,
-                snapshots: snaps.count(),
-                vtu_entries: snaps.vtu_entries(),
-                wall_before: st.wall_before + wall.elapsed().as_secs_f64(),
-            };
-            write_checkpoint(out, &sim.checkpoint(os))?;
-            if stop_after_step.is_some_and(|s| sim.step >= s) {
-                bar.finish();
-                return Ok(serde_json::Value::Null);
-            }
-        }
-        sim.timing.output += tic.elapsed().as_secs_f64();
-        if stop_now {
-            break;
-        }
-        bar.set(sim.t, &format!("step {}, Δt = {:.3e} s, contacts {}", sim.step, sim.dt, sim.contacts.len()));
-    }
-    bar.finish();
+}
+
+/// The end of a run: its last state as a snapshot when it ended early, `summary.json` (also
+/// into the HDF5 file), the plots and the closing log line; `failure` is returned after them.
+fn finish(
+    sim: &Simulation,
+    out: &Path,
+    mut outputs: Outputs,
+    stop_reason: Option<String>,
+    failure: Option<Error>,
+    wall: &Instant,
+    log: &mut dyn FnMut(&str),
+) -> Result<serde_json::Value, Error> {
     if stop_reason.is_some() && sim.settings.snapshots > 0 {
         // a run that ends before its end time keeps its last state as a snapshot
-        write_snapshot(&sim, &mut snaps)?;
+        write_snapshot(sim, &mut outputs.snaps)?;
     }
+    let summary = summary(sim, &outputs.due, stop_reason, outputs.wall_before + wall.elapsed().as_secs_f64());
+    io::write_json(&out.join("summary.json"), &summary)?;
+    // the series and summary also go into the HDF5 file (docs/outputs.md)
+    if sim.prep.case.output.hdf5
+        && let Err(e) = io::hdf5::finish(out)
+    {
+        log(&format!("warning: series and summary not copied into sinterdem.h5: {e}"));
+    }
+    if !sim.settings.plots {
+        log("plots skipped (turned off by the caller)");
+    } else if let Err(e) = write_plots(out, sim) {
+        log(&format!("warning: plots not written: {e}"));
+    }
+    let sh = sim.shrinkage();
+    log(&format!(
+        "done: {} steps to t = {} s in {:.3} s; shrinkage x/y/z = {:.4e}/{:.4e}/{:.4e}; relative density {:.4}; mean neck ratio {:.4}",
+        sim.step,
+        sim.t,
+        wall.elapsed().as_secs_f64(),
+        sh.x,
+        sh.y,
+        sh.z,
+        sim.relative_density(),
+        sim.mean_neck_ratio()
+    ));
+    match failure {
+        Some(e) => Err(e),
+        None => Ok(summary),
+    }
+}
+
+/// `summary.json` of a run in its current state; `wall_seconds`: the wall time of the run so far,
+/// resumes included [s].
+fn summary(sim: &Simulation, due: &Due, stop_reason: Option<String>, wall_seconds: f64) -> serde_json::Value {
+    let n = sim.prep.scene.particles.len();
     let sh = sim.shrinkage();
     let stored_total: f64 = sim.prep.scene.particles.capacity.iter().zip(&sim.prep.scene.particles.temperature).map(|(c, t)| c * t).sum();
     let balance = if sim.heat.is_some() { crate::heat::balance::energy_balance_rel(sim.heat_stored, sim.heat_in, sim.heat_scale, stored_total) } else { 0.0 };
     let isolated = sim.isolated_particles();
     let t_stats = sim.temperature_stats(&isolated);
-    let dl: Vec<f64> = sim.contacts.dl_bar.clone();
+    let dl = &sim.contacts.dl_bar;
     let dl_mean = dl.iter().sum::<f64>() / dl.len().max(1) as f64;
     let dl_std = (dl.iter().map(|v| (v - dl_mean) * (v - dl_mean)).sum::<f64>() / dl.len().max(1) as f64).sqrt();
     let v_particles: f64 = sim.prep.scene.particles.radius.iter().map(|&r| crate::units::sphere_volume(r)).sum();
     let rho0 = v_particles / (sim.extent0.x * sim.extent0.y * sim.extent0.z);
-    let summary = json!({
+    let stress = sim.macroscopic_stress();
+    let mut summary = json!({
         "kind": "compact",
         "final_time_s": sim.t,
         "steps": sim.step,
         "rejected_steps": sim.rejected,
-        "wall_seconds": st.wall_before + wall.elapsed().as_secs_f64(),
+        "wall_seconds": wall_seconds,
         "particles": n,
         "contacts": sim.contacts.len(),
         "shrinkage_x": sh.x,
@@ -250,7 +281,7 @@ pub fn run_from(
         "shrinkage_z": sh.z,
         "relative_density": sim.relative_density(),
         "relative_density_initial": rho0,
-        "coordination_mean": 2.0 * sim.contacts.len() as f64 / n as f64,
+        "coordination_mean": sim.coordination(),
         "neck_ratio": sim.mean_neck_ratio(),
         "mean_temperature_K": t_stats.0,
         "min_temperature_K": t_stats.1,
@@ -282,17 +313,16 @@ pub fn run_from(
             "distribution_solves": l.solves,
         })).unwrap_or_else(|| json!({"mode": "none"})),
         "stress_tensor_Pa": {
-            "xx": sim.macroscopic_stress()[0], "yy": sim.macroscopic_stress()[1], "zz": sim.macroscopic_stress()[2],
-            "yz": sim.macroscopic_stress()[3], "xz": sim.macroscopic_stress()[4], "xy": sim.macroscopic_stress()[5],
+            "xx": stress[0], "yy": stress[1], "zz": stress[2],
+            "yz": stress[3], "xz": stress[4], "xy": stress[5],
         },
         "normal_force_mean_N": sim.mean_normal_force(),
         "skipped": sim.skipped,
         "warnings": sim.warnings,
         "threads": rayon::current_num_threads(),
         "completed": stop_reason.is_none(),
-        "stop_reason": stop_reason.clone().unwrap_or_else(|| "end time reached".into()),
+        "stop_reason": stop_reason.unwrap_or_else(|| "end time reached".into()),
     });
-    let mut summary = summary;
     let prof = sim.layer_profile(5);
     summary["layer_z_m"] = json!(prof.iter().map(|l| l.0).collect::<Vec<_>>());
     summary["layer_contact_shrinkage"] = json!(prof.iter().map(|l| l.1).collect::<Vec<_>>());
@@ -312,31 +342,5 @@ pub fn run_from(
     summary["sintering_shrinkage_x"] = json!(ss.x);
     summary["sintering_shrinkage_y"] = json!(ss.y);
     summary["sintering_shrinkage_z"] = json!(ss.z);
-    io::write_json(&out.join("summary.json"), &summary)?;
-    // the series and summary also go into the HDF5 file (docs/outputs.md)
-    if sim.prep.case.output.hdf5
-        && let Err(e) = io::hdf5::finish(out)
-    {
-        log(&format!("warning: series and summary not copied into sinterdem.h5: {e}"));
-    }
-    if !sim.settings.plots {
-        log("plots skipped (turned off by the caller)");
-    } else if let Err(e) = write_plots(out, &sim) {
-        log(&format!("warning: plots not written: {e}"));
-    }
-    log(&format!(
-        "done: {} steps to t = {} s in {:.3} s; shrinkage x/y/z = {:.4e}/{:.4e}/{:.4e}; relative density {:.4}; mean neck ratio {:.4}",
-        sim.step,
-        sim.t,
-        wall.elapsed().as_secs_f64(),
-        sh.x,
-        sh.y,
-        sh.z,
-        sim.relative_density(),
-        sim.mean_neck_ratio()
-    ));
-    match failure {
-        Some(e) => Err(e),
-        None => Ok(summary),
-    }
+    summary
 }

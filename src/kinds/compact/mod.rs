@@ -2,6 +2,7 @@
 //! its outputs, checkpoints and the validation of a resumed run.
 
 mod checkpoint;
+mod columns;
 mod driver;
 mod output;
 mod validate;

@@ -136,9 +136,11 @@ pub fn write_correction_histogram(out: &Path, sim: &Simulation, tag: &str) -> Re
     Ok((mean, std))
 }
 
-/// PNG plots of a compact run from its series.csv, the ΔL̄ histogram (Ivannikov et al. 2022
-/// Fig. 20) and the layer profile along z.
+/// PNG plots of a compact run from its series.csv (axis labels from the series columns,
+/// [`super::columns`]), the ΔL̄ histogram (Ivannikov et al. 2022 Fig. 20) and the layer profile
+/// along z.
 pub fn write_plots(out: &Path, sim: &Simulation) -> Result<(), IoError> {
+    use super::columns::label;
     use crate::plot::{Plot, Series as Line};
     let path = out.join("series.csv");
     let text = std::fs::read_to_string(&path).map_err(|e| IoError::new(&path, e))?;
@@ -149,7 +151,8 @@ pub fn write_plots(out: &Path, sim: &Simulation) -> Result<(), IoError> {
         let k = header.iter().position(|h| *h == name).unwrap_or(0);
         rows.iter().filter(|r| r[0] > 0.0).map(|r| (r[0], r[k])).collect()
     };
-    let mut p = Plot::new("shrinkage along each axis").labels("time t [s]", "shrinkage 1 - L/L0 [1]");
+    let time = label("time_s");
+    let mut p = Plot::new("shrinkage along each axis (1 - L/L0)").labels(&time, "shrinkage [1]");
     for (name, key) in [("x", "shrinkage_x"), ("y", "shrinkage_y"), ("z", "shrinkage_z")] {
         p.add(Line::new(name, col(key)));
     }
@@ -160,16 +163,16 @@ pub fn write_plots(out: &Path, sim: &Simulation) -> Result<(), IoError> {
         }
     }
     p.save_png(&out.join("shrinkage.png"))?;
-    let mut p = Plot::new("relative density (eq. 49)").labels("time t [s]", "relative density [1]");
+    let mut p = Plot::new("relative density (eq. 49)").labels(&time, label("relative_density"));
     p.add(Line::new("relative density", col("relative_density")));
     p.save_png(&out.join("relative_density.png"))?;
-    let mut p = Plot::new("mean coordination number").labels("time t [s]", "coordination [1]");
+    let mut p = Plot::new("mean coordination number").labels(&time, label("coordination_mean"));
     p.add(Line::new("2 contacts / particles", col("coordination_mean")));
     p.save_png(&out.join("coordination.png"))?;
-    let mut p = Plot::new("mean neck ratio").labels("time t [s]", "y1/R_min [1]").log_x(true);
+    let mut p = Plot::new("mean neck ratio y1/R_min").labels(&time, label("neck_ratio_mean")).log_x(true);
     p.add(Line::new("neck ratio", col("neck_ratio_mean")));
     p.save_png(&out.join("neck_ratio.png"))?;
-    let mut p = Plot::new("particle temperatures").labels("time t [s]", "T [K]");
+    let mut p = Plot::new("particle temperatures").labels(&time, label("mean_temperature_K"));
     for (name, key) in [("mean", "mean_temperature_K"), ("min", "min_temperature_K"), ("max", "max_temperature_K")] {
         p.add(Line::new(name, col(key)));
     }

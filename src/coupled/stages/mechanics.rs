@@ -1,0 +1,94 @@
+//! Stage 4, mechanics: the load increments (F5) of the step's sintering approach along each
+//! contact's e3, with thermal expansion and an applied load, solved by the bonded system; the
+//! particles move by the solution.
+
+use super::Window;
+use crate::coupled::Simulation;
+use crate::coupled::expansion::StepTerms;
+use crate::error::Error;
+use nalgebra::Vector3;
+
+/// What the mechanics stage gives the correction.
+pub(in crate::coupled) struct Motion {
+    /// Unit axis e3 of each contact at the step's start (A → B).
+    pub e3: Vec<Vector3<f64>>,
+    /// Axial approach ξ of each contact over the step (C1) [m].
+    pub xi: Vec<f64>,
+    /// ξ for the correction: net of the thermal elongation, in the reference geometry of the
+    /// 7-DOF contacts (X8); ξ itself without thermal expansion [m].
+    pub xi_ref: Vec<f64>,
+    /// The thermal terms of the step ((X3)–(X7)); None without thermal expansion.
+    pub thermal: Option<StepTerms>,
+}
+
+/// Stage 4: load increments (F5) along e3 of the step, the bonded solve (an isolated pair
+/// instead approaches by exactly the 7-DOF prediction, in the correction) and the particles
+/// moved. `temps_old`: the particle temperatures at the step's start [K].
+pub(in crate::coupled) fn mechanics(sim: &mut Simulation, w: &Window, temps_old: &[f64]) -> Result<Motion, Error> {
+    let (t1, end) = (w.t1, w.end);
+    let p = &sim.prep.scene.particles;
+    let m = sim.contacts.len();
+    let mut e3 = Vec::with_capacity(m);
+    let mut approach = Vec::with_capacity(m);
+    for (c, &[i, j]) in sim.contacts.state.iter().zip(&sim.contacts.pairs) {
+        let d = p.position[j as usize] - p.position[i as usize];
+        e3.push(d / d.norm());
+        approach.push((c.y_prev[3] - c.y[3]) + (c.y_prev[6] - c.y[6]));
+    }
+    // thermal expansion (docs/coupled.md (X3)–(X6)): each bond's eigen-approach in the
+    // current geometry is the scaled sintering approach less the thermal elongation
+    let thermal = sim.expansion.as_ref().map(|x| {
+        let temps_end = match &sim.prep.isothermal {
+            Some(prof) => vec![prof.temperature(if t1 >= end * (1.0 - 1e-12) { end } else { t1 }); p.len()],
+            None => p.temperature.clone(),
+        };
+        x.step_terms(p, &sim.contacts.pairs, &x.strains(p, temps_old), &x.strains(p, &temps_end), &sim.planes)
+    });
+    if let Some(th) = &thermal {
+        for ((a, f), dth) in approach.iter_mut().zip(&th.factor).zip(&th.elongation) {
+            *a = f * *a - dth;
+        }
+    }
+    let xi: Vec<f64> = if p.len() == 2 {
+        if let Some(th) = &thermal {
+            // the predictor (X7) moves both; B covers the rest of the approach in the correction
+            for (x, q) in sim.prep.scene.particles.position.iter_mut().zip(&th.predictor) {
+                *x += q;
+            }
+        }
+        approach
+    } else {
+        bonded_solve(sim, t1, &approach, thermal.as_ref())?
+    };
+    crate::finite::ensure_finite("mechanics", sim.step + 1, t1, "contact", "axial approach", xi.iter().copied())?;
+    // (X8): the correction gets the mechanical approach net of the thermal elongation, in
+    // the reference geometry of the 7-DOF contacts (the pair moves by the full ξ above)
+    let xi_ref = match &thermal {
+        Some(th) => xi.iter().zip(&th.elongation).zip(&th.factor).map(|((x, d), f)| (x + d) / f).collect(),
+        None => xi.clone(),
+    };
+    Ok(Motion { e3, xi, xi_ref, thermal })
+}
+
+/// The bonded solve of a packing (more than two particles) for the eigen-approach `approach` [m]
+/// and the applied load's increment over the step ending at `t1` [s]; moves the particles and
+/// returns ξ per contact [m].
+fn bonded_solve(sim: &mut Simulation, t1: f64, approach: &[f64], thermal: Option<&StepTerms>) -> Result<Vec<f64>, Error> {
+    // the applied load enters as its increment over the step (docs/pressure.md (P2))
+    let external = sim.load_increment(t1);
+    let radii = thermal.map(|th| th.radii.as_slice());
+    // with thermal expansion the solve takes what the predictor (X7) leaves
+    let solve_approach: std::borrow::Cow<[f64]> = match thermal {
+        Some(th) => approach.iter().zip(&th.predictor_approach).map(|(a, q)| a - q).collect::<Vec<f64>>().into(),
+        None => approach.into(),
+    };
+    let (mut du, mut xi) = sim.mechanics.solve(&sim.prep.scene.particles, &sim.contacts, &solve_approach, external.as_deref(), radii)?;
+    if let Some(th) = thermal {
+        du.iter_mut().zip(&th.predictor).for_each(|(d, q)| *d += q);
+        xi.iter_mut().zip(&th.predictor_approach).for_each(|(x, q)| *x += q);
+    }
+    for (x, d) in sim.prep.scene.particles.position.iter_mut().zip(&du) {
+        *x += d;
+    }
+    Ok(xi)
+}
