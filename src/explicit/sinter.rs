@@ -25,10 +25,60 @@
 //! conserved with these laws.
 
 use super::law::{ContactCtx, ContactModel, ContactOut, NormalOut, PairGeom, TangentialParams};
+use crate::config::ranges::Range;
+use crate::error::{ConfigError, Error};
 use crate::models::frenkel::{self, FrenkelKinematics, FrenkelParams, FrenkelState};
 use crate::models::luding::{self, ContactKinematics, LudingParams, LudingState};
 use nalgebra::Vector3;
+use serde::Serialize;
+use serde::de::DeserializeOwned;
 use std::f64::consts::PI;
+
+/// Everything the sintering protocol ([`crate::kinds::explicit_sinter`]) needs of a law beyond
+/// [`ContactModel`]: its case facts (name, range table, state column) and its hooks. Adding a law:
+/// its kernels and parameters in their own file, this impl, and one line in the list of laws of
+/// the `explicit_sinter` kind (docs/architecture.md).
+pub trait SinterLaw: ContactModel<State: Serialize + DeserializeOwned> + Clone + std::fmt::Debug + 'static {
+    /// `model = "…"` of the case, also the name of the law's case section `[…]`.
+    const NAME: &'static str;
+    /// The range table of the section's keys (`sinterdem keys`, `sinterdem check`).
+    const RANGES: &'static [Range];
+    /// The history series' column of [`Self::state_mean`] and the title of its plot.
+    const STATE: StateColumn;
+    /// The law from its case section (`None`: the case has none) and the case values it reads.
+    fn from_case(section: Option<toml::Value>, case: &LawInputs) -> Result<Self, Error>;
+    /// Switches the sintering-time settings on (Luding: t_0 ← t0_sinter) or off.
+    fn set_sintering(&mut self, on: bool, t0_sinter: Option<f64>);
+    /// Sets the particle friction coefficient (0 during preparation).
+    fn set_friction(&mut self, mu: f64);
+    /// The law's friction coefficient as given.
+    fn friction(&self) -> f64;
+    /// Luding's thermal expansion (eq. 9): the radius at `temperature` of a particle whose radius is
+    /// `r_ref` at `t_ref` [K]; identity for laws without expansion.
+    fn radius(&self, r_ref: f64, t_ref: f64, temperature: f64) -> f64;
+    /// A scalar state summary over the contacts ([`Self::STATE`]).
+    fn state_mean(states: &[((u32, u32), f64, Self::State)]) -> f64;
+}
+
+/// The case values a law's construction reads besides its own section.
+#[derive(Debug, Clone, Copy)]
+pub struct LawInputs {
+    /// `sample.mean_radius` [m].
+    pub mean_radius: f64,
+    /// `protocol.t0_sinter` [s] as given.
+    pub t0_sinter: Option<f64>,
+}
+
+/// The column of a law's contact-state summary in the history series, and its plot.
+#[derive(Debug, Clone, Copy)]
+pub struct StateColumn {
+    /// Column name with its unit suffix (`k1_t_mean_N_per_m`).
+    pub name: &'static str,
+    /// SI unit (`"1"`: dimensionless).
+    pub unit: &'static str,
+    /// Title of the plot of the column over time.
+    pub title: &'static str,
+}
 
 /// Luding's law in the driver.
 #[derive(Debug, Clone, PartialEq)]
@@ -94,6 +144,34 @@ impl ContactModel for LudingLaw {
     }
 }
 
+impl SinterLaw for LudingLaw {
+    const NAME: &'static str = "luding";
+    const RANGES: &'static [Range] = luding::RANGES;
+    const STATE: StateColumn = StateColumn { name: "k1_t_mean_N_per_m", unit: "N/m", title: "Mean k1(T,t) of the contacts" };
+    /// `[luding]` may be left out (the defaults of Luding et al. 2005, Table 1).
+    fn from_case(section: Option<toml::Value>, case: &LawInputs) -> Result<Self, Error> {
+        let v = section.unwrap_or_else(|| toml::Value::Table(toml::Table::new()));
+        Ok(LudingLaw::new(LudingParams::from_value(v, case.mean_radius)?))
+    }
+    fn set_sintering(&mut self, on: bool, t0_sinter: Option<f64>) {
+        self.t0 = if on { t0_sinter.unwrap_or(self.params.t0) } else { self.params.t0 };
+    }
+    fn set_friction(&mut self, mu: f64) {
+        self.params.friction = mu;
+    }
+    fn friction(&self) -> f64 {
+        self.params.friction
+    }
+    fn radius(&self, r_ref: f64, t_ref: f64, temperature: f64) -> f64 {
+        if self.params.expansion == 0.0 { r_ref } else { self.params.radius_from(r_ref, t_ref, temperature) }
+    }
+    fn state_mean(states: &[((u32, u32), f64, LudingSlot)]) -> f64 {
+        let v: Vec<f64> = states.iter().filter_map(|(_, _, s)| s.0.map(|s| s.k1_t)).collect();
+        // no (bonded) contact: 0, like the force columns of a row without contacts
+        if v.is_empty() { 0.0 } else { v.iter().sum::<f64>() / v.len() as f64 }
+    }
+}
+
 /// The SinterNormal family in the driver.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FrenkelLaw {
@@ -149,5 +227,32 @@ impl ContactModel for FrenkelLaw {
             elastic_energy: 0.5 * fe * fe / k + 0.5 * p.tangential_stiffness * xi.norm_squared(),
             dissipation: f.normal.damping * c.geom.overlap_rate + diss_t,
         }
+    }
+}
+
+impl SinterLaw for FrenkelLaw {
+    const NAME: &'static str = "frenkel";
+    const RANGES: &'static [Range] = frenkel::RANGES;
+    const STATE: StateColumn = StateColumn { name: "delta_p_mean_m", unit: "m", title: "Mean plastic overlap of the contacts" };
+    /// `[frenkel]` is required; `protocol.t0_sinter` (Luding's) is refused.
+    fn from_case(section: Option<toml::Value>, case: &LawInputs) -> Result<Self, Error> {
+        let v = section.ok_or_else(|| ConfigError::inconsistent("frenkel", "model = \"frenkel\" needs a [frenkel] section"))?;
+        if case.t0_sinter.is_some() {
+            return Err(ConfigError::inconsistent("protocol.t0_sinter", "is Luding's relaxation time; model = \"frenkel\" does not use it").into());
+        }
+        Ok(FrenkelLaw { params: FrenkelParams::from_value(v)? })
+    }
+    fn set_sintering(&mut self, _on: bool, _t0: Option<f64>) {}
+    fn set_friction(&mut self, mu: f64) {
+        self.params.friction = mu;
+    }
+    fn friction(&self) -> f64 {
+        self.params.friction
+    }
+    fn radius(&self, r_ref: f64, _t_ref: f64, _temperature: f64) -> f64 {
+        r_ref
+    }
+    fn state_mean(states: &[((u32, u32), f64, FrenkelState)]) -> f64 {
+        if states.is_empty() { 0.0 } else { states.iter().map(|(_, _, s)| s.delta_p).sum::<f64>() / states.len() as f64 }
     }
 }
