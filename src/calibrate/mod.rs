@@ -66,10 +66,10 @@ pub static RANGES: &[Range] = &[
     c("data.time_s", 0.0, 1e9, "s", "calibration series: time since the start of the schedule"),
 ];
 
-/// Every range table of the crate: the kinds' list ([`crate::kinds::keys::TABLES`]) and the
+/// Every range table of the crate: the kinds' list ([`crate::kinds::keys::tables`]) and the
 /// calibration files' [`RANGES`] (for `sinterdem keys` and docs/case-file.md).
 pub fn every_table() -> Vec<&'static [Range]> {
-    let mut t = crate::kinds::keys::TABLES.to_vec();
+    let mut t = crate::kinds::keys::tables();
     t.push(RANGES);
     t
 }

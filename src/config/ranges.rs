@@ -1,7 +1,7 @@
 //! Range tables: the mechanism ([`Range`], [`check_in`], [`lookup_in`]) and the shared table of
 //! the keys every kind reads ([`TABLE`]: time, output, materials, particles, thermal, …). A module
 //! with keys of its own keeps its table beside its code and checks against it with [`check_in`];
-//! the list of every table is `crate::keys::TABLES`.
+//! the list of every table is `crate::kinds::keys::tables`.
 //! Keys are written as in the case file with array/table indices replaced by `*`
 //! (e.g. `materials.*.density`). `docs/case-file.md` is checked against this table by a test.
 
@@ -163,7 +163,7 @@ fn pattern_matches(pattern: &str, key: &str) -> bool {
 }
 
 /// `tables` as a Markdown table (key, allowed range, unit, meaning), for `docs/case-file.md`
-/// (`sinterdem keys` prints every table of the crate, `crate::keys::TABLES`; a test keeps the
+/// (`sinterdem keys` prints every table of the crate, `crate::calibrate::every_table`; a test keeps the
 /// document in step).
 pub fn markdown(tables: &[&[Range]]) -> String {
     let mut s = String::from("| key | allowed | unit | meaning |\n|---|---|---|---|\n");

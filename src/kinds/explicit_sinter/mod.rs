@@ -32,7 +32,7 @@
 
 mod case;
 mod checkpoint;
-mod laws;
+pub mod laws;
 mod machine;
 mod output;
 mod sample;
