@@ -93,7 +93,10 @@ fn docs_are_self_contained_and_their_links_resolve() {
                 continue;
             }
             for s in forbidden {
-                if line.contains(s) {
+                // a doc of ours with the same name as a design note is cited as `docs/NAME`
+                let ours = Path::new("docs").join(s).is_file();
+                let cited = if ours { line.replace(&format!("docs/{s}"), "").contains(s) } else { line.contains(s) };
+                if cited {
                     bad.push(format!("{}:{}: cites `{s}`", f.display(), n + 1));
                 }
             }
