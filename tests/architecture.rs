@@ -414,5 +414,39 @@ fn every_literal_range_key_has_a_table_row() {
         }
     }
     assert!(seen > 100, "only {seen} literal keys found: the scan is broken");
+    // a file that checks through `config::check` (the shared keys only) names no key of another table
+    for f in &files {
+        let whole = std::fs::read_to_string(f).unwrap();
+        let text = whole.split("#[cfg(test)]").next().unwrap_or("");
+        let code = code_only(text);
+        let local = code.contains("fn check(") || code.contains("fn check_opt(");
+        let imports_shared = code.contains("config::check(")
+            || code.contains("config::check_opt(")
+            || code.lines().any(|l| {
+                l.contains("use crate::config::") && (l.contains("check,") || l.contains("check}") || l.contains("check_opt") || l.contains("check as"))
+            });
+        let mut calls: Vec<String> = vec!["config::check(\"".into(), "config::check_opt(\"".into()];
+        if imports_shared && !local {
+            calls.extend(["check(\"".to_string(), "check_opt(\"".to_string()]);
+        }
+        if let Some(i) = code.find("check as ") {
+            let alias: String = code[i + 9..].chars().take_while(|c| c.is_alphanumeric() || *c == '_').collect();
+            calls.push(format!("{alias}(\""));
+        }
+        for call in &calls {
+            let mut rest = text;
+            while let Some(i) = rest.find(call.as_str()) {
+                let before = rest[..i].chars().last();
+                rest = &rest[i + call.len()..];
+                if before.is_some_and(|c| c.is_alphanumeric() || c == '_') || (call.starts_with("check") && before == Some(':')) {
+                    continue;
+                }
+                let key: String = rest.chars().take_while(|&c| c != '"').collect();
+                if key.contains('.') && !key.contains('{') && sinterdem::config::ranges::lookup(&key).is_none() {
+                    missing.push(format!("{}: {key} is checked against the shared table but is not in it", f.strip_prefix(root()).unwrap().display()));
+                }
+            }
+        }
+    }
     assert!(missing.is_empty(), "keys without a range-table row:\n{}", missing.join("\n"));
 }

@@ -25,8 +25,8 @@ pub mod params;
 pub mod report;
 pub mod synthetic;
 
+use crate::config::from_value;
 use crate::config::ranges::{Range, c, o, p};
-use crate::config::{check as check_range, from_value};
 use crate::error::{ConfigError, Error, IoError};
 use crate::models::diffusion7::{Material, PathFactors, SolverOptions};
 use data::Experiment;
@@ -72,6 +72,11 @@ pub fn every_table() -> Vec<&'static [Range]> {
     let mut t = crate::kinds::keys::tables();
     t.push(RANGES);
     t
+}
+
+/// Checks `v` of a key of a calibration file or of a case ([`lookup`]).
+fn check_range(key: &str, v: f64) -> Result<f64, ConfigError> {
+    lookup(key).ok_or_else(|| ConfigError::invalid(format!("internal: key {key} has no entry in the range table")))?.check(key, v)
 }
 
 /// Looks up a key of a case or of a calibration file in [`every_table`].
