@@ -344,3 +344,15 @@ fn bundled_periodic_case_is_symmetric_definite_and_bounded() {
     let gap = voigt(&pos, &rad, l) - t;
     assert!(gap.symmetric_eigen().eigenvalues.min() > -1e-10 * scale, "{gap}");
 }
+
+/// A compact run does not read the periodic box yet: refused, not silently walled.
+#[test]
+fn compact_runs_refuse_a_periodic_box() {
+    let path = Path::new("cases/data/periodic-copper-500.csv").canonicalize().unwrap();
+    let v = common::copper_compact(&path, 1.0, &["particles.periodic_box=[3.690793753101957e-4, 3.690793753101957e-4, 3.690793753101957e-4]"]);
+    let e = match sinterdem::scene::prepare_scene(v, Path::new(".")) {
+        Err(sinterdem::Error::Config(e)) => e,
+        other => panic!("expected a configuration error, got {:?}", other.err()),
+    };
+    assert_eq!(common::key_of(&e), "particles.periodic_box");
+}
