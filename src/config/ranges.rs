@@ -115,6 +115,7 @@ pub static TABLE: &[Range] = &[
     c("particles.radius", 1e-9, 1.0, "m", "particle radius (also every radius of a packing file)"),
     c("particles.radius_2", 1e-9, 1.0, "m", "second particle radius of a pair"),
     c("particles.position", -1e3, 1e3, "m", "packing file: every centre coordinate x, y, z"),
+    p("particles.periodic_box", 0.0, 1e3, "m", "periodic box [Lx, Ly, Lz] of a file packing, from the origin; each at least two largest particle diameters"),
     c("particles.overlap", 0.0, 0.6, "1", "initial overlap h relative to the smaller radius"),
     c("particles.initial_temperature", 1.0, 1e4, "K", "initial temperature of every particle"),
     // thermal

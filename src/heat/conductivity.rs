@@ -62,8 +62,16 @@ pub(crate) fn components(n: usize, pipes: &[[u32; 2]], k: &[f64]) -> Vec<u32> {
 }
 
 /// Solves `A x = b` for a weighted graph Laplacian restricted to `unknown` nodes (others fixed at
-/// `fixed_value`), returning the full vector.
+/// their `values`), returning the full vector.
 fn steady(n: usize, pipes: &[[u32; 2]], k: &[f64], is_unknown: &[bool], values: &mut [f64], extra_rhs: &[f64]) -> Result<(), SolveError> {
+    let mut v = [values.to_vec()];
+    steady_many(n, pipes, k, is_unknown, &mut v, &[extra_rhs])?;
+    values.copy_from_slice(&v[0]);
+    Ok(())
+}
+
+/// [`steady`] for several right-hand sides with one factorisation.
+fn steady_many(n: usize, pipes: &[[u32; 2]], k: &[f64], is_unknown: &[bool], values: &mut [Vec<f64>], extra_rhs: &[&[f64]]) -> Result<(), SolveError> {
     let mut local = vec![u32::MAX; n];
     let mut m = 0u32;
     for i in 0..n {
@@ -78,10 +86,12 @@ fn steady(n: usize, pipes: &[[u32; 2]], k: &[f64], is_unknown: &[bool], values: 
     }
     let mut entries: Vec<(u32, u32)> = (0..m as u32).map(|l| (l, l)).collect();
     let mut vals = vec![0.0; m];
-    let mut rhs = vec![0.0; m];
-    for i in 0..n {
-        if is_unknown[i] {
-            rhs[local[i] as usize] += extra_rhs[i];
+    let mut rhs = vec![vec![0.0; m]; extra_rhs.len()];
+    for (r, extra) in rhs.iter_mut().zip(extra_rhs) {
+        for i in 0..n {
+            if is_unknown[i] {
+                r[local[i] as usize] += extra[i];
+            }
         }
     }
     for (e, &[i, j]) in pipes.iter().enumerate() {
@@ -93,13 +103,17 @@ fn steady(n: usize, pipes: &[[u32; 2]], k: &[f64], is_unknown: &[bool], values: 
         if li != u32::MAX {
             vals[li as usize] += kk;
             if lj == u32::MAX {
-                rhs[li as usize] += kk * values[j as usize];
+                for (r, v) in rhs.iter_mut().zip(values.iter()) {
+                    r[li as usize] += kk * v[j as usize];
+                }
             }
         }
         if lj != u32::MAX {
             vals[lj as usize] += kk;
             if li == u32::MAX {
-                rhs[lj as usize] += kk * values[i as usize];
+                for (r, v) in rhs.iter_mut().zip(values.iter()) {
+                    r[lj as usize] += kk * v[i as usize];
+                }
             }
         }
         if li != u32::MAX && lj != u32::MAX {
@@ -110,10 +124,12 @@ fn steady(n: usize, pipes: &[[u32; 2]], k: &[f64], is_unknown: &[bool], values: 
     set_parallelism_for(m);
     let pat = SpdPattern::new(m, &entries)?;
     let f = pat.factorize(&vals)?;
-    f.solve_in_place(&pat, &mut rhs)?;
-    for i in 0..n {
-        if local[i] != u32::MAX {
-            values[i] = rhs[local[i] as usize];
+    for (r, v) in rhs.iter_mut().zip(values.iter_mut()) {
+        f.solve_in_place(&pat, r)?;
+        for i in 0..n {
+            if local[i] != u32::MAX {
+                v[i] = r[local[i] as usize];
+            }
         }
     }
     Ok(())
@@ -200,50 +216,26 @@ pub fn faces(p: &Particles, pipes: &Pipes, axis: usize, depth: f64, delta_t: f64
     Ok(AxisResult { axis, q_hot, q_cold, area, length, kappa, floating, hot_particles: nh, cold_particles: nc })
 }
 
-/// Pipes of a periodic box: contacts with minimum-image branch vectors `b_ij = x_j + s − x_i`.
+/// Pipes of a periodic box `[0, L)` (positions wrapped into it): contacts found by the
+/// minimum-image search with branch vectors `b_ij = x_j + s − x_i`, s the image shift. Each box
+/// length must be at least two largest diameters, so that a pair touches through one image only.
 pub fn periodic_pipes(p: &Particles, bbox: Vector3<f64>, materials: &[Material], law: &Conductance) -> Result<(Pipes, Vec<Vector3<f64>>), Error> {
-    let n = p.len();
     let r_max = p.radius.iter().copied().fold(0.0, f64::max);
-    if (0..3).any(|a| bbox[a] < 3.0 * 2.0 * r_max) {
-        return Err(SolveError::new("periodic pipes", "the periodic box must be at least three particle diameters wide along each axis").into());
+    if (0..3).any(|a| !(bbox[a] >= 2.0 * 2.0 * r_max)) {
+        return Err(SolveError::new(
+            "periodic pipes",
+            format!("the periodic box {:?} m must be at least two largest particle diameters ({:e} m) wide along each axis", bbox.as_slice(), 4.0 * r_max),
+        )
+        .into());
     }
-    // originals plus the images of particles within one diameter of a face
-    let mut pos = p.position.clone();
-    let mut rad = p.radius.clone();
-    let mut origin: Vec<(u32, Vector3<f64>)> = (0..n as u32).map(|i| (i, Vector3::zeros())).collect();
-    for i in 0..n {
-        for sx in -1i32..=1 {
-            for sy in -1i32..=1 {
-                for sz in -1i32..=1 {
-                    if sx == 0 && sy == 0 && sz == 0 {
-                        continue;
-                    }
-                    let s = Vector3::new(sx as f64 * bbox.x, sy as f64 * bbox.y, sz as f64 * bbox.z);
-                    let x = p.position[i] + s;
-                    let reach = 2.0 * r_max;
-                    if (0..3).all(|a| x[a] >= -reach && x[a] <= bbox[a] + reach) {
-                        pos.push(x);
-                        rad.push(p.radius[i]);
-                        origin.push((i as u32, s));
-                    }
-                }
-            }
-        }
-    }
-    let mut pairs = Vec::new();
-    let mut branch = Vec::new();
-    for (a, b) in crate::contacts::detect::touching_pairs(&pos, &rad, 0.0) {
-        let (a, b) = (a as usize, b as usize);
-        // keep pipes seen from an original particle a < n to a partner with larger original index
-        if a >= n {
-            continue;
-        }
-        let (j, _) = origin[b];
-        if (j as usize) <= a {
-            continue;
-        }
-        pairs.push([a as u32, j]);
-        branch.push(pos[b] - pos[a]);
+    let wrap = |x: &Vector3<f64>| Vector3::from_fn(|a, _| x[a].rem_euclid(bbox[a]));
+    let found = crate::contacts::detect::touching_pairs_periodic(&p.position, &p.radius, bbox, 0.0);
+    let mut pairs = Vec::with_capacity(found.len());
+    let mut branch = Vec::with_capacity(found.len());
+    for c in found {
+        let s = Vector3::new(c.shift[0] as f64 * bbox.x, c.shift[1] as f64 * bbox.y, c.shift[2] as f64 * bbox.z);
+        pairs.push([c.i, c.j]);
+        branch.push((wrap(&p.position[c.j as usize]) + s) - wrap(&p.position[c.i as usize]));
     }
     let pipes = pipes::pipes_from_pairs(pairs, &branch, p, materials, law)?;
     Ok((pipes, branch))
@@ -255,18 +247,25 @@ pub fn periodic(p: &Particles, pipes: &Pipes, branch: &[Vector3<f64>], bbox: Vec
     let comp = components(n, &pipes.pairs, &pipes.conductance);
     let volume = bbox.x * bbox.y * bbox.z;
     let mut kappa = Matrix3::zeros();
-    for axis in 0..3 {
-        let g = Vector3::ith(axis, 1.0); // K/m
-        let mut rhs = vec![0.0; n];
-        for (e, &[i, j]) in pipes.pairs.iter().enumerate() {
-            let f = pipes.conductance[e] * g.dot(&branch[e]);
-            rhs[i as usize] += f;
-            rhs[j as usize] -= f;
-        }
-        // pin the first node of each component (θ = 0)
-        let unknown: Vec<bool> = (0..n).map(|i| comp[i] as usize != i).collect();
-        let mut theta = vec![0.0; n];
-        steady(n, &pipes.pairs, &pipes.conductance, &unknown, &mut theta, &rhs)?;
+    let rhs: Vec<Vec<f64>> = (0..3)
+        .map(|axis| {
+            let g = Vector3::ith(axis, 1.0); // K/m
+            let mut rhs = vec![0.0; n];
+            for (e, &[i, j]) in pipes.pairs.iter().enumerate() {
+                let f = pipes.conductance[e] * g.dot(&branch[e]);
+                rhs[i as usize] += f;
+                rhs[j as usize] -= f;
+            }
+            rhs
+        })
+        .collect();
+    // pin the first node of each component (θ = 0); one factorisation for the three gradients
+    let unknown: Vec<bool> = (0..n).map(|i| comp[i] as usize != i).collect();
+    let mut theta = vec![vec![0.0; n]; 3];
+    let extra: Vec<&[f64]> = rhs.iter().map(|r| r.as_slice()).collect();
+    steady_many(n, &pipes.pairs, &pipes.conductance, &unknown, &mut theta, &extra)?;
+    for (axis, theta) in theta.iter().enumerate() {
+        let g = Vector3::ith(axis, 1.0);
         let mut q = Vector3::zeros();
         for (e, &[i, j]) in pipes.pairs.iter().enumerate() {
             let dt_ij = -g.dot(&branch[e]) + theta[i as usize] - theta[j as usize]; // T_i − T_j

@@ -44,10 +44,12 @@ pub fn run_case(value: toml::Value, base: &std::path::Path) -> Result<serde_json
             t
         }
         "periodic" => {
-            let bbox = prep
-                .scene
-                .periodic_box
-                .ok_or_else(|| ConfigError::inconsistent("conductivity.boundary", "\"periodic\" needs a periodic box (particles.source = \"lattice\")"))?;
+            let bbox = prep.scene.periodic_box.ok_or_else(|| {
+                ConfigError::inconsistent(
+                    "conductivity.boundary",
+                    "\"periodic\" needs a periodic box: particles.source = \"lattice\", or a file packing with particles.periodic_box = [Lx, Ly, Lz] (m)",
+                )
+            })?;
             let (pipes, branch) = periodic_pipes(p, bbox, &prep.scene.materials, &prep.conductance)?;
             out.insert("periodic_contacts".into(), pipes.pairs.len().into());
             periodic(p, &pipes, &branch, bbox)?

@@ -286,6 +286,10 @@ pub struct ParticlesSpec {
     pub file: Option<String>,
     /// Format of `file`: "csv", "liggghts" or "yade" (default: from the extension).
     pub format: Option<String>,
+    /// The periodic box `[Lx, Ly, Lz]` of a `file` packing, from the origin [m]: particles may
+    /// stick out of it (they are wrapped into it by the periodic contact search). Read by
+    /// `conductivity.boundary = "periodic"`.
+    pub periodic_box: Option<[f64; 3]>,
     /// Material name for every particle (default: the first material).
     pub material: Option<String>,
     /// Initial temperature [K] (default 293.15).
@@ -428,7 +432,7 @@ fn arith() -> String {
 #[serde(deny_unknown_fields)]
 pub struct ConductivitySpec {
     /// "faces" (default: two opposite layers held at fixed temperatures, per axis) or "periodic"
-    /// (imposed mean gradient; needs a lattice).
+    /// (imposed mean gradient; needs a lattice or a file packing with `particles.periodic_box`).
     #[serde(default = "faces")]
     pub boundary: String,
     /// Axes to compute ("x", "y", "z"; default all).

@@ -64,7 +64,8 @@ impl Lattice {
 pub struct Scene {
     pub particles: Particles,
     pub materials: Vec<Material>,
-    /// The periodic box of a lattice scene (cells × cell edge) [m], with its origin at 0.
+    /// The periodic box of a lattice scene (cells × cell edge) or of a file packing
+    /// (`particles.periodic_box`) [m], with its origin at 0.
     pub periodic_box: Option<Vector3<f64>>,
     /// Lattice type and nearest-neighbour distance D [m] for lattice scenes.
     pub lattice: Option<(Lattice, f64)>,
@@ -109,6 +110,9 @@ pub fn build(spec: &ParticlesSpec, materials: Vec<Material>, base: &Path) -> Res
     let overlap = config::check("particles.overlap", spec.overlap)?;
     let mut periodic_box = None;
     let mut lattice = None;
+    if spec.periodic_box.is_some() && spec.source != "file" {
+        return Err(ConfigError::inconsistent("particles.periodic_box", format!("is read with source = \"file\" only (source = \"{}\")", spec.source)).into());
+    }
     match spec.source.as_str() {
         "lattice" => {
             let kind = Lattice::parse(spec.lattice.as_deref().ok_or_else(|| ConfigError::invalid("particles.lattice is required for source = \"lattice\""))?)?;
@@ -192,6 +196,9 @@ pub fn build(spec: &ParticlesSpec, materials: Vec<Material>, base: &Path) -> Res
                 config::check("particles.radius", pk.radii[k])?;
                 push(&mut p, pk.positions[k], pk.radii[k], m, t);
             }
+            if let Some(b) = spec.periodic_box {
+                periodic_box = Some(check_periodic_box(b, &p)?);
+            }
         }
         other => {
             return Err(ConfigError::invalid(format!("particles.source = \"{other}\": expected lattice, pair or file")).into());
@@ -201,6 +208,24 @@ pub fn build(spec: &ParticlesSpec, materials: Vec<Material>, base: &Path) -> Res
         return Err(ConfigError::invalid("particles: the scene has no particles").into());
     }
     Ok(Scene { particles: p, materials, periodic_box, lattice })
+}
+
+/// `particles.periodic_box` of a file packing: every length positive and at least two largest
+/// particle diameters, so that a pair touches through one periodic image only (minimum image).
+fn check_periodic_box(b: [f64; 3], p: &Particles) -> Result<Vector3<f64>, ConfigError> {
+    for &l in &b {
+        config::check("particles.periodic_box", l)?;
+    }
+    let d_max = 2.0 * p.radius.iter().copied().fold(0.0, f64::max);
+    if let Some(&l) = b.iter().find(|&&l| l < 2.0 * d_max) {
+        return Err(ConfigError::OutOfRange {
+            key: "particles.periodic_box".into(),
+            value: l,
+            range: format!("[2 largest particle diameters = {}, 1000]", crate::error::fmt_value(2.0 * d_max)),
+            unit: "m".into(),
+        });
+    }
+    Ok(Vector3::from(b))
 }
 
 /// The particles of a region, sorted. `key` names the region in errors.

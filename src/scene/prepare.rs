@@ -106,6 +106,13 @@ pub fn prepare_scene(value: toml::Value, base: &Path) -> Result<Prepared, Error>
         return Err(ConfigError::invalid("output.snapshots and output.series_every must be whole numbers").into());
     }
     let conductance = conductance_of(&case)?;
+    if compact && case.particles.periodic_box.is_some() {
+        return Err(ConfigError::inconsistent(
+            "particles.periodic_box",
+            "compact runs have no periodic cell yet (walls and faces only); the box is read by sinterdem conductivity with conductivity.boundary = \"periodic\"",
+        )
+        .into());
+    }
     // keys that this case's mode does not read are range-checked all the same
     if let Some(f) = &case.thermal.furnace {
         config::check("thermal.furnace.convection_coefficient", f.convection_coefficient)?;
