@@ -3,7 +3,6 @@
 //! wheel's `sinterdem` console entry point both call it, so they are one program. Exit codes by
 //! error class: [`crate::error::Error::exit_code`] (docs/outputs.md, "Exit codes").
 
-use crate as sinterdem;
 use crate::error::Error;
 use clap::{Args, Parser, Subcommand};
 use std::ffi::OsString;
@@ -310,15 +309,15 @@ fn run_case(case: &CaseArgs, value: toml::Value, out: Option<PathBuf>, quiet: bo
     let out = out.unwrap_or_else(|| PathBuf::from("out").join(stem));
     let mut sets = case.set.clone();
     sets.extend(extra);
-    let params = sinterdem::kinds::RunParams { base_dir: base_dir(&case.case), progress: !quiet, echo_log: true, plots: true, wall_limit: None };
-    sinterdem::kinds::run(&value, &sets, &out, &params)?;
+    let params = crate::kinds::RunParams { base_dir: base_dir(&case.case), progress: !quiet, echo_log: true, plots: true, wall_limit: None };
+    crate::kinds::run(&value, &sets, &out, &params)?;
     Ok(())
 }
 
 /// Runs `f` and adds to a configuration error the file:line:column of the key it names in the
 /// case file (or the `--set` that set it).
 fn located(case: &CaseArgs, f: impl FnOnce() -> Result<(), Error>) -> Result<(), Error> {
-    f().map_err(|e| sinterdem::config::messages::locate(e, &case.case, &case.set))
+    f().map_err(|e| crate::config::messages::locate(e, &case.case, &case.set))
 }
 
 /// Runs the command line `args` (the first is the program name, as in `std::env::args_os`) and
@@ -336,7 +335,7 @@ where
             return e.exit_code();
         }
     };
-    sinterdem::logging::init(sinterdem::logging::Verbosity::from_flags(cli.quiet, cli.verbose));
+    crate::logging::init(crate::logging::Verbosity::from_flags(cli.quiet, cli.verbose));
     match real_main(cli) {
         Ok(()) => 0,
         Err(e) => {
@@ -350,32 +349,32 @@ fn real_main(cli: Cli) -> Result<(), Error> {
     let quiet = cli.quiet;
     match cli.command {
         Command::Generate { case, out } => located(&case, || {
-            let value = sinterdem::config::load_case(&case.case, &[])?;
-            if sinterdem::kinds::Kind::of(&value)? != sinterdem::kinds::Kind::Generate {
-                return Err(sinterdem::ConfigError::invalid(format!("{}: kind must be \"generate\"", case.case.display())).into());
+            let value = crate::config::load_case(&case.case, &[])?;
+            if crate::kinds::Kind::of(&value)? != crate::kinds::Kind::Generate {
+                return Err(crate::ConfigError::invalid(format!("{}: kind must be \"generate\"", case.case.display())).into());
             }
             run_case(&case, value, out.clone(), quiet, vec![])
         }),
         Command::Run { case, out, checkpoint_every } => located(&case, || {
-            let value = sinterdem::config::load_case(&case.case, &[])?;
+            let value = crate::config::load_case(&case.case, &[])?;
             let extra = checkpoint_every.map(|n| format!("output.checkpoint_every={n}")).into_iter().collect();
             run_case(&case, value, out.clone(), quiet, extra)
         }),
         Command::Resume { dir } => {
-            let params = sinterdem::kinds::RunParams { progress: !quiet, echo_log: true, ..Default::default() };
-            sinterdem::kinds::resume(&dir, &params)?;
+            let params = crate::kinds::RunParams { progress: !quiet, echo_log: true, ..Default::default() };
+            crate::kinds::resume(&dir, &params)?;
             Ok(())
         }
         Command::Check { case } => located(&case, || {
-            let value = sinterdem::config::load_case(&case.case, &[])?;
-            let what = sinterdem::calibrate::check_file(&value, &case.set, &base_dir(&case.case))?;
+            let value = crate::config::load_case(&case.case, &[])?;
+            let what = crate::calibrate::check_file(&value, &case.set, &base_dir(&case.case))?;
             println!("{}: ok ({what})", case.case.display());
             Ok(())
         }),
         Command::Titanium { out, full, diameter } => {
             let study = PathBuf::from("cases/studies/titanium-28.toml");
             if !study.is_file() {
-                return Err(sinterdem::ConfigError::invalid(format!(
+                return Err(crate::ConfigError::invalid(format!(
                     "{} not found: run `sinterdem titanium` from the repository root, or `sinterdem study PATH/titanium-28.toml`",
                     study.display()
                 ))
@@ -388,33 +387,33 @@ fn real_main(cli: Cli) -> Result<(), Error> {
             if let Some(d) = diameter {
                 set.push(format!("pair.radius={:e}", d / 2.0));
             }
-            let opts = sinterdem::study::StudyOptions { out: Some(out), overrides: set, progress: !quiet, ..Default::default() };
-            sinterdem::study::run_study(&study, &opts, &mut |m| tracing::info!("{m}"))?;
+            let opts = crate::study::StudyOptions { out: Some(out), overrides: set, progress: !quiet, ..Default::default() };
+            crate::study::run_study(&study, &opts, &mut |m| tracing::info!("{m}"))?;
             Ok(())
         }
         Command::Study { study, engine, jobs, out, wait, retry_failed, set, partition, time, account, cpus_per_task, chunk, sbatch } => {
             let engine = match engine {
-                EngineArg::Local => sinterdem::study::Engine::Local,
-                EngineArg::Slurm => sinterdem::study::Engine::Slurm,
+                EngineArg::Local => crate::study::Engine::Local,
+                EngineArg::Slurm => crate::study::Engine::Slurm,
             };
-            let slurm = sinterdem::study::slurm::SlurmOverrides { partition, time, account, cpus_per_task, chunk, extra: sbatch };
-            let opts = sinterdem::study::StudyOptions { engine, jobs, out, wait, retry_failed, overrides: set, progress: !quiet, slurm, plots: true };
-            let info = sinterdem::study::run_study(&study, &opts, &mut |m| tracing::info!("{m}"))?;
+            let slurm = crate::study::slurm::SlurmOverrides { partition, time, account, cpus_per_task, chunk, extra: sbatch };
+            let opts = crate::study::StudyOptions { engine, jobs, out, wait, retry_failed, overrides: set, progress: !quiet, slurm, plots: true };
+            let info = crate::study::run_study(&study, &opts, &mut |m| tracing::info!("{m}"))?;
             if info.gathered && info.counts.failed > 0 {
                 tracing::warn!("{} of {} runs failed (see status and error in {})", info.counts.failed, info.counts.runs, info.dir.join("study.csv").display());
             }
             Ok(())
         }
         Command::StudyTask { dir, batch, task, threads } => {
-            let n = sinterdem::study::slurm::run_task(&dir, batch, task, threads)?;
+            let n = crate::study::slurm::run_task(&dir, batch, task, threads)?;
             tracing::info!("study task {batch}/{task}: {n} runs executed");
             Ok(())
         }
         Command::Neck { r1, r2, overlap, kappa, kappa2, conductance, factor, contact_conductance } => {
             let law = match conductance.as_str() {
-                "linear" => sinterdem::heat::ConductanceLaw::Linear,
-                "fe_fit" => sinterdem::heat::ConductanceLaw::FeFit,
-                other => return Err(sinterdem::ConfigError::invalid(format!("--conductance {other}: expected linear or fe_fit")).into()),
+                "linear" => crate::heat::ConductanceLaw::Linear,
+                "fe_fit" => crate::heat::ConductanceLaw::FeFit,
+                other => return Err(crate::ConfigError::invalid(format!("--conductance {other}: expected linear or fe_fit")).into()),
             };
             let optional = [("--kappa2", kappa2), ("--contact-conductance", contact_conductance)];
             for (k, v) in [("--r1", r1), ("--r2", r2), ("--kappa", kappa), ("--factor", factor)]
@@ -422,7 +421,7 @@ fn real_main(cli: Cli) -> Result<(), Error> {
                 .chain(optional.into_iter().filter_map(|(k, v)| Some((k, v?))))
             {
                 if !(v > 0.0 && v.is_finite()) {
-                    return Err(sinterdem::ConfigError::OutOfRange {
+                    return Err(crate::ConfigError::OutOfRange {
                         key: k.into(),
                         value: v,
                         range: "(0, inf)".into(),
@@ -437,8 +436,8 @@ fn real_main(cli: Cli) -> Result<(), Error> {
                     .into());
                 }
             }
-            let n = sinterdem::neck::solve(r1, r2, overlap)?;
-            let c = sinterdem::heat::Conductance { law, factor, contact: contact_conductance };
+            let n = crate::neck::solve(r1, r2, overlap)?;
+            let c = crate::heat::Conductance { law, factor, contact: contact_conductance };
             let p = c.pipe(kappa, kappa2.unwrap_or(kappa), r1, r2, n.a);
             let v = serde_json::json!({
                 "a": n.a, "a_coble": n.a_coble, "h_ci": n.h_ci, "h_cj": n.h_cj, "h_n": n.h_n,
@@ -450,60 +449,59 @@ fn real_main(cli: Cli) -> Result<(), Error> {
             Ok(())
         }
         Command::Conductivity { case } => located(&case, || {
-            let value = sinterdem::config::load_case(&case.case, &case.set)?;
-            let v = sinterdem::kinds::conductivity::run_case(value, &base_dir(&case.case))?;
+            let value = crate::config::load_case(&case.case, &case.set)?;
+            let v = crate::kinds::conductivity::run_case(value, &base_dir(&case.case))?;
             println!("{}", serde_json::to_string_pretty(&v).unwrap());
             Ok(())
         }),
         Command::Calibrate { case, out, generate_synthetic, validate_compact } => {
-            located(&case, || sinterdem::calibrate::run_file(&case.case, &case.set, &out, quiet, generate_synthetic, validate_compact))
+            located(&case, || crate::calibrate::run_file(&case.case, &case.set, &out, quiet, generate_synthetic, validate_compact))
         }
         Command::Keys { study } => {
-            print!("{}", if study { sinterdem::study::spec::markdown() } else { sinterdem::config::ranges::markdown(&sinterdem::calibrate::every_table()) });
+            print!("{}", if study { crate::study::spec::markdown() } else { crate::config::ranges::markdown(&crate::calibrate::every_table()) });
             Ok(())
         }
         Command::Bench { which } => run_bench(which),
     }
 }
 
-/// `sinterdem bench …`: runs one benchmark of [`sinterdem::bench`] and prints its table.
+/// `sinterdem bench …`: runs one benchmark of [`crate::bench`] and prints its table.
 fn run_bench(which: Bench) -> Result<(), Error> {
     match which {
         Bench::Study { runs, jobs, out } => {
-            println!("{}", sinterdem::bench::study::bench_study(runs, jobs, &out)?);
+            println!("{}", crate::bench::study::bench_study(runs, jobs, &out)?);
             Ok(())
         }
-        Bench::Heat { particles, repeat } => sinterdem::bench::heat::bench_heat(&particles, repeat.max(1)),
-        Bench::HeatStep { out, cells, end } => sinterdem::bench::heat::bench_heat_step(&out, [cells[0], cells[1], cells[2]], end).map(|_| ()),
+        Bench::Heat { particles, repeat } => crate::bench::heat::bench_heat(&particles, repeat.max(1)),
+        Bench::HeatStep { out, cells, end } => crate::bench::heat::bench_heat_step(&out, [cells[0], cells[1], cells[2]], end).map(|_| ()),
         Bench::Mechanics { particles, cholesky_max } => {
-            println!("{}", sinterdem::bench::mechanics::bench_mechanics_with(&particles, cholesky_max)?);
+            println!("{}", crate::bench::mechanics::bench_mechanics_with(&particles, cholesky_max)?);
             Ok(())
         }
         Bench::Coupled { case, particles, steps, set } => {
             let c = (case != "none").then(|| PathBuf::from(&case));
-            println!("{}", sinterdem::bench::bench_coupled(c.as_deref(), &particles, steps, &set)?);
+            println!("{}", crate::bench::bench_coupled(c.as_deref(), &particles, steps, &set)?);
             Ok(())
         }
         Bench::Precision { copper, e14b, corner_edge, out } => {
             let path = |c: &str| (c != "none").then(|| PathBuf::from(c));
             let (c, e) = (path(&copper), path(&e14b));
-            let report =
-                sinterdem::bench::precision::bench_precision(c.as_deref(), e.as_deref(), corner_edge, &out, &mut |m| eprintln!("bench precision: {m}"))?;
+            let report = crate::bench::precision::bench_precision(c.as_deref(), e.as_deref(), corner_edge, &out, &mut |m| eprintln!("bench precision: {m}"))?;
             println!("{report}");
             Ok(())
         }
         Bench::Generate { particles, out } => {
-            sinterdem::io::ensure_dir(&out)?;
-            println!("{}", sinterdem::bench::generate::bench_generate(&out, &particles)?);
+            crate::io::ensure_dir(&out)?;
+            println!("{}", crate::bench::generate::bench_generate(&out, &particles)?);
             Ok(())
         }
         Bench::Sweep { contacts, steps, dt } => {
-            println!("{}", sinterdem::bench::diffusion7::bench_sweep(contacts, steps, dt)?);
+            println!("{}", crate::bench::diffusion7::bench_sweep(contacts, steps, dt)?);
             Ok(())
         }
         Bench::Pair { out } => {
-            sinterdem::io::ensure_dir(&out)?;
-            let table = sinterdem::bench::diffusion7::bench_pair(&out)?;
+            crate::io::ensure_dir(&out)?;
+            let table = crate::bench::diffusion7::bench_pair(&out)?;
             println!("{table}");
             Ok(())
         }
