@@ -117,3 +117,37 @@ def test_warnings_are_collected():
     case["temperature.constant"] = 1400.0
     w = sinterdem.run(case, progress=False).warnings
     assert len(w) == 1 and "leaves the calibrated range" in w[0]
+
+
+def test_run_releases_the_gil():
+    import threading
+    import time
+
+    # a pair run that integrates for about a second before its model error
+    case = sinterdem.Case.load(CASES / "pair-copper.toml")
+    case["pair.end_time"] = 10.0
+    case["pair.radius_b"] = 1e-7
+    done = threading.Event()
+    caught = []
+
+    def work():
+        try:
+            sinterdem.run(case, progress=False)
+        except sinterdem.ModelError as e:
+            caught.append(e)
+        finally:
+            done.set()
+
+    t0 = time.perf_counter()
+    th = threading.Thread(target=work)
+    th.start()
+    ticks = 0
+    while not done.is_set():
+        ticks += 1
+        time.sleep(0.001)
+    elapsed = time.perf_counter() - t0
+    th.join()
+    assert len(caught) == 1
+    assert elapsed > 0.2
+    # with the GIL held for the whole run this thread would tick only before and after it
+    assert ticks > 0.2 * elapsed / 0.0011, (ticks, elapsed)
