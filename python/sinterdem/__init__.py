@@ -85,6 +85,11 @@ class Case:
         """A case from TOML text; relative paths start at ``base_dir`` (default: the working directory)."""
         return cls(_native.CaseCore.from_toml(text, os.fspath(base_dir or ".")))
 
+    @staticmethod
+    def preset_material(name: str) -> Dict[str, Any]:
+        """A bundled material (``"copper"``, ``"titanium"``) as a dict to edit and put in a case's ``materials`` list."""
+        return _native.CaseCore.preset_material(name)
+
     def __setitem__(self, key: str, value: Any) -> None:
         self._core.set(key, value)
 

@@ -230,6 +230,19 @@ impl CaseCore {
         Ok((s.kind.name().to_string(), s.wall_seconds))
     }
 
+    /// A bundled material (`copper`, `titanium`) as a `[[materials]]` table to edit: its
+    /// thermal and elastic values and the name of its bundled diffusion data.
+    #[staticmethod]
+    fn preset_material<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyAny>> {
+        let m = sinterdem::material::preset(name)
+            .ok_or_else(|| to_py_err(py, ConfigError::invalid(format!("preset_material(\"{name}\"): unknown preset (copper, titanium)")).into(), None, &[]))?;
+        let mut v = toml::Value::try_from(&m).map_err(|e| to_py_err(py, ConfigError::invalid(format!("material {name}: {e}")).into(), None, &[]))?;
+        if let Some(t) = v.as_table_mut() {
+            t.remove("diffusion_data");
+        }
+        toml_to_py(py, &v)
+    }
+
     /// The overrides given so far, as `--set` arguments.
     #[getter]
     fn overrides(&self) -> Vec<String> {

@@ -17,11 +17,11 @@ TIMING = {"wall_seconds", "timing_seconds", "threads"}
 
 
 def strip_timing(d, parent=""):
-    """summary.json without its wall-time and thread-count fields (recursively; in a
-    ``*_profile`` table the ``*_s`` fields are wall times too)."""
+    """summary.json without its wall-time and thread-count fields (recursively; ``seconds_*``
+    and, in a ``*_profile`` table, ``*_s`` fields are wall times too)."""
     if isinstance(d, dict):
         return {k: strip_timing(v, k) for k, v in d.items()
-                if k not in TIMING and not (parent.endswith("profile") and k.endswith("_s"))}
+                if k not in TIMING and not k.startswith("seconds_") and not (parent.endswith("profile") and k.endswith("_s"))}
     if isinstance(d, list):
         return [strip_timing(v) for v in d]
     return d

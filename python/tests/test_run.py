@@ -151,3 +151,25 @@ def test_run_releases_the_gil():
     assert elapsed > 0.2
     # with the GIL held for the whole run this thread would tick only before and after it
     assert ticks > 0.2 * elapsed / 0.0011, (ticks, elapsed)
+
+
+def test_preset_material_spelled_out_gives_the_same_heat_run():
+    m = sinterdem.Case.preset_material("titanium")
+    assert m["name"] == "titanium" and m["density"] == 4506.0 and m["heat_capacity"] == 523.0
+    sets = {"time.end": 30.0, "output.snapshots": 0}
+    a = sinterdem.Case.load(CASES / "hot-plate.toml")
+    b = sinterdem.Case.load(CASES / "hot-plate.toml")
+    for k, v in sets.items():
+        a[k] = v
+        b[k] = v
+    b["materials"] = [m]  # the preset's values written out instead of preset = "titanium"
+    assert "preset" not in b["materials.0"]
+    ra, rb = sinterdem.run(a, progress=False), sinterdem.run(b, progress=False)
+    assert ra.kind == "heat"
+    assert strip_timing(ra.summary) == strip_timing(rb.summary)
+    m["heat_capacity"] = 2 * 523.0  # an edit reaches the run
+    b["materials"] = [m]
+    rc = sinterdem.run(b, progress=False)
+    assert rc.summary != ra.summary and strip_timing(rc.summary) != strip_timing(ra.summary)
+    with pytest.raises(sinterdem.ConfigError, match="unknown preset"):
+        sinterdem.Case.preset_material("unobtainium")
