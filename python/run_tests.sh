@@ -18,7 +18,7 @@ start=$(date +%s)
 rm -rf "$venv"
 "$py" -m venv "$venv"
 export PATH="$venv/bin:$PATH"   # maturin for pip install --no-build-isolation
-if ! "$venv/bin/python" -m pip install --disable-pip-version-check -q maturin pytest pandas numpy >/tmp/sinterdem-python-pip.log 2>&1; then
+if ! "$venv/bin/python" -m pip install --disable-pip-version-check --retries 1 --timeout 20 -q maturin pytest pandas numpy >/tmp/sinterdem-python-pip.log 2>&1; then
     echo "Python package tests SKIPPED: pip could not install maturin/pytest/pandas/numpy (no package index?): $(tail -n 1 /tmp/sinterdem-python-pip.log)"
     exit 77
 fi
