@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Runs every test: the Rust suite (unit, end-to-end, doc snippets) and the Python FE validation.
+# Runs every test: the Rust suite (unit, end-to-end, doc snippets), the Python FE validation and the
+# Python package (python/run_tests.sh: pip install ./python, the wheel without cargo, pytest).
 #   bash scripts/test-all.sh
 set -uo pipefail
 set -e
@@ -55,16 +56,29 @@ if [ -x validation/run_tests.sh ] || [ -f validation/run_tests.sh ]; then
 else
     echo "validation/run_tests.sh missing"; python_status=1
 fi
+echo "== Python package (python/: pip install ./python, maturin wheel, pytest python/tests)"
+package_status=0
+set +e
+SINTERDEM_BIN="$PWD/target/release/sinterdem" bash python/run_tests.sh 2>&1 | tee /tmp/sinterdem-package.log
+package_status=${PIPESTATUS[0]}
+set -e
+if [ "$package_status" = "77" ]; then
+    package_status=0   # skipped: run_tests.sh printed "Python package tests SKIPPED: <why>"
+fi
 set +e
 passed=$(grep -Eo "[0-9]+ passed" /tmp/sinterdem-cargo-test.log | awk '{s+=$1} END {print s+0}')
 failed=$(grep -Eo "[0-9]+ failed" /tmp/sinterdem-cargo-test.log | awk '{s+=$1} END {print s+0}')
 py_passed=$(grep -Eo "[0-9]+ passed" /tmp/sinterdem-pytest.log 2>/dev/null | tail -n 1 | awk '{print $1+0}')
 py_failed=$(grep -Eo "[0-9]+ failed" /tmp/sinterdem-pytest.log 2>/dev/null | tail -n 1 | awk '{print $1+0}')
+pkg_passed=$(grep -Eo "[0-9]+ passed" /tmp/sinterdem-package.log 2>/dev/null | tail -n 1 | awk '{print $1+0}')
+pkg_failed=$(grep -Eo "[0-9]+ failed" /tmp/sinterdem-package.log 2>/dev/null | tail -n 1 | awk '{print $1+0}')
+pkg_note=""
+grep -q "Python package tests SKIPPED" /tmp/sinterdem-package.log 2>/dev/null && pkg_note=" (SKIPPED)"
 set -e
-echo "== Rust: $passed passed, $failed failed; Python: ${py_passed:-0} passed, ${py_failed:-0} failed (exit $python_status); $(( $(date +%s) - start )) s"
-if [ "$rust_status" != "0" ] || [ "$python_status" != "0" ] || [ "$gate_status" != "0" ]; then
+echo "== Rust: $passed passed, $failed failed; Python: ${py_passed:-0} passed, ${py_failed:-0} failed (exit $python_status); Python package: ${pkg_passed:-0} passed, ${pkg_failed:-0} failed (exit $package_status)$pkg_note; $(( $(date +%s) - start )) s"
+if [ "$rust_status" != "0" ] || [ "$python_status" != "0" ] || [ "$package_status" != "0" ] || [ "$gate_status" != "0" ]; then
     echo "SOME TESTS FAILED"
-    echo "$(( passed + ${py_passed:-0} )) passed, $(( failed + ${py_failed:-0} + (rust_status != 0 && failed == 0) + (python_status != 0 && ${py_failed:-0} == 0) + gate_status )) failed"
+    echo "$(( passed + ${py_passed:-0} + ${pkg_passed:-0} )) passed, $(( failed + ${py_failed:-0} + ${pkg_failed:-0} + (rust_status != 0 && failed == 0) + (python_status != 0 && ${py_failed:-0} == 0) + (package_status != 0 && ${pkg_failed:-0} == 0) + gate_status )) failed"
     exit 1
 fi
-echo "$(( passed + ${py_passed:-0} )) passed, 0 failed"
+echo "$(( passed + ${py_passed:-0} + ${pkg_passed:-0} )) passed, 0 failed"

@@ -25,6 +25,13 @@ pub enum ConfigError {
 }
 
 impl ConfigError {
+    /// The case key the error names (out of range, inconsistent), if any.
+    pub fn key(&self) -> Option<&str> {
+        match self {
+            ConfigError::OutOfRange { key, .. } | ConfigError::Inconsistent { key, .. } => Some(key),
+            ConfigError::Invalid(_) => None,
+        }
+    }
     pub fn invalid(msg: impl Into<String>) -> Self {
         ConfigError::Invalid(msg.into())
     }
@@ -97,6 +104,30 @@ pub enum Error {
     Solve(#[from] SolveError),
     #[error("i/o error: {0}")]
     Io(#[from] IoError),
+}
+
+impl Error {
+    /// The class of the error as the Python package names it: `ConfigError`, `ModelError`,
+    /// `SolveError` or `IoError`.
+    pub fn class_name(&self) -> &'static str {
+        match self {
+            Error::Config(_) => "ConfigError",
+            Error::Model(_) => "ModelError",
+            Error::Solve(_) => "SolveError",
+            Error::Io(_) => "IoError",
+        }
+    }
+
+    /// The exit code of the command line for this error class (docs/outputs.md, "Exit codes"):
+    /// 1 configuration, 3 model, 4 solver, 5 input/output (2 is a command-line usage error).
+    pub fn exit_code(&self) -> i32 {
+        match self {
+            Error::Config(_) => 1,
+            Error::Model(_) => 3,
+            Error::Solve(_) => 4,
+            Error::Io(_) => 5,
+        }
+    }
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;

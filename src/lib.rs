@@ -16,6 +16,7 @@
 
 pub mod bench;
 pub mod calibrate;
+pub mod cli;
 pub mod config;
 pub mod contacts;
 pub mod coupled;

@@ -1,0 +1,41 @@
+#!/usr/bin/env bash
+# The Python package tests (docs/python.md): one release build of the extension, reused.
+#   1. a fresh venv python/.venv with maturin, pytest, pandas, numpy from pip (if pip cannot reach
+#      the package index the step prints "Python package tests SKIPPED: …" and exits 77);
+#   2. `pip install ./python` into it: installs from source (cargo, release, target dir shared
+#      with the root build so dependencies are not compiled twice);
+#   3. `maturin build --release` of the same crate (the cargo build is already fresh) → a wheel,
+#      which python/tests/test_wheel.py installs into another fresh venv with cargo off PATH;
+#   4. pytest python/tests (the CLI comparisons use SINTERDEM_BIN, default target/release/sinterdem).
+# Exit code: pytest's; 77 = skipped. Extra arguments go to pytest.
+set -euo pipefail
+here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
+root="$(cd "$here/.." && pwd)"
+venv="$here/.venv"
+py="${PYTHON:-python3}"
+export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$root/target}"
+start=$(date +%s)
+rm -rf "$venv"
+"$py" -m venv "$venv"
+export PATH="$venv/bin:$PATH"   # maturin for pip install --no-build-isolation
+if ! "$venv/bin/python" -m pip install --disable-pip-version-check --retries 1 --timeout 20 -q maturin pytest pandas numpy >/tmp/sinterdem-python-pip.log 2>&1; then
+    echo "Python package tests SKIPPED: pip could not install maturin/pytest/pandas/numpy (no package index?): $(tail -n 1 /tmp/sinterdem-python-pip.log)"
+    exit 77
+fi
+echo "python package: venv ready in $(( $(date +%s) - start )) s; pip install ./python (release build)"
+"$venv/bin/python" -m pip install --disable-pip-version-check -q --no-build-isolation "$here"
+echo "python package: installed from source at $(( $(date +%s) - start )) s; maturin build --release"
+wheels=$(mktemp -d /tmp/sinterdem-wheels-XXXXXX)
+"$venv/bin/maturin" build --release --quiet -m "$here/Cargo.toml" -o "$wheels" >/tmp/sinterdem-maturin.log 2>&1 || { cat /tmp/sinterdem-maturin.log; exit 1; }
+wheel=$(ls "$wheels"/sinterdem-*.whl | head -n 1)
+echo "python package: wheel $(basename "$wheel") at $(( $(date +%s) - start )) s"
+export SINTERDEM_WHEEL="$wheel"
+export SINTERDEM_BIN="${SINTERDEM_BIN:-$root/target/release/sinterdem}"
+cd "$root"
+set +e
+"$venv/bin/python" -m pytest python/tests -q -p no:cacheprovider "$@"
+status=$?
+set -e
+rm -rf "$wheels"
+echo "python package: $(( $(date +%s) - start )) s in all"
+exit $status

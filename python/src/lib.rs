@@ -1,0 +1,347 @@
+//! `sinterdem._native`: the Rust half of the Python package. Everything here is a thin call into
+//! the sinterdem library (the one run API `sinterdem::kinds::run`, `calibrate::check_file`,
+//! `study::run_study`, `calibrate::run_file`, `cli::main`); the Python layer (`sinterdem/*.py`)
+//! adds the objects users hold (Case, RunResult, …). Nothing of the simulator is written twice.
+
+use numpy::PyArray1;
+use pyo3::exceptions::{PyKeyError, PyTypeError};
+use pyo3::prelude::*;
+use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
+use sinterdem::config;
+use sinterdem::error::{ConfigError, Error};
+use std::path::{Path, PathBuf};
+
+/// A sinterdem error as the Python exception of its class (`sinterdem.ConfigError`, …), with
+/// the text the command line prints after `error: ` and the structured fields of a
+/// configuration error. `file` is the case file the error is located in, `sets` the overrides
+/// given so far (an error in a key they set says so, as `--set` does).
+fn to_py_err(py: Python<'_>, e: Error, file: Option<&Path>, sets: &[String]) -> PyErr {
+    let (mut key, mut value, mut allowed, mut unit, mut line, mut located_file) = (None, None, None, None, None, None);
+    if let Error::Config(ce) = &e {
+        key = ce.key().map(str::to_string);
+        if let ConfigError::OutOfRange { value: v, range, unit: u, .. } = ce {
+            value = Some(*v);
+            allowed = Some(range.clone());
+            unit = Some(u.clone());
+        }
+        if let (Some(k), Some(f)) = (key.as_deref(), file) {
+            let k = config::messages::normalise_key(k);
+            let k = k.split(' ').next().unwrap_or_default();
+            let set_here = sets.iter().any(|o| o.split_once('=').is_some_and(|(a, _)| config::messages::normalise_key(a.trim()) == k));
+            if !set_here && let Ok(text) = std::fs::read_to_string(f) {
+                line = config::messages::key_position(&text, k).map(|(l, _)| l);
+                located_file = line.map(|_| f.display().to_string());
+            }
+        }
+    }
+    let class = e.class_name();
+    let e = match file {
+        Some(f) => config::messages::locate(e, f, sets),
+        None => config::messages::locate(e, Path::new(""), sets),
+    };
+    let message = e.to_string();
+    let build = || -> PyResult<PyErr> {
+        let cls = py.import("sinterdem._errors")?.getattr(class)?;
+        let kw = PyDict::new(py);
+        kw.set_item("key", key)?;
+        kw.set_item("value", value)?;
+        kw.set_item("allowed", allowed)?;
+        kw.set_item("unit", unit)?;
+        kw.set_item("file", located_file)?;
+        kw.set_item("line", line)?;
+        Ok(PyErr::from_value(cls.call((message.clone(),), Some(&kw))?))
+    };
+    build().unwrap_or_else(|err| err)
+}
+
+/// A Python value (bool, int, float, str, dict, list, tuple, numpy scalar) as TOML.
+fn py_to_toml(v: &Bound<'_, PyAny>) -> PyResult<toml::Value> {
+    if v.is_instance_of::<PyBool>() {
+        return Ok(toml::Value::Boolean(v.extract()?));
+    }
+    if v.is_instance_of::<PyInt>() {
+        return Ok(toml::Value::Integer(v.extract()?));
+    }
+    if v.is_instance_of::<PyFloat>() {
+        return Ok(toml::Value::Float(v.extract()?));
+    }
+    if let Ok(s) = v.cast::<PyString>() {
+        return Ok(toml::Value::String(s.extract::<String>()?));
+    }
+    if let Ok(d) = v.cast::<PyDict>() {
+        let mut t = toml::Table::new();
+        for (k, x) in d.iter() {
+            let k: String = k.extract().map_err(|_| PyTypeError::new_err(format!("case keys must be strings, not {k:?}")))?;
+            t.insert(k, py_to_toml(&x)?);
+        }
+        return Ok(toml::Value::Table(t));
+    }
+    if v.is_instance_of::<PyList>() || v.is_instance_of::<PyTuple>() {
+        return Ok(toml::Value::Array(v.try_iter()?.map(|x| py_to_toml(&x?)).collect::<PyResult<_>>()?));
+    }
+    // numpy scalars and anything else with __index__ / __float__
+    if let Ok(i) = v.call_method0("__index__").and_then(|i| i.extract::<i64>()) {
+        return Ok(toml::Value::Integer(i));
+    }
+    if let Ok(x) = v.call_method0("__float__").and_then(|x| x.extract::<f64>()) {
+        return Ok(toml::Value::Float(x));
+    }
+    if v.hasattr("tolist")? {
+        return py_to_toml(&v.call_method0("tolist")?);
+    }
+    Err(PyTypeError::new_err(format!("{} cannot be written in a case file (use bool, int, float, str, dict or list)", v.get_type().name()?)))
+}
+
+/// A TOML value as Python (dates as strings).
+fn toml_to_py<'py>(py: Python<'py>, v: &toml::Value) -> PyResult<Bound<'py, PyAny>> {
+    Ok(match v {
+        toml::Value::String(s) => s.into_pyobject(py)?.into_any(),
+        toml::Value::Integer(i) => i.into_pyobject(py)?.into_any(),
+        toml::Value::Float(x) => x.into_pyobject(py)?.into_any(),
+        toml::Value::Boolean(b) => PyBool::new(py, *b).to_owned().into_any(),
+        toml::Value::Datetime(d) => d.to_string().into_pyobject(py)?.into_any(),
+        toml::Value::Array(a) => PyList::new(py, a.iter().map(|x| toml_to_py(py, x)).collect::<PyResult<Vec<_>>>()?)?.into_any(),
+        toml::Value::Table(t) => {
+            let d = PyDict::new(py);
+            for (k, x) in t {
+                d.set_item(k, toml_to_py(py, x)?)?;
+            }
+            d.into_any()
+        }
+    })
+}
+
+/// A case as the command line holds it: the parsed file (includes expanded) plus the `--set`
+/// overrides in order. Runs and checks pass both to the library exactly as `sinterdem run FILE
+/// --set …` does.
+#[pyclass(module = "sinterdem._native")]
+#[derive(Clone)]
+struct CaseCore {
+    value: toml::Value,
+    sets: Vec<String>,
+    path: Option<PathBuf>,
+    base_dir: PathBuf,
+}
+
+impl CaseCore {
+    fn err(&self, py: Python<'_>, e: impl Into<Error>) -> PyErr {
+        to_py_err(py, e.into(), self.path.as_deref(), &self.sets)
+    }
+
+    fn resolved(&self, py: Python<'_>) -> PyResult<toml::Value> {
+        sinterdem::kinds::resolve(&self.value, &self.sets).map_err(|e| self.err(py, e))
+    }
+}
+
+fn base_of(path: &Path) -> PathBuf {
+    path.parent().filter(|p| !p.as_os_str().is_empty()).map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from("."))
+}
+
+#[pymethods]
+impl CaseCore {
+    /// Reads a case file (as `sinterdem run FILE` does: includes expanded relative to its folder).
+    #[staticmethod]
+    fn load(py: Python<'_>, path: PathBuf) -> PyResult<CaseCore> {
+        let value = config::load_case(&path, &[]).map_err(|e| to_py_err(py, e, Some(&path), &[]))?;
+        Ok(CaseCore { value, sets: vec![], base_dir: base_of(&path), path: Some(path) })
+    }
+
+    /// Parses case text; relative paths in it start at `base_dir`.
+    #[staticmethod]
+    fn from_toml(py: Python<'_>, text: &str, base_dir: PathBuf) -> PyResult<CaseCore> {
+        let mut value = config::parse_case_str(text, "<case text>").map_err(|e| to_py_err(py, e.into(), None, &[]))?;
+        config::expand_includes(&mut value, &base_dir).map_err(|e| to_py_err(py, e.into(), None, &[]))?;
+        config::apply_aliases(&mut value).map_err(|e| to_py_err(py, e.into(), None, &[]))?;
+        Ok(CaseCore { value, sets: vec![], path: None, base_dir })
+    }
+
+    /// A case from a dict (nested dicts are tables, lists of dicts arrays of tables).
+    #[staticmethod]
+    fn from_dict(py: Python<'_>, d: &Bound<'_, PyDict>, base_dir: PathBuf) -> PyResult<CaseCore> {
+        let mut value = py_to_toml(d.as_any())?;
+        config::expand_includes(&mut value, &base_dir).map_err(|e| to_py_err(py, e.into(), None, &[]))?;
+        config::apply_aliases(&mut value).map_err(|e| to_py_err(py, e.into(), None, &[]))?;
+        Ok(CaseCore { value, sets: vec![], path: None, base_dir })
+    }
+
+    /// `case[key] = value`: one `--set key=value` override (a dict replaces the whole table).
+    /// Returns the override as the command line would spell it.
+    fn set(&mut self, py: Python<'_>, key: &str, value: &Bound<'_, PyAny>) -> PyResult<String> {
+        let v = py_to_toml(value)?;
+        let assignment = format!("{key}={v}");
+        let mut sets = self.sets.clone();
+        sets.push(assignment.clone());
+        sinterdem::kinds::resolve(&self.value, &sets).map_err(|e| to_py_err(py, e.into(), self.path.as_deref(), &sets))?;
+        self.sets = sets;
+        Ok(assignment)
+    }
+
+    /// The value at a dotted key path of the case with its overrides (KeyError if absent).
+    fn get<'py>(&self, py: Python<'py>, key: &str) -> PyResult<Bound<'py, PyAny>> {
+        let v = self.resolved(py)?;
+        let path = config::alias_of(&v, key);
+        let mut cur = &v;
+        for k in path.split('.') {
+            let next = match cur {
+                toml::Value::Table(t) => t.get(k),
+                toml::Value::Array(a) => k.parse::<usize>().ok().and_then(|i| a.get(i)),
+                _ => None,
+            };
+            cur = next.ok_or_else(|| PyKeyError::new_err(key.to_string()))?;
+        }
+        toml_to_py(py, cur)
+    }
+
+    /// The case with its overrides, as TOML text.
+    fn to_toml(&self, py: Python<'_>) -> PyResult<String> {
+        let v = self.resolved(py)?;
+        toml::to_string(&v).map_err(|e| self.err(py, ConfigError::invalid(format!("case cannot be written as TOML: {e}"))))
+    }
+
+    /// The case with its overrides, as a dict.
+    fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let v = self.resolved(py)?;
+        toml_to_py(py, &v)
+    }
+
+    /// `sinterdem check`: validates the case (or calibration file) without running it.
+    fn check(&self, py: Python<'_>) -> PyResult<String> {
+        let (value, sets, base) = (self.value.clone(), self.sets.clone(), self.base_dir.clone());
+        py.detach(move || sinterdem::calibrate::check_file(&value, &sets, &base)).map_err(|e| self.err(py, e))
+    }
+
+    /// `sinterdem run`: runs the case into `out` through `sinterdem::kinds::run` with the GIL
+    /// released; returns (kind, wall seconds).
+    #[pyo3(signature = (out, progress=true, threads=None))]
+    fn run(&self, py: Python<'_>, out: PathBuf, progress: bool, threads: Option<usize>) -> PyResult<(String, f64)> {
+        let params = sinterdem::kinds::RunParams { base_dir: self.base_dir.clone(), progress, echo_log: false, plots: true, wall_limit: None };
+        let (value, sets) = (&self.value, &self.sets);
+        let res = py.detach(|| -> Result<sinterdem::kinds::RunSummary, Error> {
+            match threads {
+                Some(n) if n > 0 => {
+                    let pool =
+                        rayon::ThreadPoolBuilder::new().num_threads(n).build().map_err(|e| Error::from(ConfigError::invalid(format!("threads = {n}: {e}"))))?;
+                    pool.install(|| sinterdem::kinds::run(value, sets, &out, &params))
+                }
+                _ => sinterdem::kinds::run(value, sets, &out, &params),
+            }
+        });
+        let s = res.map_err(|e| self.err(py, e))?;
+        Ok((s.kind.name().to_string(), s.wall_seconds))
+    }
+
+    /// A bundled material (`copper`, `titanium`) as a `[[materials]]` table to edit: its
+    /// thermal and elastic values and the name of its bundled diffusion data.
+    #[staticmethod]
+    fn preset_material<'py>(py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyAny>> {
+        let m = sinterdem::material::preset(name)
+            .ok_or_else(|| to_py_err(py, ConfigError::invalid(format!("preset_material(\"{name}\"): unknown preset (copper, titanium)")).into(), None, &[]))?;
+        let mut v = toml::Value::try_from(&m).map_err(|e| to_py_err(py, ConfigError::invalid(format!("material {name}: {e}")).into(), None, &[]))?;
+        if let Some(t) = v.as_table_mut() {
+            t.remove("diffusion_data");
+        }
+        toml_to_py(py, &v)
+    }
+
+    /// The overrides given so far, as `--set` arguments.
+    #[getter]
+    fn overrides(&self) -> Vec<String> {
+        self.sets.clone()
+    }
+
+    /// The case file, if the case was loaded from one.
+    #[getter]
+    fn path(&self) -> Option<PathBuf> {
+        self.path.clone()
+    }
+
+    /// The folder relative paths of the case start from.
+    #[getter]
+    fn base_dir(&self) -> PathBuf {
+        self.base_dir.clone()
+    }
+
+    fn copy(&self) -> CaseCore {
+        self.clone()
+    }
+}
+
+/// Reads a CSV written by sinterdem (one header line, units in the names) into
+/// (names, columns): float64 numpy arrays for numeric columns (parsed exactly, as Rust writes
+/// them), lists of strings for the others.
+#[pyfunction]
+fn read_csv<'py>(py: Python<'py>, path: PathBuf) -> PyResult<(Vec<String>, Vec<Bound<'py, PyAny>>)> {
+    let err = |m: String| to_py_err(py, sinterdem::error::IoError::new(&path, m).into(), None, &[]);
+    let mut r = csv::ReaderBuilder::new().has_headers(true).from_path(&path).map_err(|e| err(e.to_string()))?;
+    let names: Vec<String> = r.headers().map_err(|e| err(e.to_string()))?.iter().map(str::to_string).collect();
+    let mut cols: Vec<Vec<String>> = vec![Vec::new(); names.len()];
+    for rec in r.records() {
+        let rec = rec.map_err(|e| err(e.to_string()))?;
+        for (i, c) in cols.iter_mut().enumerate() {
+            c.push(rec.get(i).unwrap_or_default().to_string());
+        }
+    }
+    let mut out = Vec::with_capacity(names.len());
+    for c in cols {
+        let parsed: Option<Vec<f64>> = c.iter().map(|s| if s.is_empty() { Some(f64::NAN) } else { s.trim().parse::<f64>().ok() }).collect();
+        out.push(match parsed {
+            Some(v) => PyArray1::from_vec(py, v).into_any(),
+            None => PyList::new(py, c)?.into_any(),
+        });
+    }
+    Ok((names, out))
+}
+
+/// `sinterdem study FILE --out DIR [--engine] [--jobs]`; returns the study directory.
+#[pyfunction]
+#[pyo3(signature = (path, out, engine="local", jobs=None, progress=true, overrides=Vec::new()))]
+fn study(py: Python<'_>, path: PathBuf, out: PathBuf, engine: &str, jobs: Option<usize>, progress: bool, overrides: Vec<String>) -> PyResult<PathBuf> {
+    let engine = match engine {
+        "local" => sinterdem::study::Engine::Local,
+        "slurm" => sinterdem::study::Engine::Slurm,
+        e => return Err(to_py_err(py, ConfigError::invalid(format!("engine = \"{e}\": expected \"local\" or \"slurm\"")).into(), None, &[])),
+    };
+    let opts = sinterdem::study::StudyOptions { engine, jobs, out: Some(out), wait: true, overrides, progress, ..Default::default() };
+    let info = py.detach(|| sinterdem::study::run_study(&path, &opts, &mut |_| {})).map_err(|e| to_py_err(py, e, Some(&path), &opts.overrides))?;
+    Ok(info.dir)
+}
+
+/// `sinterdem calibrate FILE --out DIR`.
+#[pyfunction]
+#[pyo3(signature = (path, out, overrides=Vec::new(), quiet=true))]
+fn calibrate(py: Python<'_>, path: PathBuf, out: PathBuf, overrides: Vec<String>, quiet: bool) -> PyResult<()> {
+    py.detach(|| sinterdem::calibrate::run_file(&path, &overrides, &out, quiet, false, false)).map_err(|e| to_py_err(py, e, Some(&path), &overrides))
+}
+
+/// Parses TOML text into a dict (no case semantics: for files sinterdem wrote, e.g. material.toml).
+#[pyfunction]
+fn parse_toml<'py>(py: Python<'py>, text: &str, name: &str) -> PyResult<Bound<'py, PyAny>> {
+    let v = config::parse_case_str(text, name).map_err(|e| to_py_err(py, e.into(), None, &[]))?;
+    toml_to_py(py, &v)
+}
+
+/// A dict as TOML text (no case semantics: for study and calibration files given as dicts).
+#[pyfunction]
+fn dump_toml(py: Python<'_>, d: &Bound<'_, PyDict>) -> PyResult<String> {
+    let v = py_to_toml(d.as_any())?;
+    toml::to_string(&v).map_err(|e| to_py_err(py, ConfigError::invalid(format!("cannot be written as TOML: {e}")).into(), None, &[]))
+}
+
+/// The command line: `sinterdem.cli_main(["sinterdem", "run", …])` returns the exit code.
+#[pyfunction]
+fn cli_main(py: Python<'_>, args: Vec<String>) -> i32 {
+    py.detach(move || sinterdem::cli::main(args))
+}
+
+#[pymodule]
+fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<CaseCore>()?;
+    m.add_function(wrap_pyfunction!(read_csv, m)?)?;
+    m.add_function(wrap_pyfunction!(study, m)?)?;
+    m.add_function(wrap_pyfunction!(calibrate, m)?)?;
+    m.add_function(wrap_pyfunction!(cli_main, m)?)?;
+    m.add_function(wrap_pyfunction!(parse_toml, m)?)?;
+    m.add_function(wrap_pyfunction!(dump_toml, m)?)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

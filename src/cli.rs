@@ -1,0 +1,509 @@
+//! The `sinterdem` command line, as a library function: [`main`] parses the arguments, runs the
+//! command and returns the process exit code. The Rust binary (`src/main.rs`) and the Python
+//! wheel's `sinterdem` console entry point both call it, so they are one program. Exit codes by
+//! error class: [`crate::error::Error::exit_code`] (docs/outputs.md, "Exit codes").
+
+use crate::error::Error;
+use clap::{Args, Parser, Subcommand};
+use std::ffi::OsString;
+use std::path::{Path, PathBuf};
+
+#[derive(Parser)]
+#[command(name = "sinterdem", version, about = "Coupled thermo-mechanical simulator of powder sintering")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+    /// Print only warnings and errors (no progress bar, no info lines).
+    #[arg(short, long, global = true)]
+    quiet: bool,
+    /// More detail in the log (-v debug, -vv trace); DIR/log.txt always gets every info line.
+    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
+    verbose: u8,
+}
+
+#[derive(Args, Clone)]
+struct CaseArgs {
+    /// Case file (TOML, SI units).
+    case: PathBuf,
+    /// Override a key: --set time.end=10 (repeatable; arrays by index: thermal.fixed.0.profile.constant=900).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    set: Vec<String>,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run a case and write its results to --out.
+    Run {
+        #[command(flatten)]
+        case: CaseArgs,
+        /// Output directory (default: out/<case name>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Compact, heat and explicit_sinter runs: write DIR/checkpoint.json every N steps (same as --set output.checkpoint_every=N).
+        #[arg(long, value_name = "N")]
+        checkpoint_every: Option<u64>,
+    },
+    /// Generate a green packing (kind = "generate"): packing.csv, packing.vtu, summary.json, laminae.
+    Generate {
+        #[command(flatten)]
+        case: CaseArgs,
+        /// Output directory (default: out/<case name>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Continue an interrupted compact, heat or explicit_sinter run from DIR/checkpoint.json.
+    Resume {
+        /// The run's output directory.
+        dir: PathBuf,
+    },
+    /// Validate a case file (parse, ranges, scene construction) or a calibration file (its data, parameters and packing), without running.
+    Check {
+        #[command(flatten)]
+        case: CaseArgs,
+    },
+    /// Neck geometry and pipe conductance of two spheres; prints JSON (SI units).
+    Neck {
+        /// Radius of particle 1 [m].
+        #[arg(long, allow_hyphen_values = true)]
+        r1: f64,
+        /// Radius of particle 2 [m].
+        #[arg(long, allow_hyphen_values = true)]
+        r2: f64,
+        /// Overlap h = r1 + r2 − d [m].
+        #[arg(long, allow_hyphen_values = true)]
+        overlap: f64,
+        /// Thermal conductivity of particle 1 [W/(m K)].
+        #[arg(long, allow_hyphen_values = true)]
+        kappa: f64,
+        /// Thermal conductivity of particle 2 [W/(m K)] (default: --kappa).
+        #[arg(long, allow_hyphen_values = true)]
+        kappa2: Option<f64>,
+        /// Conductance law: linear (1.064 κ π a) or fe_fit.
+        #[arg(long, default_value = "linear")]
+        conductance: String,
+        /// c_K of the linear law.
+        #[arg(long, default_value_t = 1.064, allow_hyphen_values = true)]
+        factor: f64,
+        /// Interface conductance in series [W/K].
+        #[arg(long, allow_hyphen_values = true)]
+        contact_conductance: Option<f64>,
+    },
+    /// Steady-state effective conductivity tensor of a packing; prints JSON.
+    Conductivity {
+        #[command(flatten)]
+        case: CaseArgs,
+    },
+    /// The 28 titanium experiments as pair runs: an alias of
+    /// `sinterdem study cases/studies/titanium-28.toml` (run from the repository root).
+    Titanium {
+        /// Output directory.
+        #[arg(long, default_value = "out/titanium")]
+        out: PathBuf,
+        /// Heat from 313 K instead of truncating the heating branch below 793 K.
+        #[arg(long)]
+        full: bool,
+        /// Use one common particle diameter [m] instead of each experiment's own.
+        #[arg(long, allow_hyphen_values = true)]
+        diameter: Option<f64>,
+    },
+    /// Run a study: many runs over a design of parameters, locally or on SLURM (docs/studies.md).
+    Study {
+        /// Study file (TOML).
+        study: PathBuf,
+        /// Where the runs execute.
+        #[arg(long, value_enum, default_value = "local")]
+        engine: EngineArg,
+        /// Local engine: runs at a time (default: cores / threads per run).
+        #[arg(long)]
+        jobs: Option<usize>,
+        /// Output directory (default: out/<study name>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// SLURM: wait for the job array, resubmit lost tasks, then gather study.csv.
+        #[arg(long)]
+        wait: bool,
+        /// Run again the runs that failed before.
+        #[arg(long)]
+        retry_failed: bool,
+        /// Override a key of every run (repeatable), after the study's own overrides.
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        set: Vec<String>,
+        /// SLURM partition (overrides slurm.partition).
+        #[arg(long)]
+        partition: Option<String>,
+        /// SLURM time limit per array task, e.g. 01:00:00 (overrides slurm.time).
+        #[arg(long)]
+        time: Option<String>,
+        /// SLURM account (overrides slurm.account).
+        #[arg(long)]
+        account: Option<String>,
+        /// SLURM cpus per array task (overrides slurm.cpus_per_task).
+        #[arg(long)]
+        cpus_per_task: Option<usize>,
+        /// SLURM: runs per array task (overrides slurm.chunk).
+        #[arg(long)]
+        chunk: Option<usize>,
+        /// Extra #SBATCH line (repeatable), e.g. --sbatch "--mem=4G".
+        #[arg(long = "sbatch", value_name = "OPTION", allow_hyphen_values = true)]
+        sbatch: Vec<String>,
+    },
+    /// Internal: one SLURM array task of a study (written into the job script).
+    #[command(hide = true)]
+    StudyTask {
+        dir: PathBuf,
+        #[arg(long)]
+        batch: usize,
+        #[arg(long)]
+        task: usize,
+        #[arg(long, default_value_t = 1)]
+        threads: usize,
+    },
+    /// Fit diffusion data / path factors to measured neck ratios and shrinkages (docs/calibration.md).
+    Calibrate {
+        #[command(flatten)]
+        case: CaseArgs,
+        /// Output directory.
+        #[arg(long, default_value = "out/calibration")]
+        out: PathBuf,
+        /// Rewrite the file's data CSV with the bundled synthetic titanium data instead of fitting.
+        #[arg(long, hide = true)]
+        generate_synthetic: bool,
+        /// After the fit, run the experiments of [compact] on its packing with the fitted material
+        /// and write compact_validation.csv (docs/calibration.md).
+        #[arg(long)]
+        validate_compact: bool,
+    },
+    /// Print every numeric case-file key with its allowed range and unit (Markdown).
+    Keys {
+        /// The keys of a study file instead (docs/studies.md).
+        #[arg(long)]
+        study: bool,
+    },
+    /// Benchmarks (print figures; not tests).
+    Bench {
+        #[command(subcommand)]
+        which: Bench,
+    },
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum EngineArg {
+    Local,
+    Slurm,
+}
+
+#[derive(Subcommand)]
+enum Bench {
+    /// The study engine: a pair study of --runs runs on the local engine (wall time, overhead per run).
+    Study {
+        /// Number of runs.
+        #[arg(long, default_value_t = 1000)]
+        runs: usize,
+        /// Runs at a time (default: cores).
+        #[arg(long)]
+        jobs: Option<usize>,
+        /// Output directory of the study.
+        #[arg(long, default_value = "out/bench-study")]
+        out: PathBuf,
+    },
+    /// Assembly, factorisation and solve times of one implicit heat step on random packings.
+    Heat {
+        /// Particle counts (repeatable).
+        #[arg(long = "particles", default_values_t = vec![1000usize, 10000, 100000])]
+        particles: Vec<usize>,
+        /// Repetitions per size (median reported).
+        #[arg(long, default_value_t = 3)]
+        repeat: usize,
+    },
+    /// Work-precision of the heat step: fixed Δt against error-controlled Δt (time.heat_tolerance)
+    /// on the hot plate switched on at t = 0; prints the table and writes DIR/work_precision.csv.
+    HeatStep {
+        /// Output directory.
+        #[arg(long, default_value = "out/bench-heat-step")]
+        out: PathBuf,
+        /// FCC cells of the compact (x, y, z).
+        #[arg(long, num_args = 3, default_values_t = vec![4u32, 4, 8])]
+        cells: Vec<u32>,
+        /// Simulated end time [s].
+        #[arg(long, default_value_t = 20.0)]
+        end: f64,
+    },
+    /// Packing generation time for given particle counts.
+    Generate {
+        /// Particle counts (repeatable).
+        #[arg(long = "particles", default_values_t = vec![805usize, 3619])]
+        particles: Vec<usize>,
+        /// Output directory.
+        #[arg(long, default_value = "out/bench-generate")]
+        out: PathBuf,
+    },
+    /// The coupled loop: the copper compact whole (stage shares), then the cost per step of FCC
+    /// compacts of the given sizes.
+    Coupled {
+        /// Compact case to run whole (default cases/copper-compact.toml; "none" to skip).
+        #[arg(long, default_value = "cases/copper-compact.toml")]
+        case: String,
+        /// Particle counts of the per-step measurement (repeatable).
+        #[arg(long = "particles", default_values_t = vec![1000usize, 10000, 100000])]
+        particles: Vec<usize>,
+        /// Steps timed per size.
+        #[arg(long, default_value_t = 3)]
+        steps: u64,
+        /// Override a key of every run (repeatable), e.g. --set mechanics.warm_start=false.
+        #[arg(long = "set")]
+        set: Vec<String>,
+    },
+    /// Run time against error of the coupled loop: the copper compact and a corner of the E14B
+    /// packing over a ladder of settings against a tight reference (CSV + PNG, docs/coupled.md).
+    Precision {
+        /// Copper compact case ("none" to skip).
+        #[arg(long, default_value = "cases/copper-compact.toml")]
+        copper: String,
+        /// E14B titanium compact case whose packing's corner is run ("none" to skip).
+        #[arg(long, default_value = "cases/titanium-compact-e14b.toml")]
+        e14b: String,
+        /// Edge of the E14B corner [m]: particles with x, y below it and z below twice it.
+        #[arg(long, default_value_t = 4e-4)]
+        corner_edge: f64,
+        /// Output directory.
+        #[arg(long, default_value = "out/bench-precision")]
+        out: PathBuf,
+    },
+    /// The bonded 6-DOF solve: assembly, symbolic, factorisation, solve and PCG on bonded packings.
+    Mechanics {
+        /// Particle counts (repeatable).
+        #[arg(long = "particles", default_values_t = vec![1000usize, 10000])]
+        particles: Vec<usize>,
+        /// Skip the Cholesky columns above this many particles (its factor needs ≈ 14 GB at 10⁵).
+        #[arg(long = "cholesky-max", default_value_t = usize::MAX)]
+        cholesky_max: usize,
+    },
+    /// The 7-DOF sweep: copper contacts integrated one at a time and in lanes of four, right-hand sides per second
+    Sweep {
+        /// Number of contacts.
+        #[arg(long, default_value_t = 100_000)]
+        contacts: usize,
+        /// Intervals (the first is the contacts' start).
+        #[arg(long, default_value_t = 4)]
+        steps: usize,
+        /// Length of an interval [s].
+        #[arg(long, default_value_t = 1.0)]
+        dt: f64,
+    },
+    /// Work-precision diagram of the 7-DOF pair integrators (copper and E14B titanium).
+    Pair {
+        /// Output directory for work_precision.csv and the PNG diagrams.
+        #[arg(long, default_value = "out/bench-pair")]
+        out: PathBuf,
+    },
+}
+
+/// The folder of a case file (relative paths in it start there); "." for a bare file name.
+fn base_dir(case: &Path) -> PathBuf {
+    case.parent().filter(|p| !p.as_os_str().is_empty()).map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from("."))
+}
+
+/// `run` and `generate`: the run API with the case's folder as base and log lines on stderr.
+fn run_case(case: &CaseArgs, value: toml::Value, out: Option<PathBuf>, quiet: bool, extra: Vec<String>) -> Result<(), Error> {
+    let stem = case.case.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| "case".into());
+    let out = out.unwrap_or_else(|| PathBuf::from("out").join(stem));
+    let mut sets = case.set.clone();
+    sets.extend(extra);
+    let params = crate::kinds::RunParams { base_dir: base_dir(&case.case), progress: !quiet, echo_log: true, plots: true, wall_limit: None };
+    crate::kinds::run(&value, &sets, &out, &params)?;
+    Ok(())
+}
+
+/// Runs `f` and adds to a configuration error the file:line:column of the key it names in the
+/// case file (or the `--set` that set it).
+fn located(case: &CaseArgs, f: impl FnOnce() -> Result<(), Error>) -> Result<(), Error> {
+    f().map_err(|e| crate::config::messages::locate(e, &case.case, &case.set))
+}
+
+/// Runs the command line `args` (the first is the program name, as in `std::env::args_os`) and
+/// returns the exit code: 0 on success, 2 for a usage error (clap), else the error class's code
+/// ([`Error::exit_code`]); `--help` and `--version` print and return 0.
+pub fn main<I, T>(args: I) -> i32
+where
+    I: IntoIterator<Item = T>,
+    T: Into<OsString> + Clone,
+{
+    let cli = match Cli::try_parse_from(args) {
+        Ok(c) => c,
+        Err(e) => {
+            let _ = e.print();
+            return e.exit_code();
+        }
+    };
+    crate::logging::init(crate::logging::Verbosity::from_flags(cli.quiet, cli.verbose));
+    match real_main(cli) {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("error: {e}");
+            e.exit_code()
+        }
+    }
+}
+
+fn real_main(cli: Cli) -> Result<(), Error> {
+    let quiet = cli.quiet;
+    match cli.command {
+        Command::Generate { case, out } => located(&case, || {
+            let value = crate::config::load_case(&case.case, &[])?;
+            if crate::kinds::Kind::of(&value)? != crate::kinds::Kind::Generate {
+                return Err(crate::ConfigError::invalid(format!("{}: kind must be \"generate\"", case.case.display())).into());
+            }
+            run_case(&case, value, out.clone(), quiet, vec![])
+        }),
+        Command::Run { case, out, checkpoint_every } => located(&case, || {
+            let value = crate::config::load_case(&case.case, &[])?;
+            let extra = checkpoint_every.map(|n| format!("output.checkpoint_every={n}")).into_iter().collect();
+            run_case(&case, value, out.clone(), quiet, extra)
+        }),
+        Command::Resume { dir } => {
+            let params = crate::kinds::RunParams { progress: !quiet, echo_log: true, ..Default::default() };
+            crate::kinds::resume(&dir, &params)?;
+            Ok(())
+        }
+        Command::Check { case } => located(&case, || {
+            let value = crate::config::load_case(&case.case, &[])?;
+            let what = crate::calibrate::check_file(&value, &case.set, &base_dir(&case.case))?;
+            println!("{}: ok ({what})", case.case.display());
+            Ok(())
+        }),
+        Command::Titanium { out, full, diameter } => {
+            let study = PathBuf::from("cases/studies/titanium-28.toml");
+            if !study.is_file() {
+                return Err(crate::ConfigError::invalid(format!(
+                    "{} not found: run `sinterdem titanium` from the repository root, or `sinterdem study PATH/titanium-28.toml`",
+                    study.display()
+                ))
+                .into());
+            }
+            let mut set = vec![];
+            if full {
+                set.push("temperature.start_temperature=313".to_string());
+            }
+            if let Some(d) = diameter {
+                set.push(format!("pair.radius={:e}", d / 2.0));
+            }
+            let opts = crate::study::StudyOptions { out: Some(out), overrides: set, progress: !quiet, ..Default::default() };
+            crate::study::run_study(&study, &opts, &mut |m| tracing::info!("{m}"))?;
+            Ok(())
+        }
+        Command::Study { study, engine, jobs, out, wait, retry_failed, set, partition, time, account, cpus_per_task, chunk, sbatch } => {
+            let engine = match engine {
+                EngineArg::Local => crate::study::Engine::Local,
+                EngineArg::Slurm => crate::study::Engine::Slurm,
+            };
+            let slurm = crate::study::slurm::SlurmOverrides { partition, time, account, cpus_per_task, chunk, extra: sbatch };
+            let opts = crate::study::StudyOptions { engine, jobs, out, wait, retry_failed, overrides: set, progress: !quiet, slurm, plots: true };
+            let info = crate::study::run_study(&study, &opts, &mut |m| tracing::info!("{m}"))?;
+            if info.gathered && info.counts.failed > 0 {
+                tracing::warn!("{} of {} runs failed (see status and error in {})", info.counts.failed, info.counts.runs, info.dir.join("study.csv").display());
+            }
+            Ok(())
+        }
+        Command::StudyTask { dir, batch, task, threads } => {
+            let n = crate::study::slurm::run_task(&dir, batch, task, threads)?;
+            tracing::info!("study task {batch}/{task}: {n} runs executed");
+            Ok(())
+        }
+        Command::Neck { r1, r2, overlap, kappa, kappa2, conductance, factor, contact_conductance } => {
+            let law = match conductance.as_str() {
+                "linear" => crate::heat::ConductanceLaw::Linear,
+                "fe_fit" => crate::heat::ConductanceLaw::FeFit,
+                other => return Err(crate::ConfigError::invalid(format!("--conductance {other}: expected linear or fe_fit")).into()),
+            };
+            let optional = [("--kappa2", kappa2), ("--contact-conductance", contact_conductance)];
+            for (k, v) in [("--r1", r1), ("--r2", r2), ("--kappa", kappa), ("--factor", factor)]
+                .into_iter()
+                .chain(optional.into_iter().filter_map(|(k, v)| Some((k, v?))))
+            {
+                if !(v > 0.0 && v.is_finite()) {
+                    return Err(crate::ConfigError::OutOfRange {
+                        key: k.into(),
+                        value: v,
+                        range: "(0, inf)".into(),
+                        unit: match k {
+                            "--r1" | "--r2" => "m",
+                            "--kappa" | "--kappa2" => "W/(m K)",
+                            "--factor" => "1",
+                            _ => "W/K",
+                        }
+                        .into(),
+                    }
+                    .into());
+                }
+            }
+            let n = crate::neck::solve(r1, r2, overlap)?;
+            let c = crate::heat::Conductance { law, factor, contact: contact_conductance };
+            let p = c.pipe(kappa, kappa2.unwrap_or(kappa), r1, r2, n.a);
+            let v = serde_json::json!({
+                "a": n.a, "a_coble": n.a_coble, "h_ci": n.h_ci, "h_cj": n.h_cj, "h_n": n.h_n,
+                "newton_iterations": n.iterations,
+                "K_half_i": p.half_i, "K_half_j": p.half_j, "K_pair": p.pair,
+                "conductance": conductance,
+            });
+            println!("{}", serde_json::to_string_pretty(&v).unwrap());
+            Ok(())
+        }
+        Command::Conductivity { case } => located(&case, || {
+            let value = crate::config::load_case(&case.case, &case.set)?;
+            let v = crate::kinds::conductivity::run_case(value, &base_dir(&case.case))?;
+            println!("{}", serde_json::to_string_pretty(&v).unwrap());
+            Ok(())
+        }),
+        Command::Calibrate { case, out, generate_synthetic, validate_compact } => {
+            located(&case, || crate::calibrate::run_file(&case.case, &case.set, &out, quiet, generate_synthetic, validate_compact))
+        }
+        Command::Keys { study } => {
+            print!("{}", if study { crate::study::spec::markdown() } else { crate::config::ranges::markdown(&crate::calibrate::every_table()) });
+            Ok(())
+        }
+        Command::Bench { which } => run_bench(which),
+    }
+}
+
+/// `sinterdem bench …`: runs one benchmark of [`crate::bench`] and prints its table.
+fn run_bench(which: Bench) -> Result<(), Error> {
+    match which {
+        Bench::Study { runs, jobs, out } => {
+            println!("{}", crate::bench::study::bench_study(runs, jobs, &out)?);
+            Ok(())
+        }
+        Bench::Heat { particles, repeat } => crate::bench::heat::bench_heat(&particles, repeat.max(1)),
+        Bench::HeatStep { out, cells, end } => crate::bench::heat::bench_heat_step(&out, [cells[0], cells[1], cells[2]], end).map(|_| ()),
+        Bench::Mechanics { particles, cholesky_max } => {
+            println!("{}", crate::bench::mechanics::bench_mechanics_with(&particles, cholesky_max)?);
+            Ok(())
+        }
+        Bench::Coupled { case, particles, steps, set } => {
+            let c = (case != "none").then(|| PathBuf::from(&case));
+            println!("{}", crate::bench::bench_coupled(c.as_deref(), &particles, steps, &set)?);
+            Ok(())
+        }
+        Bench::Precision { copper, e14b, corner_edge, out } => {
+            let path = |c: &str| (c != "none").then(|| PathBuf::from(c));
+            let (c, e) = (path(&copper), path(&e14b));
+            let report = crate::bench::precision::bench_precision(c.as_deref(), e.as_deref(), corner_edge, &out, &mut |m| eprintln!("bench precision: {m}"))?;
+            println!("{report}");
+            Ok(())
+        }
+        Bench::Generate { particles, out } => {
+            crate::io::ensure_dir(&out)?;
+            println!("{}", crate::bench::generate::bench_generate(&out, &particles)?);
+            Ok(())
+        }
+        Bench::Sweep { contacts, steps, dt } => {
+            println!("{}", crate::bench::diffusion7::bench_sweep(contacts, steps, dt)?);
+            Ok(())
+        }
+        Bench::Pair { out } => {
+            crate::io::ensure_dir(&out)?;
+            let table = crate::bench::diffusion7::bench_pair(&out)?;
+            println!("{table}");
+            Ok(())
+        }
+    }
+}
