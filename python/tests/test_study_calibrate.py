@@ -55,12 +55,6 @@ def test_study_file_equals_the_command_line(tmp_path):
 CALIB_SETS = ["optimiser.swarm_size=4", "optimiser.swarm_iterations=1", "optimiser.local_iterations=2"]
 
 
-# On main (b3c8f54) every calibration file fails before fitting, from the command line too
-# (`sinterdem check cases/calibration/titanium-synthetic.toml`): calibrate::parse checks the
-# optimiser keys against the shared range table (config::check) instead of calibrate::RANGES.
-# strict: once that is fixed this test passes and the marker must go.
-@pytest.mark.xfail(strict=True, raises=sinterdem.ConfigError,
-                   reason="main: 'internal: key optimiser.simplex_scale has no entry in the range table'")
 def test_calibrate_reads_back_parameters_sigma_correlation_material(tmp_path):
     f = CASES / "calibration" / "titanium-synthetic.toml"
     res = sinterdem.calibrate(f, tmp_path / "py", overrides=CALIB_SETS)
