@@ -47,20 +47,8 @@ pub fn touching_pairs(position: &[Vector3<f64>], radius: &[f64], margin: f64) ->
     let ncell = dims[0] * dims[1] * dims[2];
     let lin = |c: [usize; 3]| (c[2] * dims[1] + c[1]) * dims[0] + c[0];
     // counting sort of particles by cell
-    let mut start = vec![0u32; ncell + 1];
     let cells: Vec<usize> = position.iter().map(|x| lin(index_of(x))).collect();
-    for &c in &cells {
-        start[c + 1] += 1;
-    }
-    for k in 0..ncell {
-        start[k + 1] += start[k];
-    }
-    let mut fill = start.clone();
-    let mut order = vec![0u32; n];
-    for (i, &c) in cells.iter().enumerate() {
-        order[fill[c] as usize] = i as u32;
-        fill[c] += 1;
-    }
+    let (start, order) = bucket(&cells, ncell);
     // positions and radii in cell order: the inner loop reads contiguous memory
     let sorted: Vec<(Vector3<f64>, f64)> = order.iter().map(|&j| (position[j as usize], radius[j as usize])).collect();
     // pairs of particle i in cells around its own, j > i, sorted by j: concatenated in order of i
@@ -99,6 +87,25 @@ pub fn touching_pairs(position: &[Vector3<f64>], radius: &[f64], margin: f64) ->
     parts.concat()
 }
 
+/// Counting sort of items by cell: `start[c]..start[c + 1]` indexes the items of cell `c` in
+/// `order` (items of a cell in increasing index).
+fn bucket(cells: &[usize], ncell: usize) -> (Vec<u32>, Vec<u32>) {
+    let mut start = vec![0u32; ncell + 1];
+    for &c in cells {
+        start[c + 1] += 1;
+    }
+    for k in 0..ncell {
+        start[k + 1] += start[k];
+    }
+    let mut fill = start.clone();
+    let mut order = vec![0u32; cells.len()];
+    for (i, &c) in cells.iter().enumerate() {
+        order[fill[c] as usize] = i as u32;
+        fill[c] += 1;
+    }
+    (start, order)
+}
+
 /// A touching pair of a periodic box: `i < j` and the image shift `s` (in box lengths) such that
 /// `x_j + s·L − x_i` is the minimum-image branch vector.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -126,20 +133,8 @@ pub fn touching_pairs_periodic(position: &[Vector3<f64>], radius: &[f64], bbox: 
     let index_of = |x: &Vector3<f64>| -> [usize; 3] { std::array::from_fn(|a| ((x[a] / bbox[a] * dims[a] as f64) as usize).min(dims[a] - 1)) };
     let lin = |c: [usize; 3]| (c[2] * dims[1] + c[1]) * dims[0] + c[0];
     let ncell = dims[0] * dims[1] * dims[2];
-    let mut start = vec![0u32; ncell + 1];
     let cells: Vec<usize> = wrapped.iter().map(|x| lin(index_of(x))).collect();
-    for &c in &cells {
-        start[c + 1] += 1;
-    }
-    for k in 0..ncell {
-        start[k + 1] += start[k];
-    }
-    let mut fill = start.clone();
-    let mut order = vec![0u32; n];
-    for (i, &c) in cells.iter().enumerate() {
-        order[fill[c] as usize] = i as u32;
-        fill[c] += 1;
-    }
+    let (start, order) = bucket(&cells, ncell);
     // the distinct neighbour cells along one axis (fewer than three cells: each once)
     let around = |c: usize, m: usize| -> Vec<usize> {
         let mut v: Vec<usize> = [c + m - 1, c, c + 1].iter().map(|k| k % m).collect();
