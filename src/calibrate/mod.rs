@@ -36,7 +36,7 @@ use params::{Parameter, ParameterEntry};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
-/// Numeric keys of calibration files and of their data files (registered in `config::ranges::TABLES`).
+/// Numeric keys of calibration files and of their data files (added to the list by `every_table`).
 pub static RANGES: &[Range] = &[
     c("optimiser.swarm_size", 1.0, 1e4, "1", "calibration: particles of the swarm (global phase)"),
     c("optimiser.swarm_iterations", 0.0, 1e5, "1", "calibration: swarm iterations (0: local phase only, from the starting material)"),

@@ -28,7 +28,7 @@ use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
-/// Range table of the `[frenkel]` keys (registered in `config::ranges::TABLES`).
+/// Range table of the `[frenkel]` keys (listed through its law's entry in `kinds::explicit_sinter::laws::LAWS`).
 pub static RANGES: &[Range] = &[
     p("frenkel.k1", 0.0, 1e12, "N/m", "loading stiffness k1"),
     p("frenkel.k2_max", 0.0, 1e12, "N/m", "largest unloading stiffness k2_max (> k1)"),

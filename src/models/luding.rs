@@ -32,7 +32,7 @@ use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
-/// Range table of the `[luding]` keys (registered in `config::ranges::TABLES`).
+/// Range table of the `[luding]` keys (listed through its law's entry in `kinds::explicit_sinter::laws::LAWS`).
 pub static RANGES: &[Range] = &[
     p("luding.k1", 0.0, 1e12, "N/m", "cold loading stiffness k1 (eq. 4)"),
     p("luding.k2", 0.0, 1e12, "N/m", "un/reloading stiffness k2 at the fluid limit (eqs. 4, 7); k2 > k1"),

@@ -61,7 +61,7 @@ fn check(key: &str, v: f64) -> Result<f64, ConfigError> {
     }
 }
 
-/// Range table of the `explicit_sinter` case keys (registered in `config::ranges::TABLES`).
+/// Range table of the `explicit_sinter` case keys (listed in `crate::kinds::keys::tables`).
 pub static RANGES: &[Range] = &[
     c("sample.particles", 2.0, 1e6, "1", "number of spheres N"),
     p("sample.mean_radius", 0.0, 1.0, "m", "mean radius r_0"),

@@ -49,7 +49,7 @@ const fn rg(key: &'static str, lo: f64, hi: f64, lo_open: bool, unit: &'static s
     Range { key, lo, hi, lo_open, hi_open: false, unit, meaning }
 }
 
-/// Range table of the `kind = "generate"` case keys (registered in `config::ranges::TABLES`).
+/// Range table of the `kind = "generate"` case keys (listed in `crate::kinds::keys::tables`).
 pub static RANGES: &[Range] = &[
     rg("packing.particles", 2.0, 1e8, false, "1", "number of particles"),
     rg("packing.seed", 0.0, 1.8e19, false, "1", "random seed (integer)"),

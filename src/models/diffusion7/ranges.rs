@@ -1,4 +1,4 @@
-//! Range table of the 7-DOF model's case-file keys (registered in `config::ranges::TABLES`).
+//! Range table of the 7-DOF model's case-file keys (listed in `crate::kinds::keys::tables`).
 
 use crate::config::ranges::{INF, Range, c, o, p};
 
