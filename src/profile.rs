@@ -192,6 +192,26 @@ impl Profile {
         *self.times.last().unwrap()
     }
 
+    /// The first time in `[0, end]` [s] at which the temperature reaches `level` [K] (None: it
+    /// stays below): exact on the piecewise-linear history.
+    pub fn first_reaching(&self, level: f64, end: f64) -> Option<f64> {
+        if self.temperature(0.0) >= level {
+            return Some(0.0);
+        }
+        for k in 1..self.times.len() {
+            let (t0, t1) = (self.times[k - 1], self.times[k]);
+            if t0 > end {
+                break;
+            }
+            let (a, b) = (self.temps[k - 1], self.temps[k]);
+            if b >= level && a < level {
+                let t = t0 + (level - a) / (b - a) * (t1 - t0);
+                return (t <= end).then_some(t.max(0.0));
+            }
+        }
+        None
+    }
+
     /// Highest and lowest temperature of the profile [K].
     pub fn range(&self) -> (f64, f64) {
         let lo = self.temps.iter().copied().fold(f64::INFINITY, f64::min);

@@ -61,6 +61,16 @@ pub struct PairModel {
 
 /// Runs one experiment with `material` and `factors`.
 pub fn run_experiment(e: &Experiment, material: &Material, factors: PathFactors, solver: &SolverOptions, g: &PairGeometry) -> Result<Prediction, ModelError> {
+    if let Some(tm) = material.melting_temperature
+        && let Some(t) = e.profile.first_reaching(tm, e.profile.duration())
+    {
+        return Err(ModelError::new(format!(
+            "experiment {}: the temperature history reaches {tm} K, the melting (solidus) temperature of \"{}\", at t = {} s; solid-state sintering no longer applies",
+            e.id,
+            material.name,
+            crate::error::fmt_value(t)
+        )));
+    }
     let r = 0.5 * e.diameter;
     let mut c = Contact7::new(r, r, 2.0 * r * (1.0 - g.overlap), 0.0, g.neck_epsilon, g.cone_eta)?;
     let mats = PairMaterials { a: material, b: material, factors };

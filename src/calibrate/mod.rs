@@ -319,7 +319,10 @@ pub fn parse(value: &toml::Value, base: &Path) -> Result<Setup, Error> {
 /// Runs a validated calibration and writes its results into `out`. `log` receives progress lines.
 pub fn run(setup: Setup, out: &Path, log: &mut dyn FnMut(&str)) -> Result<report::CalibrationReport, Error> {
     let start = std::time::Instant::now();
-    std::fs::create_dir_all(out).map_err(|e| IoError::new(out, e))?;
+    let lock = crate::io::lock::OutputLock::acquire(out, "calibrate")?;
+    if let Some(note) = lock.takeover_note() {
+        log(&note);
+    }
     let Setup { title, model, data_path, series_path, experiments, material, factors, params, settings, solver, geometry, compact, base, validate_compact } =
         setup;
     let nvals: usize = experiments.iter().map(|e| e.count()).sum();

@@ -2,6 +2,7 @@
 //! terminal progress bar.
 
 pub mod hdf5;
+pub mod lock;
 pub mod progress;
 pub mod vtu;
 
@@ -81,10 +82,10 @@ pub fn csv_text(s: &str) -> String {
     if s.contains([',', '"', '\n', '\r']) { format!("\"{}\"", s.replace('"', "\"\"")) } else { s.to_string() }
 }
 
-/// Writes pretty JSON.
+/// Writes pretty JSON atomically ([`write_atomic`]).
 pub fn write_json(path: &Path, value: &serde_json::Value) -> Result<(), IoError> {
     let text = serde_json::to_string_pretty(value).map_err(|e| IoError::new(path, e))?;
-    std::fs::write(path, text + "\n").map_err(|e| IoError::new(path, e))
+    write_atomic(path, &(text + "\n"))
 }
 
 /// Whether a CSV column holds a count (written as an integer, read by pandas as `int64`): the
@@ -191,7 +192,9 @@ impl Series {
         };
         let mut body = kept.join("\n");
         body.push('\n');
-        std::fs::write(path, body).map_err(|e| IoError::new(path, e))?;
+        // temporary file + rename: a resume killed here leaves the old series or the cut one,
+        // never a truncated file that no later resume accepts (docs/outputs.md "Guarantees")
+        write_atomic(path, &body)?;
         let f = std::fs::OpenOptions::new().append(true).open(path).map_err(|e| IoError::new(path, e))?;
         Ok(Series { path: path.to_path_buf(), file: std::io::BufWriter::new(f), counts })
     }

@@ -175,9 +175,18 @@ pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunPar
     config::expand_includes(&mut case, &params.base_dir)?;
     let value = resolve(&case, overrides)?;
     let kind = Kind::of(&value)?;
-    crate::io::ensure_dir(out)?;
+    let lock = crate::io::lock::OutputLock::acquire(out, "run")?;
+    // a new run owns its directory: a checkpoint left by an earlier run would let `resume` mix the
+    // two runs' outputs (docs/outputs.md "Guarantees")
+    let stale_checkpoint = remove_stale_checkpoint(out)?;
     let mut log = RunLog::open(out, false, params.echo_log);
     log.line(&format!("sinterdem {}: {} case → {}", env!("CARGO_PKG_VERSION"), kind.name(), out.display()));
+    if let Some(note) = lock.takeover_note() {
+        log.line(&note);
+    }
+    if stale_checkpoint {
+        log.line("removed checkpoint.json of an earlier run in this directory (a new run cannot be resumed from it)");
+    }
     if !overrides.is_empty() {
         log.line(&format!("overrides: {}", overrides.join(" ")));
     }
@@ -226,6 +235,16 @@ pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunPar
     Ok(RunSummary { kind, wall_seconds: wall.elapsed().as_secs_f64(), summary })
 }
 
+/// Removes `dir/checkpoint.json` left by an earlier run (true when there was one).
+fn remove_stale_checkpoint(dir: &Path) -> Result<bool, IoError> {
+    let path = dir.join("checkpoint.json");
+    match std::fs::remove_file(&path) {
+        Ok(()) => Ok(true),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(false),
+        Err(e) => Err(IoError::new(&path, e)),
+    }
+}
+
 /// Keys set in `case` that only compact runs use (thermal expansion, docs/coupled.md "Thermal
 /// expansion"): one sentence per key when `case` is not a compact case (for a warning), else none.
 pub fn compact_only_keys(case: &toml::Value) -> Vec<String> {
@@ -263,7 +282,11 @@ pub fn resume(dir: &Path, params: &RunParams) -> Result<RunSummary, Error> {
         format: Option<String>,
     }
     let format = serde_json::from_str::<Head>(&text).map_err(|e| IoError::new(&path, format!("not a sinterdem checkpoint: {e}")))?.format.unwrap_or_default();
+    let lock = crate::io::lock::OutputLock::acquire(dir, "resume")?;
     let mut log = RunLog::open(dir, true, params.echo_log);
+    if let Some(note) = lock.takeover_note() {
+        log.line(&note);
+    }
     let mut logf = |m: &str| log.line(m);
     let (kind, summary) = match format.as_str() {
         crate::kinds::heat::HEAT_CHECKPOINT_FORMAT => (Kind::Heat, crate::kinds::heat::resume(dir, params.progress, &mut logf)?),

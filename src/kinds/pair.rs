@@ -285,10 +285,32 @@ pub fn parse_pair_case(case: &toml::Value) -> Result<PairSpec, Error> {
         },
     };
     spec.new_contact()?;
+    spec.below_solidus().map_err(|m| ConfigError::inconsistent("pair.end_time", m))?;
     Ok(spec)
 }
 
 impl PairSpec {
+    /// Refuses a temperature history that reaches the melting (solidus) temperature of either
+    /// material before `end_time`: solid-state sintering no longer applies there, and compact runs
+    /// stop at the same limit (docs/diffusion7.md "Materials").
+    pub fn below_solidus(&self) -> Result<(), String> {
+        let tm =
+            [&self.material_a, &self.material_b].iter().filter_map(|m| m.melting_temperature.map(|t| (t, m.name.clone()))).min_by(|a, b| a.0.total_cmp(&b.0));
+        let Some((tm, name)) = tm else { return Ok(()) };
+        let reached = match &self.temperature {
+            PairTemperature::Constant(t) => (*t >= tm).then_some(0.0),
+            PairTemperature::Profile(p) => p.first_reaching(tm, self.end_time),
+        };
+        match reached {
+            Some(t) => Err(format!(
+                "= {} s: the temperature history reaches {tm} K, the melting (solidus) temperature of \"{name}\", at t = {} s; solid-state sintering no longer applies there (end the run before, or lower the peak)",
+                crate::error::fmt_value(self.end_time),
+                crate::error::fmt_value(t)
+            )),
+            None => Ok(()),
+        }
+    }
+
     /// The contact at t = 0 (I1)–(I4).
     pub fn new_contact(&self) -> Result<Contact7, ModelError> {
         let d_ab = (self.radius_a + self.radius_b) * (1.0 - self.overlap);
@@ -422,7 +444,7 @@ pub fn run_pair_spec(spec: &PairSpec, out_dir: &Path, progress: bool, warn: &mut
     write_series(spec, &run, &out_dir.join("series.csv"))?;
     let summary = summarize(spec, &run);
     let json = serde_json::to_string_pretty(&summary).map_err(|e| IoError::new(out_dir.join("summary.json"), e))?;
-    std::fs::write(out_dir.join("summary.json"), json + "\n").map_err(|e| IoError::new(out_dir.join("summary.json"), e))?;
+    crate::io::write_atomic(&out_dir.join("summary.json"), &(json + "\n"))?;
     if spec.plot {
         plot_run(spec, &run).save_png(&out_dir.join("neck_shrinkage.png"))?;
     }

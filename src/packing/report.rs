@@ -3,7 +3,6 @@
 
 use crate::error::{Error, IoError};
 use nalgebra::Vector3;
-use std::io::Write;
 use std::path::Path;
 
 /// Volume [m³] of a sphere of radius `r` centred at `c` that lies between the planes `a ≤ s ≤ b`
@@ -93,8 +92,7 @@ pub fn write_laminae_plot(path: &Path, title: &str, series: &[(&str, Vec<(f64, f
 
 /// Writes text to a file, naming the path on failure.
 pub fn write_text(path: &Path, text: &str) -> Result<(), Error> {
-    let mut f = std::fs::File::create(path).map_err(|e| IoError::new(path, e))?;
-    f.write_all(text.as_bytes()).map_err(|e| IoError::new(path, e).into())
+    Ok(crate::io::write_atomic(path, text)?)
 }
 
 #[cfg(test)]

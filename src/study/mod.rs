@@ -97,7 +97,10 @@ pub fn prepare(path: &Path, opts: &StudyOptions) -> Result<(spec::Study, PathBuf
 pub fn run_study(path: &Path, opts: &StudyOptions, log: &mut dyn FnMut(&str)) -> Result<StudyInfo, Error> {
     let wall = std::time::Instant::now();
     let (study, dir, plan) = prepare(path, opts)?;
-    crate::io::ensure_dir(&dir)?;
+    let lock = crate::io::lock::OutputLock::acquire(&dir, "study")?;
+    if let Some(note) = lock.takeover_note() {
+        log(&note);
+    }
     store::write_plan(&dir, &plan)?;
     let todo: Vec<usize> = plan.iter().filter(|r| store::pending(&dir, r, opts.retry_failed)).map(|r| r.index).collect();
     log(&format!(

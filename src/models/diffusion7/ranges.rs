@@ -10,7 +10,7 @@ pub static RANGES: &[Range] = &[
     c("pair.overlap", 0.0, 0.1, "1", "initial overlap: centre distance (R_A + R_B)(1 - overlap)"),
     c("pair.neck_epsilon", 1e-4, 0.1, "1", "initial neck excess eps of (I2)"),
     o("pair.cone_eta", 0.0, 1.0, "1", "initial cone parameter eta of (I2)"),
-    p("pair.end_time", 0.0, 1e9, "s", "simulated time (default: end of the heating profile)"),
+    c("pair.end_time", 1e-9, 1e9, "s", "simulated time (default: end of the heating profile; at least 1 ns)"),
     c("load.force", -1e3, 1e3, "N", "pair: constant normal force on the grain boundary, compressive positive (docs/pressure.md)"),
     // temperature history (ramp form; constant, schedule and table are the alternatives)
     c("temperature.constant", 1.0, 1e4, "K", "constant contact temperature"),
@@ -28,7 +28,7 @@ pub static RANGES: &[Range] = &[
     // integrator (T1)
     o("solver.rtol", 0.0, 0.1, "1", "relative tolerance of the per-contact integrator (T1)"),
     p("solver.norm_floor", 0.0, 1.0, "1", "norm floor relative to the smaller radius (T1)"),
-    p("solver.max_substep", 0.0, INF, "s", "largest substep of the per-contact integrator"),
+    c("solver.max_substep", 1e-12, INF, "s", "largest substep of the per-contact integrator (at least 1 ps, so that every substep advances time)"),
     c("solver.min_step_rel", 0.0, 1e-3, "1", "ModelError if a proposed substep falls below this fraction of the contact age"),
     c("solver.max_substeps", 1.0, 1e12, "1", "ModelError after this many substeps in one interval"),
     // materials of the 7-DOF model (docs/diffusion7.md §9)

@@ -1,0 +1,229 @@
+//! Reliability II (issue 26): nothing lost on resume, one writer per output directory, no loop on
+//! subnormal times. The fault-injection harness kills a child `sinterdem resume` at seeded random
+//! points and asserts that the next resume gives the uninterrupted result bit for bit;
+//! `SINTERDEM_FAULT_KILLS=N` sets the number of kills (CI: 16; a long run: thousands).
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_sinterdem"))
+}
+
+/// A two-particle copper compact of 40 046 steps, one row each (series.csv ≈ 40 000 lines, so
+/// that a resume spends tens of milliseconds cutting and rewriting it), checkpoints every 2 000
+/// steps; runs in under a second.
+fn long_series_case(dir: &Path, end: f64) -> PathBuf {
+    std::fs::write(dir.join("packing.csv"), "x,y,z,r\n0,0,0,2.5e-5\n0,4.95e-5,0,2.5e-5\n").unwrap();
+    let text = common::compact_text(
+        &format!("end = {end:?}\ndt = 1.0e-6\ndt_max = 0.05"),
+        &[common::COPPER],
+        &common::file_particles(Path::new("packing.csv")),
+        common::AT_1293_K,
+    );
+    let text = text.replace("hdf5 = false\n", "hdf5 = false\ncheckpoint_every = 2000\n");
+    let case = dir.join("case.toml");
+    std::fs::write(&case, text).unwrap();
+    case
+}
+
+/// summary.json without the fields that measure wall time.
+fn summary_without_times(dir: &Path) -> serde_json::Value {
+    let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
+    let m = v.as_object_mut().unwrap();
+    for k in ["wall_seconds", "timing_seconds"] {
+        m.remove(k);
+    }
+    if let Some(p) = m.get_mut("mechanics_profile").and_then(|p| p.as_object_mut()) {
+        p.retain(|k, _| !k.contains("seconds"));
+    }
+    v
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    let _ = std::fs::remove_dir_all(to);
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap().flatten() {
+        if e.path().is_file() {
+            std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
+        }
+    }
+}
+
+/// xorshift64*: the kill delays, reproducible from the seed.
+fn next(seed: &mut u64) -> u64 {
+    *seed ^= *seed >> 12;
+    *seed ^= *seed << 25;
+    *seed ^= *seed >> 27;
+    seed.wrapping_mul(0x2545_f491_4f6c_dd1d)
+}
+
+#[test]
+fn class01_resumes_killed_at_random_points_continue_to_the_uninterrupted_result() {
+    let d = common::tmp_dir("fault-resume");
+    let case = long_series_case(&d, 2000.0);
+    let full = d.join("full");
+    let o = bin().arg("run").arg(&case).arg("--out").arg(&full).arg("--quiet").output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let series = std::fs::read_to_string(full.join("series.csv")).unwrap();
+    assert!(series.lines().count() > 40_000, "the series must be long enough to take time to rewrite");
+    let summary = summary_without_times(&full);
+
+    let kills: usize = std::env::var("SINTERDEM_FAULT_KILLS").ok().and_then(|v| v.parse().ok()).unwrap_or(16);
+    let mut seed = 0x5eed_2026_u64;
+    let work = d.join("work");
+    let (mut killed, mut finished_before_kill) = (0, 0);
+    for k in 0..kills {
+        copy_dir(&full, &work);
+        // a first resume killed after 0–400 ms (a whole resume takes about 0.4 s), sometimes
+        // twice in a row: a kill during the resume of a killed resume
+        for _ in 0..1 + (k % 3 == 2) as usize {
+            let delay = Duration::from_micros(next(&mut seed) % 400_000);
+            let mut child = bin().arg("resume").arg(&work).arg("--quiet").stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
+            let t0 = Instant::now();
+            while t0.elapsed() < delay {
+                if child.try_wait().unwrap().is_some() {
+                    break;
+                }
+                std::thread::sleep(Duration::from_micros(500));
+            }
+            if child.try_wait().unwrap().is_none() {
+                child.kill().unwrap();
+                killed += 1;
+            } else {
+                finished_before_kill += 1;
+            }
+            let _ = child.wait();
+        }
+        let o = bin().arg("resume").arg(&work).arg("--quiet").output().unwrap();
+        assert!(o.status.success(), "kill {k}: the resume after a killed resume failed: {}", String::from_utf8_lossy(&o.stderr));
+        assert!(std::fs::read_to_string(work.join("series.csv")).unwrap() == series, "kill {k}: series.csv differs from the uninterrupted run");
+        assert_eq!(summary_without_times(&work), summary, "kill {k}: summary.json differs from the uninterrupted run");
+    }
+    eprintln!("fault injection: {kills} trials, {killed} kills, {finished_before_kill} resumes finished before their kill, all bit-identical");
+    assert!(killed >= kills / 2, "most trials must really kill a running resume ({killed} of {kills})");
+}
+
+#[test]
+fn class02_a_new_run_takes_the_directory_and_an_earlier_checkpoint_cannot_be_resumed_into_it() {
+    let d = common::tmp_dir("fault-stale");
+    let case = long_series_case(&d, 200.0);
+    let out = d.join("out");
+    let o = bin().arg("run").arg(&case).arg("--out").arg(&out).arg("--quiet").output().unwrap();
+    assert!(o.status.success());
+    assert!(out.join("checkpoint.json").exists());
+    // the second run writes no checkpoints
+    let o = bin()
+        .arg("run")
+        .arg(&case)
+        .arg("--out")
+        .arg(&out)
+        .arg("--quiet")
+        .args(["--set", "output.checkpoint_every=0", "--set", "time.end=100"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(!out.join("checkpoint.json").exists(), "the earlier run's checkpoint must not survive a new run");
+    let log = std::fs::read_to_string(out.join("log.txt")).unwrap();
+    assert!(log.contains("removed checkpoint.json of an earlier run"), "{log}");
+    let rows = std::fs::read_to_string(out.join("series.csv")).unwrap().lines().count();
+    let o = bin().arg("resume").arg(&out).arg("--quiet").output().unwrap();
+    assert!(!o.status.success(), "resume must refuse: there is no checkpoint of this run");
+    assert_eq!(o.status.code(), Some(5), "an io error: {}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(std::fs::read_to_string(out.join("series.csv")).unwrap().lines().count(), rows, "the refused resume changed nothing");
+}
+
+#[test]
+fn class04_one_writer_per_output_directory_and_a_dead_holders_lock_is_taken_over() {
+    let d = common::tmp_dir("fault-lock");
+    let case = long_series_case(&d, 1e6);
+    let out = d.join("out");
+    let mut first = bin().arg("run").arg(&case).arg("--out").arg(&out).arg("--quiet").stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
+    let lock = out.join(".sinterdem.lock");
+    let t0 = Instant::now();
+    while !std::fs::read_to_string(&lock).is_ok_and(|s| s.contains("pid")) {
+        assert!(t0.elapsed() < Duration::from_secs(30), "the first run never took its lock");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    for cmd in ["run", "generate-like"] {
+        let mut c = bin();
+        if cmd == "run" {
+            c.arg("run").arg(&case).arg("--out").arg(&out).arg("--quiet");
+        } else {
+            c.arg("resume").arg(&out).arg("--quiet");
+        }
+        let o = c.output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr).to_string();
+        if cmd == "run" {
+            assert_eq!(o.status.code(), Some(5), "a second writer is an io error: {err}");
+            assert!(err.contains(&format!("pid {}", first.id())) && err.contains("one writer per output directory"), "{err}");
+        } else {
+            assert!(!o.status.success(), "a resume beside a running run must be refused: {err}");
+        }
+    }
+    first.kill().unwrap();
+    let _ = first.wait();
+    // the dead holder's lock file is still there; the next writer takes it over and says so
+    let o = bin().arg("run").arg(&case).arg("--out").arg(&out).arg("--quiet").args(["--set", "time.end=10"]).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let log = std::fs::read_to_string(out.join("log.txt")).unwrap();
+    assert!(log.contains("taken over from a process that is gone"), "{log}");
+}
+
+#[test]
+fn class05_subnormal_times_that_used_to_hang_are_refused_by_check_and_run() {
+    let d = common::tmp_dir("fault-subnormal");
+    let case = long_series_case(&d, 10.0);
+    let pair = d.join("pair.toml");
+    std::fs::write(&pair, std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("cases/pair-copper.toml")).unwrap()).unwrap();
+    for (file, set, key) in
+        [(&case, "time.end=5e-324", "time.end"), (&case, "solver.max_substep=5e-324", "solver.max_substep"), (&pair, "pair.end_time=5e-324", "pair.end_time")]
+    {
+        for cmd in ["check", "run"] {
+            let mut c = bin();
+            c.arg(cmd).arg(file).arg("--set").arg(set);
+            if cmd == "run" {
+                c.arg("--out").arg(d.join("out")).arg("--quiet");
+            }
+            let o = c.output().unwrap();
+            let err = String::from_utf8_lossy(&o.stderr);
+            assert_eq!(o.status.code(), Some(1), "{cmd} {set}: a configuration error: {err}");
+            assert!(err.contains(key), "{cmd} {set}: {err}");
+        }
+    }
+}
+
+#[test]
+fn class09_pair_runs_and_pair_calibrations_stop_at_the_solidus_like_compacts() {
+    let d = common::tmp_dir("solidus");
+    let pair = d.join("pair.toml");
+    let text = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("cases/pair-copper.toml")).unwrap();
+    std::fs::write(&pair, text).unwrap();
+    // copper melts at 1358 K (bundled data): a constant 1400 K and a ramp through 1358 K are
+    // refused by check and by run; 1350 K runs
+    for (set, refused) in
+        [("temperature={constant=1400.0}", true), ("temperature={table=[[0.0,300.0],[100.0,1500.0]]}", true), ("temperature={constant=1350.0}", false)]
+    {
+        for cmd in ["check", "run"] {
+            let mut c = bin();
+            c.arg(cmd).arg(&pair).arg("--set").arg(set).arg("--set").arg("pair.end_time=100");
+            if cmd == "run" {
+                c.arg("--out").arg(d.join("out")).arg("--quiet");
+            }
+            let o = c.output().unwrap();
+            let err = String::from_utf8_lossy(&o.stderr);
+            if refused {
+                assert_eq!(o.status.code(), Some(1), "{cmd} {set}: {err}");
+                assert!(err.contains("1358") && err.contains("solidus"), "{cmd} {set}: {err}");
+            } else {
+                assert!(o.status.success(), "{cmd} {set}: {err}");
+            }
+        }
+    }
+    // the crossing time of the ramp is exact: 300 + 12 K/s · t = 1358 K at t = 88.1666… s
+    let o = bin().arg("check").arg(&pair).args(["--set", "temperature={table=[[0.0,300.0],[100.0,1500.0]]}", "--set", "pair.end_time=100"]).output().unwrap();
+    assert!(String::from_utf8_lossy(&o.stderr).contains("88.1666"), "{}", String::from_utf8_lossy(&o.stderr));
+}
