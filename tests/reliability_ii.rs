@@ -227,3 +227,22 @@ fn class09_pair_runs_and_pair_calibrations_stop_at_the_solidus_like_compacts() {
     let o = bin().arg("check").arg(&pair).args(["--set", "temperature={table=[[0.0,300.0],[100.0,1500.0]]}", "--set", "pair.end_time=100"]).output().unwrap();
     assert!(String::from_utf8_lossy(&o.stderr).contains("88.1666"), "{}", String::from_utf8_lossy(&o.stderr));
 }
+
+#[test]
+fn class08_run_refuses_what_check_refuses_for_explicit_sinter_protocols() {
+    let d = common::tmp_dir("run-as-check");
+    let case = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases/luding-pressure.toml");
+    let out = d.join("out");
+    for cmd in ["check", "run"] {
+        let mut c = bin();
+        c.arg(cmd).arg(&case).args(["--set", "protocol.output_interval=1e-10"]);
+        if cmd == "run" {
+            c.arg("--out").arg(&out).arg("--quiet");
+        }
+        let o = c.output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{cmd}: {err}");
+        assert!(err.contains("protocol.output_interval") && err.contains("at most 1e7"), "{cmd}: {err}");
+    }
+    assert!(!out.join("summary.json").exists(), "a refused run writes no summary");
+}

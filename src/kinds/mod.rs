@@ -195,6 +195,7 @@ pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunPar
         logf(&format!("warning: {w}"));
     }
     let base = &params.base_dir;
+    validate_before_run(kind, &value)?;
     let summary = match kind {
         Kind::Heat => {
             let text = toml::to_string(&value).map_err(|e| ConfigError::invalid(format!("case cannot be re-serialised: {e}")))?;
@@ -233,6 +234,17 @@ pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunPar
         }
     };
     Ok(RunSummary { kind, wall_seconds: wall.elapsed().as_secs_f64(), summary })
+}
+
+/// The checks of `sinterdem check` that a kind's run path does not make by itself (the step-count
+/// and output-interval limits of an explicit_sinter protocol, `case::check_plan`), so that `run`
+/// refuses exactly what `check` refuses. Heat, compact, pair and generate runs parse and validate
+/// through the same functions as `check` (prepare, parse_pair_case, parse_generate_case).
+fn validate_before_run(kind: Kind, value: &toml::Value) -> Result<(), Error> {
+    match kind {
+        Kind::ExplicitSinter => crate::kinds::explicit_sinter::check_explicit_case(value),
+        Kind::Pair | Kind::Generate | Kind::Heat | Kind::Compact => Ok(()),
+    }
 }
 
 /// Removes `dir/checkpoint.json` left by an earlier run (true when there was one).
