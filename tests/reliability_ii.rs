@@ -76,23 +76,40 @@ fn class01_resumes_killed_at_random_points_continue_to_the_uninterrupted_result(
     let mut seed = 0x5eed_2026_u64;
     let work = d.join("work");
     let (mut killed, mut finished_before_kill) = (0, 0);
+    let series_len = series.len() as u64;
+    let (mut at_cut, mut cut_seen) = (0, 0);
     for k in 0..kills {
         copy_dir(&full, &work);
-        // a first resume killed after 0–400 ms (a whole resume takes about 0.4 s), sometimes
-        // twice in a row: a kill during the resume of a killed resume
-        for _ in 0..1 + (k % 3 == 2) as usize {
-            let delay = Duration::from_micros(next(&mut seed) % 400_000);
+        // three kinds of kill: (0) at the moment series.csv changes on disk (the cut back to the
+        // checkpoint, where an in-place rewrite used to leave a truncated file), (1) after 0–40 ms
+        // (start-up and the cut), (2) after 0–400 ms (a whole resume takes about 0.4 s), twice in a
+        // row every other time: a kill during the resume of a killed resume
+        let mode = k % 3;
+        let repeats = if mode == 2 && k % 2 == 0 { 2 } else { 1 };
+        for _ in 0..repeats {
+            let delay = Duration::from_micros(match mode {
+                1 => next(&mut seed) % 40_000,
+                _ => next(&mut seed) % 400_000,
+            });
             let mut child = bin().arg("resume").arg(&work).arg("--quiet").stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
             let t0 = Instant::now();
-            while t0.elapsed() < delay {
-                if child.try_wait().unwrap().is_some() {
+            loop {
+                if child.try_wait().unwrap().is_some() || t0.elapsed() >= delay {
                     break;
                 }
-                std::thread::sleep(Duration::from_micros(500));
+                if mode == 0 {
+                    if std::fs::metadata(work.join("series.csv")).is_ok_and(|m| m.len() != series_len) {
+                        cut_seen += 1;
+                        break;
+                    }
+                } else {
+                    std::thread::sleep(Duration::from_micros(500));
+                }
             }
             if child.try_wait().unwrap().is_none() {
                 child.kill().unwrap();
                 killed += 1;
+                at_cut += (mode == 0) as usize;
             } else {
                 finished_before_kill += 1;
             }
@@ -103,7 +120,10 @@ fn class01_resumes_killed_at_random_points_continue_to_the_uninterrupted_result(
         assert!(std::fs::read_to_string(work.join("series.csv")).unwrap() == series, "kill {k}: series.csv differs from the uninterrupted run");
         assert_eq!(summary_without_times(&work), summary, "kill {k}: summary.json differs from the uninterrupted run");
     }
-    eprintln!("fault injection: {kills} trials, {killed} kills, {finished_before_kill} resumes finished before their kill, all bit-identical");
+    eprintln!(
+        "fault injection: {kills} trials, {killed} kills ({at_cut} by the watcher of series.csv, which saw the cut {cut_seen} times), {finished_before_kill} resumes finished before their kill; every next resume bit-identical"
+    );
+    assert!(cut_seen > 0, "the watcher never saw the cut of series.csv");
     assert!(killed >= kills / 2, "most trials must really kill a running resume ({killed} of {kills})");
 }
 
