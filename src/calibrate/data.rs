@@ -159,13 +159,15 @@ fn read_table(path: &Path, expected: &[&str]) -> Result<Table, Error> {
 pub fn read_experiments(path: &Path) -> Result<Vec<Experiment>, Error> {
     let t = read_table(path, &DATA_COLUMNS)?;
     let mut out: Vec<Experiment> = Vec::new();
+    // ids seen so far: a hash set keeps the file's reading linear in its rows
+    let mut seen: std::collections::HashSet<String> = std::collections::HashSet::new();
     for (line, rec) in &t.rows {
         let line = *line;
         let id = t.cell(rec, "id");
         if id.is_empty() {
             return Err(t.err(line, "id", "empty id").into());
         }
-        if out.iter().any(|e| e.id == id) {
+        if !seen.insert(id.to_string()) {
             return Err(t.err(line, "id", format!("id \"{id}\" appears twice")).into());
         }
         let diameter = t
@@ -191,17 +193,22 @@ pub fn read_experiments(path: &Path) -> Result<Vec<Experiment>, Error> {
 /// Reads the time-series file and attaches its points to `experiments` (by id).
 pub fn read_series(path: &Path, experiments: &mut [Experiment]) -> Result<(), Error> {
     let t = read_table(path, &SERIES_COLUMNS)?;
+    // experiment index by id and the times of each experiment's points: linear in the rows
+    let index: std::collections::HashMap<String, usize> = experiments.iter().enumerate().map(|(i, e)| (e.id.clone(), i)).collect();
+    let mut times: Vec<std::collections::HashSet<u64>> = experiments.iter().map(|e| e.series.iter().map(|p| p.time.to_bits()).collect()).collect();
     for (line, rec) in &t.rows {
         let line = *line;
         let id = t.cell(rec, "id");
-        let Some(e) = experiments.iter_mut().find(|e| e.id == id) else {
+        let Some(&ei) = index.get(id) else {
             return Err(t.err(line, "id", format!("id \"{id}\" is not an experiment of the data file")).into());
         };
+        let e = &mut experiments[ei];
         let time = t.number(rec, line, "time_s", "data.time_s")?.ok_or_else(|| t.err(line, "time_s", "empty time"))?;
         if time > e.profile.duration() {
             return Err(t.err(line, "time_s", format!("{time} s is after the end of experiment {id}'s schedule ({} s)", e.profile.duration())).into());
         }
-        if e.series.iter().any(|p| p.time == time) {
+        // (+0.0 for −0.0: one instant)
+        if !times[ei].insert((time + 0.0).to_bits()) {
             return Err(t.err(line, "time_s", format!("experiment {id} already has a point at {time} s")).into());
         }
         let observation = Observation { neck_ratio: t.measured(rec, line, "neck_ratio")?, shrinkage: t.measured(rec, line, "shrinkage")? };
@@ -279,5 +286,33 @@ mod tests {
             let e = read_experiments(&p).unwrap_err().to_string();
             assert!(e.contains(&format!("bad{i}.csv")) && e.contains(at) && e.contains(why), "case {i}: {e}");
         }
+    }
+
+    #[test]
+    fn large_files_keep_every_duplicate_check_with_hashed_ids_and_times() {
+        // 20 000 experiments and 60 000 series points; the duplicate sits at the far end
+        let mut data = HEAD.to_string();
+        for i in 0..20_000 {
+            data.push_str(&format!("E{i},65e-6,\"start 793 K, heat 20 K/min to 1203 K\",0.48,0.01,,\n"));
+        }
+        let e = read_experiments(&write("big.csv", &data)).unwrap();
+        assert_eq!(e.len(), 20_000);
+        data.push_str("E0,65e-6,\"start 793 K, heat 20 K/min to 1203 K\",0.48,0.01,,\n");
+        let err = read_experiments(&write("big-dup.csv", &data)).unwrap_err().to_string();
+        assert!(err.contains("line 20002") && err.contains("\"E0\" appears twice"), "{err}");
+
+        let mut series = "id,time_s,neck_ratio,neck_ratio_sigma,shrinkage,shrinkage_sigma\n".to_string();
+        for i in 0..20_000 {
+            for t in [60.0, 120.0, 180.0] {
+                series.push_str(&format!("E{i},{t},0.3,0.01,,\n"));
+            }
+        }
+        let mut ex = e.clone();
+        read_series(&write("big-series.csv", &series), &mut ex).unwrap();
+        assert!(ex.iter().all(|x| x.series.len() == 3 && x.series[2].time == 180.0));
+        series.push_str("E19999,120.0,0.3,0.01,,\n");
+        let mut ex = e.clone();
+        let err = read_series(&write("big-series-dup.csv", &series), &mut ex).unwrap_err().to_string();
+        assert!(err.contains("line 60002") && err.contains("already has a point at 120 s"), "{err}");
     }
 }
