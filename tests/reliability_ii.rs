@@ -266,3 +266,25 @@ fn class08_run_refuses_what_check_refuses_for_explicit_sinter_protocols() {
     }
     assert!(!out.join("summary.json").exists(), "a refused run writes no summary");
 }
+
+#[test]
+fn class03_a_resume_refuses_a_packing_changed_since_the_run_started() {
+    let d = common::tmp_dir("inputs-changed");
+    let case = long_series_case(&d, 200.0);
+    let out = d.join("out");
+    let o = bin().arg("run").arg(&case).arg("--out").arg(&out).arg("--quiet").output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let series = std::fs::read_to_string(out.join("series.csv")).unwrap();
+    // radii +3 %, as in the issue
+    std::fs::write(d.join("packing.csv"), "x,y,z,r\n0,0,0,2.575e-5\n0,4.95e-5,0,2.575e-5\n").unwrap();
+    let o = bin().arg("resume").arg(&out).arg("--quiet").output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("particles.file") && err.contains("changed since the run started"), "{err}");
+    assert_eq!(std::fs::read_to_string(out.join("series.csv")).unwrap(), series, "the refused resume changed nothing");
+    // restored: the resume goes on
+    std::fs::write(d.join("packing.csv"), "x,y,z,r\n0,0,0,2.5e-5\n0,4.95e-5,0,2.5e-5\n").unwrap();
+    let o = bin().arg("resume").arg(&out).arg("--quiet").output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(std::fs::read_to_string(out.join("series.csv")).unwrap(), series);
+}

@@ -2,6 +2,7 @@
 //! terminal progress bar.
 
 pub mod hdf5;
+pub mod inputs;
 pub mod lock;
 pub mod progress;
 pub mod vtu;

@@ -187,6 +187,8 @@ pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunPar
     if stale_checkpoint {
         log.line("removed checkpoint.json of an earlier run in this directory (a new run cannot be resumed from it)");
     }
+    // the files the case names, fingerprinted for `resume` (docs/outputs.md "Guarantees")
+    crate::io::inputs::record(out, &value, &params.base_dir)?;
     if !overrides.is_empty() {
         log.line(&format!("overrides: {}", overrides.join(" ")));
     }
@@ -298,6 +300,9 @@ pub fn resume(dir: &Path, params: &RunParams) -> Result<RunSummary, Error> {
     let mut log = RunLog::open(dir, true, params.echo_log);
     if let Some(note) = lock.takeover_note() {
         log.line(&note);
+    }
+    if let Some(n) = crate::io::inputs::verify(dir)? {
+        log.line(&format!("inputs unchanged since the run started ({n} file{} checked)", if n == 1 { "" } else { "s" }));
     }
     let mut logf = |m: &str| log.line(m);
     let (kind, summary) = match format.as_str() {
