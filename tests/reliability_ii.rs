@@ -288,3 +288,35 @@ fn class03_a_resume_refuses_a_packing_changed_since_the_run_started() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert_eq!(std::fs::read_to_string(out.join("series.csv")).unwrap(), series);
 }
+
+#[test]
+fn class11_compact_checkpoints_that_validated_but_gave_nan_are_refused() {
+    let d = common::tmp_dir("ck-nan");
+    let case = long_series_case(&d, 200.0);
+    let run = d.join("run");
+    let o = bin().arg("run").arg(&case).arg("--out").arg(&run).arg("--quiet").output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let good: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(run.join("checkpoint.json")).unwrap()).unwrap();
+    // the corruptions: each validated before and ended with null summary fields
+    let edits: Vec<(&str, serde_json::Value, &str)> = vec![
+        ("/contacts/0/r0", serde_json::json!([5e-324, 2.5e-5]), "checkpoint.contacts[0].r0[0]"),
+        ("/contacts/0/l0", serde_json::json!(0.0), "checkpoint.contacts[0].l0"),
+        ("/contacts/0/l0", serde_json::json!(1.0), "checkpoint.contacts[0].l0"),
+        ("/heat_in", serde_json::json!(1e308), "checkpoint.heat_in"),
+        ("/heat_stored", serde_json::json!(-1e308), "checkpoint.heat_stored"),
+    ];
+    for (pointer, v, needle) in edits {
+        let dir = d.join(format!("edit{}", pointer.replace('/', "-")));
+        copy_dir(&run, &dir);
+        let mut ck = good.clone();
+        *ck.pointer_mut(pointer).unwrap_or_else(|| panic!("{pointer} not in the checkpoint")) = v.clone();
+        std::fs::write(dir.join("checkpoint.json"), ck.to_string()).unwrap();
+        let o = bin().arg("resume").arg(&dir).arg("--quiet").output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{pointer} = {v}: {err}");
+        assert!(err.contains(needle), "{pointer} = {v}: {err}");
+    }
+    // the untouched checkpoint resumes
+    let o = bin().arg("resume").arg(&run).arg("--quiet").output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}

@@ -24,6 +24,20 @@ fn ranged(table_key: &str, key: impl FnOnce() -> String, v: f64) -> Result<(), C
     if r.contains(v) { Ok(()) } else { Err(out_of_range(key(), v, r.describe(), r.unit)) }
 }
 
+/// Largest magnitude of an energy account in a checkpoint [J]: sums over 1e12 steps of such
+/// values stay finite (an account of 1e308 J validated and turned the resumed run's balance into
+/// inf / NaN).
+pub const MAX_ENERGY_ACCOUNT_J: f64 = 1e100;
+
+/// An energy account of a checkpoint [J]: finite and within ±[`MAX_ENERGY_ACCOUNT_J`].
+pub fn energy_account(key: &str, v: f64) -> Result<(), ConfigError> {
+    if v.is_finite() && v.abs() <= MAX_ENERGY_ACCOUNT_J {
+        Ok(())
+    } else {
+        Err(out_of_range(key.to_string(), v, format!("[-{0}, {0}]", fmt_value(MAX_ENERGY_ACCOUNT_J)), "J"))
+    }
+}
+
 impl Checkpoint {
     /// Checks the checkpoint against its case: `n` particles, the case's step-control `settings`.
     pub fn validate(&self, n: usize, s: &Settings) -> Result<(), ConfigError> {
@@ -85,8 +99,21 @@ impl Checkpoint {
             for (q, &v) in c.y.iter().chain(&c.y_prev).chain(&c.e3).chain(&[c.l0, c.h_last]).enumerate() {
                 finite(|| format!("checkpoint.contacts[{k}] (state entry {q})"), v, "m")?;
             }
-            if !(c.r0.iter().all(|r| r.is_finite() && *r > 0.0)) {
-                return Err(out_of_range(format!("checkpoint.contacts[{k}].r0"), c.r0[0].min(c.r0[1]), "(0, inf)".into(), "m"));
+            // the initial radii of the two spheres: inside the range of particle radii
+            for (side, &r) in c.r0.iter().enumerate() {
+                ranged("particles.radius", || format!("checkpoint.contacts[{k}].r0[{side}]"), r)?;
+            }
+            // the centre distance at creation (R3): neither sphere inside the other, and not
+            // further apart than the sum of the radii plus half of it (contacts are detected at a
+            // gap tolerance far below that)
+            let (lo, hi) = ((c.r0[0] - c.r0[1]).abs(), 1.5 * (c.r0[0] + c.r0[1]));
+            if !(c.l0 > lo && c.l0 <= hi) {
+                return Err(out_of_range(
+                    format!("checkpoint.contacts[{k}].l0"),
+                    c.l0,
+                    format!("({}, {}] (|r0_a − r0_b|, 1.5·(r0_a + r0_b))", fmt_value(lo), fmt_value(hi)),
+                    "m",
+                ));
             }
             if !(c.t_created.is_finite() && c.t_created >= 0.0 && c.t_created <= self.t) {
                 return Err(out_of_range(
@@ -104,9 +131,9 @@ impl Checkpoint {
             finite(|| format!("checkpoint.dl_bar[{k}]"), v, "m")?;
         }
         // accounts and output bookkeeping
-        finite(|| "checkpoint.heat_in".into(), self.heat_in, "J")?;
-        finite(|| "checkpoint.heat_stored".into(), self.heat_stored, "J")?;
-        finite(|| "checkpoint.heat_scale".into(), self.heat_scale, "J")?;
+        for (key, v) in [("checkpoint.heat_in", self.heat_in), ("checkpoint.heat_stored", self.heat_stored), ("checkpoint.heat_scale", self.heat_scale)] {
+            energy_account(key, v)?;
+        }
         finite(|| "checkpoint.mechanics_counters".into(), self.mechanics_counters.2, "1")?;
         if let Some((h, dt)) = &self.heat_history {
             finite(|| "checkpoint.heat_history".into(), *dt, "s")?;
