@@ -13,6 +13,7 @@ pub mod generate;
 pub mod heat;
 pub mod keys;
 pub mod pair;
+pub mod state;
 pub mod titanium;
 
 use crate::config;
