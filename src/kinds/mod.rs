@@ -14,6 +14,7 @@ pub mod heat;
 pub mod keys;
 pub mod pair;
 pub mod state;
+pub mod stepper;
 pub mod titanium;
 
 use crate::config;
@@ -22,6 +23,8 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
+
+pub use stepper::Stepper;
 
 /// The kind of a case (`kind = "…"`, default `heat`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -169,37 +172,19 @@ impl RunLog {
 }
 
 /// Runs `case` with `overrides` into `out` and returns its summary. The output directory is
-/// created; `log.txt` in it receives the run's log.
+/// created; `log.txt` in it receives the run's log. Heat and compact runs are a [`Stepper`]
+/// stepped to the end (so the stepping API gives the same files); a stop request
+/// ([`crate::interrupt`]) ends them early with `completed = false`.
 pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunParams) -> Result<RunSummary, Error> {
     let wall = Instant::now();
-    let mut case = case.clone();
-    config::expand_includes(&mut case, &params.base_dir)?;
-    let value = resolve(&case, overrides)?;
-    let kind = Kind::of(&value)?;
-    crate::io::ensure_dir(out)?;
-    let mut log = RunLog::open(out, false, params.echo_log);
-    log.line(&format!("sinterdem {}: {} case → {}", env!("CARGO_PKG_VERSION"), kind.name(), out.display()));
-    if !overrides.is_empty() {
-        log.line(&format!("overrides: {}", overrides.join(" ")));
+    let (value, kind, mut log) = open_run(case, overrides, out, params)?;
+    if matches!(kind, Kind::Heat | Kind::Compact) {
+        let mut s = Stepper::opened(value, kind, log, out, params, wall)?;
+        while s.step()? {}
+        return s.finish();
     }
     let mut logf = |m: &str| log.line(m);
-    for w in compact_only_keys(&value) {
-        logf(&format!("warning: {w}"));
-    }
-    let base = &params.base_dir;
     let summary = match kind {
-        Kind::Heat => {
-            let text = toml::to_string(&value).map_err(|e| ConfigError::invalid(format!("case cannot be re-serialised: {e}")))?;
-            let mut prep = crate::scene::prepare(value, base)?;
-            prep.source = Some((text, base.canonicalize().unwrap_or_else(|_| base.to_path_buf())));
-            crate::kinds::heat::run(prep, out, params.progress, &mut logf)?
-        }
-        Kind::Compact => {
-            let mut sim = crate::coupled::prepare(value, base, &mut logf)?;
-            sim.settings.plots = params.plots;
-            sim.settings.wall_limit = params.wall_limit;
-            crate::kinds::compact::run(sim, out, params.progress, &mut logf)?
-        }
         Kind::Pair => {
             let mut spec = crate::kinds::pair::parse_pair_case(&value)?;
             if !params.plots && spec.plot {
@@ -223,8 +208,29 @@ pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunPar
             logf(&format!("done: {} particles, solid fraction {:.4}, coordination {:.3}", s.particles, s.solid_fraction, s.coordination_mean));
             serde_json::to_value(&s).map_err(|e| IoError::new(out.join("summary.json"), e))?
         }
+        Kind::Heat | Kind::Compact => return Err(ConfigError::invalid("internal: heat and compact runs are stepped").into()),
     };
     Ok(RunSummary { kind, wall_seconds: wall.elapsed().as_secs_f64(), summary })
+}
+
+/// The start of every run: includes expanded, overrides applied, the kind, the output directory
+/// and `log.txt` opened with the first lines (version, overrides, warnings about keys the kind
+/// ignores).
+pub(crate) fn open_run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunParams) -> Result<(toml::Value, Kind, RunLog), Error> {
+    let mut case = case.clone();
+    config::expand_includes(&mut case, &params.base_dir)?;
+    let value = resolve(&case, overrides)?;
+    let kind = Kind::of(&value)?;
+    crate::io::ensure_dir(out)?;
+    let mut log = RunLog::open(out, false, params.echo_log);
+    log.line(&format!("sinterdem {}: {} case → {}", env!("CARGO_PKG_VERSION"), kind.name(), out.display()));
+    if !overrides.is_empty() {
+        log.line(&format!("overrides: {}", overrides.join(" ")));
+    }
+    for w in compact_only_keys(&value) {
+        log.line(&format!("warning: {w}"));
+    }
+    Ok((value, kind, log))
 }
 
 /// Keys set in `case` that only compact runs use (thermal expansion, docs/coupled.md "Thermal

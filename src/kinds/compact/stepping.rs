@@ -72,7 +72,10 @@ impl CompactRun {
     pub fn set_applied_stress(&mut self, stress: f64) -> Result<(), Error> {
         let t = self.sim.t;
         let Some(load) = self.sim.load.as_mut() else {
-            return Err(ConfigError::invalid("set_applied_stress: this compact case has no applied load (add [load] with mode = \"uniaxial\" or \"isostatic\")").into());
+            return Err(ConfigError::invalid(
+                "set_applied_stress: this compact case has no applied load (add [load] with mode = \"uniaxial\" or \"isostatic\")",
+            )
+            .into());
         };
         load.settings.stress = load.settings.stress.hold_from(t, stress)?;
         let rows = load.settings.stress.rows();
