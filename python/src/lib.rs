@@ -560,6 +560,14 @@ fn dump_toml(py: Python<'_>, d: &Bound<'_, PyDict>) -> PyResult<String> {
     toml::to_string(&v).map_err(|e| to_py_err(py, ConfigError::invalid(format!("cannot be written as TOML: {e}")).into(), None, &[]))
 }
 
+/// For the `sinterdem` console command (a process of its own): SIGINT and SIGTERM stop a heat or
+/// compact run after its current step with its outputs written (exit code 130 / 143), as the Rust
+/// binary does. Not for an interactive interpreter: it replaces Python's SIGINT handler.
+#[pyfunction]
+fn install_signal_handlers(py: Python<'_>) -> PyResult<()> {
+    sinterdem::interrupt::install_handlers().map_err(|e| to_py_err(py, sinterdem::error::IoError::new("<signal handlers>", e.to_string()).into(), None, &[]))
+}
+
 /// The command line: `sinterdem.cli_main(["sinterdem", "run", …])` returns the exit code.
 #[pyfunction]
 fn cli_main(py: Python<'_>, args: Vec<String>) -> i32 {
@@ -574,6 +582,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(study, m)?)?;
     m.add_function(wrap_pyfunction!(calibrate, m)?)?;
     m.add_function(wrap_pyfunction!(cli_main, m)?)?;
+    m.add_function(wrap_pyfunction!(install_signal_handlers, m)?)?;
     m.add_function(wrap_pyfunction!(parse_toml, m)?)?;
     m.add_function(wrap_pyfunction!(dump_toml, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
