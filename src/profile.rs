@@ -318,6 +318,26 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_table_jump_is_continuous_from_the_left_and_hold_from_writes_it() {
+        let p = Profile::from_table(&[[0.0, 1293.0], [2.5, 1293.0], [2.5, 900.0], [4.0, 950.0]]).unwrap();
+        assert_eq!(p.temperature(2.5), 1293.0);
+        let after = p.temperature(2.5 + 1e-9);
+        assert!(after > 900.0 && after < 900.001, "{after}");
+        assert_eq!(p.temperature(3.25), 925.0);
+        assert_eq!(p.split_points(0.0, 5.0, None), vec![2.5, 4.0]);
+        // three rows at one time are not a jump
+        let e = Profile::from_table(&[[0.0, 300.0], [1.0, 300.0], [1.0, 400.0], [1.0, 500.0]]).unwrap_err().to_string();
+        assert!(e.contains("three may not"), "{e}");
+        // a constant held at a new value from t = 2.5 is that table, bit for bit
+        let c = Profile::constant(1293.0).unwrap().hold_from(2.5, 900.0).unwrap();
+        assert_eq!(c.rows(), vec![[0.0, 1293.0], [2.5, 1293.0], [2.5, 900.0]]);
+        assert_eq!(c, Profile::from_table(&c.rows()).unwrap());
+        assert_eq!(c.temperature(2.5), 1293.0);
+        assert_eq!(c.temperature(7.0), 900.0);
+        assert!(Profile::constant(1293.0).unwrap().hold_from(1.0, -3.0).is_err());
+    }
+
+    #[test]
     fn schedule_gives_ramp_hold_cool() {
         let p = Profile::from_schedule("start 293 K, heat 20 K/min to 1203 K, hold 30 min, cool 20 K/min to 313 K").unwrap();
         let t_heat = (1203.0 - 293.0) / (20.0 / 60.0);
