@@ -340,6 +340,7 @@ class Simulation:
         self._core = _native.SimulationCore(c._core, os.fspath(self.out), progress, self._line)
         self.kind: str = self._core.kind
         self.result: Optional[RunResult] = None
+        self._final: Optional[tuple] = None  # (time, steps, end, relative density) once finished
 
     def _guard(self, f, *args):
         try:
@@ -377,17 +378,17 @@ class Simulation:
     @property
     def time(self) -> float:
         """Current time [s]."""
-        return self._core.time
+        return self._final[0] if self._final else self._core.time
 
     @property
     def steps(self) -> int:
         """Accepted steps so far."""
-        return self._core.step_count
+        return self._final[1] if self._final else self._core.step_count
 
     @property
     def end(self) -> float:
         """End time of the case [s]."""
-        return self._core.end
+        return self._final[2] if self._final else self._core.end
 
     @property
     def done(self) -> bool:
@@ -397,7 +398,7 @@ class Simulation:
     @property
     def relative_density(self) -> Optional[float]:
         """Relative density of the compact now [1] (``None`` for heat runs)."""
-        return self._core.relative_density
+        return self._final[3] if self._final else self._core.relative_density
 
     @property
     def particles(self) -> Dict[str, np.ndarray]:
@@ -421,6 +422,7 @@ class Simulation:
     def finish(self) -> "RunResult":
         """Writes ``summary.json`` (and the plots) and returns the :class:`RunResult`; later calls return the same result."""
         if self.result is None:
+            self._final = (self._core.time, self._core.step_count, self._core.end, self._core.relative_density)
             wall = self._core.finish()
             if self._line is not None:
                 self._line.close()

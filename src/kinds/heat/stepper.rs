@@ -224,6 +224,13 @@ impl HeatRun {
             return Err(ConfigError::invalid("set_furnace_temperature: this heat case has no furnace (add [thermal.furnace] with a profile)").into());
         };
         self.plan.update_kinks(&self.prep);
+        if self.plan.kinks.contains(&t) {
+            // the step that ended here now ends at a kink: the error estimate restarts, as
+            // `step::advance` does for a step landing on a kink of the case's profiles
+            let keep = self.st.hist.len().saturating_sub(1);
+            self.st.hist.drain(..keep);
+            self.st.hist_t.drain(..keep.min(self.st.hist_t.len()));
+        }
         if let Some((text, _)) = self.prep.source.as_mut() {
             state::rewrite_furnace(text, &profile)?;
         }
