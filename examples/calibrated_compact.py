@@ -14,7 +14,9 @@ with tempfile.TemporaryDirectory() as d:
     quick = [] if FULL else ["optimiser.swarm_size=4", "optimiser.swarm_iterations=1", "optimiser.local_iterations=2"]
     fit = sinterdem.calibrate(CASES / "calibration" / "titanium-synthetic.toml", Path(d) / "fit", overrides=quick)
     print(fit.parameters[["value", "sigma", "unit"]])
-    material = fit.material                       # a dict: a [[materials]] entry
+    # fit.material is the calibrated diffusion data ([[materials]] entry: name, phases, …); the
+    # thermal and elastic values come from the preset it was fitted against
+    material = {**sinterdem.Case.preset_material("titanium"), **fit.material}
 
     case = sinterdem.Case.load(CASES / "titanium-compact-e14b.toml")
     case["materials"] = [material]                # the calibrated titanium instead of the preset

@@ -212,3 +212,38 @@ def test_sigint_to_a_child_interpreter_leaves_readable_outputs(tmp_path):
     series = sinterdem.read_csv(out / "series.csv")
     assert series["time_s"].iloc[-1] == s["final_time_s"]
     assert (out / "particles.pvd").exists()  # the last state is kept as a snapshot
+
+
+def test_a_notebook_gets_a_plain_progress_line(tmp_path, monkeypatch, capsys):
+    import types
+
+    monkeypatch.setitem(sys.modules, "ipykernel", types.ModuleType("ipykernel"))
+    sinterdem.run(copper(), out=tmp_path / "nb", progress=True)
+    err = capsys.readouterr().err
+    assert "\rsinterdem: t = " in err and " s of 0.5 s (" in err, err[-500:]
+    sinterdem.run(copper(), out=tmp_path / "quiet", progress=False)
+    assert "sinterdem: t = " not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("name,sets", [
+    ("hot-plate.toml", ["time.end=5.0", "output.snapshots=2"]),
+    ("green-copper.toml", ["packing.particles=60"]),
+    ("luding-sintering-time.toml", ["protocol.t_prepare=0.003", "protocol.t_heat=0.001", "protocol.t_sinter=[0.001]", "protocol.t_cool=0.001",
+                                    "protocol.t_relax=0.001", "compression.max_strain=0.005", "walls.pressures=[5e3]", "sample.particles=40",
+                                    "protocol.t0_sinter=0.001"]),
+], ids=["heat", "generate", "explicit_sinter"])
+def test_every_kind_through_run_equals_the_command_line(tmp_path, name, sets):
+    from conftest import cli_commands, run_cli
+
+    case = sinterdem.Case.load(CASES / name)
+    for s in sets:
+        k, v = s.split("=", 1)
+        case[k] = sinterdem._native.parse_toml(f"v = {v}", "<set>")["v"]
+    res = sinterdem.run(case, out=tmp_path / "py", progress=False)
+    name_, cmd = cli_commands()[-1]
+    args = [a for s in sets for a in ("--set", s)]
+    run_cli(cmd, "run", str(CASES / name), "--out", str(tmp_path / name_), "-q", *args)
+    assert strip_timing(read_summary(tmp_path / name_)) == strip_timing(res.summary)
+    for f in ("series.csv",):
+        if (res.out / f).exists():
+            assert (tmp_path / name_ / f).read_bytes() == (res.out / f).read_bytes()
