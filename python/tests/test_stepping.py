@@ -226,7 +226,7 @@ def test_a_notebook_gets_a_plain_progress_line(tmp_path, monkeypatch, capsys):
 
 
 @pytest.mark.parametrize("name,sets", [
-    ("hot-plate.toml", ["time.end=5.0", "output.snapshots=2"]),
+    ("hot-plate.toml", ["time.end=5.0", "output.snapshots=2", "output.hdf5=false"]),  # the package has no HDF5
     ("green-copper.toml", ["packing.particles=60"]),
     ("luding-sintering-time.toml", ["protocol.t_prepare=0.003", "protocol.t_heat=0.001", "protocol.t_sinter=[0.001]", "protocol.t_cool=0.001",
                                     "protocol.t_relax=0.001", "compression.max_strain=0.005", "walls.pressures=[5e3]", "sample.particles=40",
@@ -243,7 +243,11 @@ def test_every_kind_through_run_equals_the_command_line(tmp_path, name, sets):
     name_, cmd = cli_commands()[-1]
     args = [a for s in sets for a in ("--set", s)]
     run_cli(cmd, "run", str(CASES / name), "--out", str(tmp_path / name_), "-q", *args)
-    assert strip_timing(read_summary(tmp_path / name_)) == strip_timing(res.summary)
+    cli = strip_timing(read_summary(tmp_path / name_))
+    py = strip_timing(res.summary)
+    for d in (cli, py):
+        d.pop("wall_time", None)  # generate's wall time [s]
+    assert cli == py
     for f in ("series.csv",):
         if (res.out / f).exists():
             assert (tmp_path / name_ / f).read_bytes() == (res.out / f).read_bytes()
