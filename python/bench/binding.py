@@ -25,26 +25,29 @@ import sinterdem
 CASES = Path("cases")
 
 
-def compact():
+def compact(rounds=4):
     case = sinterdem.Case.load(CASES / "copper-compact.toml")
     for k, v in {"time.end": 5.0, "output.snapshots": 0, "output.checkpoint_every": 0, "output.conductivity_at": []}.items():
         case[k] = v
+    total, inner, stepped = [], [], []
     with tempfile.TemporaryDirectory() as d:
-        rows = []
-        for _ in range(3):
+        for _ in range(rounds):  # interleaved, so that a busy machine slows both alike
             t0 = time.perf_counter()
             r = sinterdem.run(case, out=d, progress=False)
-            rows.append((time.perf_counter() - t0, r.wall_seconds))
-        total, inner = min(rows)
-        print(f"copper compact, time.end = 5 s ({r.summary['steps']} steps): sinterdem.run {total:.3f} s, "
-              f"kinds::run {inner:.3f} s, overhead {1e3 * (total - inner):.2f} ms ({100 * (total - inner) / inner:.3f} %), best of 3")
-        t0 = time.perf_counter()
-        sim = sinterdem.Simulation(case, out=d)
-        while sim.step():
-            pass
-        res = sim.finish()
-        stepped = time.perf_counter() - t0
-        print(f"  stepped from Python, one sim.step() per step: {stepped:.3f} s ({100 * (stepped - inner) / inner:+.2f} % against kinds::run)")
+            total.append(time.perf_counter() - t0)
+            inner.append(r.wall_seconds)
+            t0 = time.perf_counter()
+            sim = sinterdem.Simulation(case, out=d)
+            while sim.step():
+                pass
+            sim.finish()
+            stepped.append(time.perf_counter() - t0)
+    over = statistics.median([a - b for a, b in zip(total, inner)])
+    mt, ms = statistics.median(total), statistics.median(stepped)
+    print(f"copper compact, time.end = 5 s ({r.summary['steps']} steps): sinterdem.run {mt:.3f} s, overhead over kinds::run "
+          f"{1e3 * over:.2f} ms ({100 * over / statistics.median(inner):.3f} %); stepped from Python (one sim.step() per step) "
+          f"{ms:.3f} s ({100 * (ms - mt) / mt:+.1f} %); medians of {rounds}, runs {[round(x, 2) for x in total]} s, "
+          f"stepped {[round(x, 2) for x in stepped]} s")
 
 
 def sweep(n=1000):
