@@ -6,7 +6,8 @@
 #      with the root build so dependencies are not compiled twice);
 #   3. `maturin build --release` of the same crate (the cargo build is already fresh) → a wheel,
 #      which python/tests/test_wheel.py installs into another fresh venv with cargo off PATH;
-#   4. pytest python/tests (the CLI comparisons use SINTERDEM_BIN, default target/release/sinterdem).
+#   4. pytest python/tests (the CLI comparisons use SINTERDEM_BIN, default target/release/sinterdem;
+#      the examples/ scripts run too, plotting when matplotlib installed).
 # Exit code: pytest's; 77 = skipped. Extra arguments go to pytest.
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
@@ -22,6 +23,9 @@ if ! "$venv/bin/python" -m pip install --disable-pip-version-check --retries 1 -
     echo "Python package tests SKIPPED: pip could not install maturin/pytest/pandas/numpy (no package index?): $(tail -n 1 /tmp/sinterdem-python-pip.log)"
     exit 77
 fi
+# optional: the examples plot with matplotlib when it is there, else they print why they skip
+"$venv/bin/python" -m pip install --disable-pip-version-check --retries 1 --timeout 20 -q matplotlib >/dev/null 2>&1 \
+    || echo "python package: matplotlib not installed: the examples skip their plots"
 echo "python package: venv ready in $(( $(date +%s) - start )) s; pip install ./python (release build)"
 "$venv/bin/python" -m pip install --disable-pip-version-check -q --no-build-isolation "$here"
 echo "python package: installed from source at $(( $(date +%s) - start )) s; maturin build --release"

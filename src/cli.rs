@@ -337,6 +337,13 @@ where
     };
     crate::logging::init(crate::logging::Verbosity::from_flags(cli.quiet, cli.verbose));
     match real_main(cli) {
+        // a heat or compact run stopped by SIGINT/SIGTERM has written its outputs
+        // (completed = false): the exit code says which signal stopped it
+        Ok(()) if crate::interrupt::signal().is_some() => {
+            let sig = crate::interrupt::signal().unwrap_or(2);
+            eprintln!("interrupted by signal {sig}: the outputs are written (summary.json: completed = false, stop_reason = \"interrupted\")");
+            128 + sig
+        }
         Ok(()) => 0,
         Err(e) => {
             eprintln!("error: {e}");

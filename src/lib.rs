@@ -24,6 +24,7 @@ pub mod error;
 pub mod explicit;
 pub mod finite;
 pub mod heat;
+pub mod interrupt;
 pub mod io;
 pub mod kinds;
 pub mod linsolve;

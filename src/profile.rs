@@ -1,6 +1,7 @@
 //! Heating profiles: prescribed temperature histories T(t) [K] as piecewise-linear ramps and holds.
 //!
-//! A profile is stored as breakpoints `(t_k, T_k)` with strictly increasing times; between them T is
+//! A profile is stored as breakpoints `(t_k, T_k)` with increasing times (two equal times make a
+//! jump, continuous from the left); between them T is
 //! linear, before the first it is `T_0`, after the last it is held. Three input forms:
 //! - a schedule string: `"start 293 K, heat 20 K/min to 1203 K, hold 30 min, cool 20 K/min to 313 K"`
 //!   (rates in K/s, K/min or K/h; durations in s, min or h; temperatures in K or °C written `C`),
@@ -16,7 +17,7 @@ use serde::{Deserialize, Serialize};
 /// A piecewise-linear temperature history.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Profile {
-    /// Breakpoint times [s], strictly increasing.
+    /// Breakpoint times [s], increasing (a pair of equal times is a jump).
     times: Vec<f64>,
     /// Temperatures at the breakpoints [K].
     temps: Vec<f64>,
@@ -28,7 +29,7 @@ pub struct Profile {
 pub struct ProfileSpec {
     /// Schedule string, e.g. `"start 293 K, heat 20 K/min to 1203 K, hold 30 min"`.
     pub schedule: Option<String>,
-    /// Table of `[time s, temperature K]` rows, times strictly increasing.
+    /// Table of `[time s, temperature K]` rows, times increasing (two equal times: a jump).
     pub table: Option<Vec<[f64; 2]>>,
     /// Constant temperature [K].
     pub constant: Option<f64>,
@@ -52,7 +53,8 @@ impl Profile {
         Ok(Profile { times: vec![0.0], temps: vec![t] })
     }
 
-    /// From `(time s, temperature K)` rows with strictly increasing times.
+    /// From `(time s, temperature K)` rows with increasing times; two rows with the same time
+    /// make a jump (the first row's value at that time, the second's after it).
     pub fn from_table(rows: &[[f64; 2]]) -> Result<Self, ConfigError> {
         if rows.is_empty() {
             return Err(ConfigError::invalid("profile.table: needs at least one [time, temperature] row"));
@@ -64,9 +66,12 @@ impl Profile {
                 return Err(ConfigError::OutOfRange { key: format!("profile.table[{k}].time"), value: r[0], range: "[0, inf)".into(), unit: "s".into() });
             }
             if let Some(&last) = times.last()
-                && r[0] <= last
+                && (r[0] < last || r[0] == last && k >= 2 && times[k - 2] == last)
             {
-                return Err(ConfigError::invalid(format!("profile.table[{k}]: time {} s is not after the previous row's {} s", r[0], last)));
+                return Err(ConfigError::invalid(format!(
+                    "profile.table[{k}]: time {} s is not after the previous row's {} s (two rows with the same time make a jump; three may not)",
+                    r[0], last
+                )));
             }
             times.push(r[0]);
             temps.push(check_temperature(&format!("profile.table[{k}].temperature"), r[1])?);
@@ -153,15 +158,21 @@ impl Profile {
     }
 
     /// Temperature at time `t` [s] → [K] (eq.: linear interpolation between breakpoints, held outside).
+    ///
+    /// At a jump (two rows with the same time) the profile is continuous from the left: at the
+    /// jump's time it has the first row's value, after it the second's.
     pub fn temperature(&self, t: f64) -> f64 {
         let n = self.times.len();
         if t <= self.times[0] {
             return self.temps[0];
         }
         if t >= self.times[n - 1] {
-            return self.temps[n - 1];
+            return if n >= 2 && t == self.times[n - 1] && self.times[n - 2] == t { self.temps[n - 2] } else { self.temps[n - 1] };
         }
         let k = self.times.partition_point(|&x| x <= t); // times[k-1] <= t < times[k]
+        if k >= 2 && self.times[k - 2] == t {
+            return self.temps[k - 2];
+        }
         let (t0, t1) = (self.times[k - 1], self.times[k]);
         let w = (t - t0) / (t1 - t0);
         self.temps[k - 1] + w * (self.temps[k] - self.temps[k - 1])
@@ -239,7 +250,29 @@ impl Profile {
             }
         }
         out.sort_by(f64::total_cmp);
+        out.dedup();
         out
+    }
+
+    /// This profile up to time `t` [s], then `temperature` [K] held from `t` on (a jump at `t`
+    /// unless `t` is 0): what `set_furnace_temperature` makes of a furnace profile. The same
+    /// profile is written in a case as the table [`Profile::rows`] of the result.
+    pub fn hold_from(&self, t: f64, temperature: f64) -> Result<Profile, ConfigError> {
+        check_temperature("furnace temperature", temperature)?;
+        if !(t.is_finite() && t > 0.0) {
+            return Profile::constant(temperature);
+        }
+        let k = self.times.partition_point(|&x| x < t);
+        let mut times = self.times[..k].to_vec();
+        let mut temps = self.temps[..k].to_vec();
+        times.extend([t, t]);
+        temps.extend([self.temperature(t), temperature]);
+        Ok(Profile { times, temps })
+    }
+
+    /// The profile as `[time s, temperature K]` rows (`table = …` in a case file).
+    pub fn rows(&self) -> Vec<[f64; 2]> {
+        self.times.iter().zip(&self.temps).map(|(&a, &b)| [a, b]).collect()
     }
 }
 
@@ -303,6 +336,26 @@ fn split_unit(s: &str) -> (&str, &str) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_table_jump_is_continuous_from_the_left_and_hold_from_writes_it() {
+        let p = Profile::from_table(&[[0.0, 1293.0], [2.5, 1293.0], [2.5, 900.0], [4.0, 950.0]]).unwrap();
+        assert_eq!(p.temperature(2.5), 1293.0);
+        let after = p.temperature(2.5 + 1e-9);
+        assert!(after > 900.0 && after < 900.001, "{after}");
+        assert_eq!(p.temperature(3.25), 925.0);
+        assert_eq!(p.split_points(0.0, 5.0, None), vec![2.5, 4.0]);
+        // three rows at one time are not a jump
+        let e = Profile::from_table(&[[0.0, 300.0], [1.0, 300.0], [1.0, 400.0], [1.0, 500.0]]).unwrap_err().to_string();
+        assert!(e.contains("three may not"), "{e}");
+        // a constant held at a new value from t = 2.5 is that table, bit for bit
+        let c = Profile::constant(1293.0).unwrap().hold_from(2.5, 900.0).unwrap();
+        assert_eq!(c.rows(), vec![[0.0, 1293.0], [2.5, 1293.0], [2.5, 900.0]]);
+        assert_eq!(c, Profile::from_table(&c.rows()).unwrap());
+        assert_eq!(c.temperature(2.5), 1293.0);
+        assert_eq!(c.temperature(7.0), 900.0);
+        assert!(Profile::constant(1293.0).unwrap().hold_from(1.0, -3.0).is_err());
+    }
 
     #[test]
     fn schedule_gives_ramp_hold_cool() {

@@ -18,15 +18,18 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 import tempfile
 from pathlib import Path
-from typing import Any, Dict, List, Mapping, Optional, Union
+from typing import Any, Callable, Dict, List, Mapping, Optional, Union
 
-from . import _native
+import numpy as np
+
+from . import _native, _snapshots
 from ._errors import ConfigError, Error, IoError, ModelError, SolveError
 
 __all__ = [
-    "Case", "RunResult", "CalibrationResult", "run", "study", "calibrate", "read_csv",
+    "Case", "RunResult", "CalibrationResult", "Simulation", "run", "study", "calibrate", "read_csv",
     "Error", "ConfigError", "ModelError", "SolveError", "IoError", "__version__",
 ]
 __version__ = _native.__version__
@@ -174,6 +177,61 @@ class RunResult:
             self._series = read_csv(self.out / "series.csv")
         return self._series
 
+    @property
+    def times(self) -> np.ndarray:
+        """Times [s] of the snapshots (``particles.pvd``; empty for kinds without snapshots)."""
+        return np.array([t for t, _ in _snapshots.pvd_entries(self.out / "particles.pvd")], dtype=float)
+
+    def _snapshot(self, name: str, i: int) -> Dict[str, np.ndarray]:
+        entries = _snapshots.pvd_entries(self.out / f"{name}.pvd")
+        if not entries:
+            raise IoError(f"{self.out}: no {name}.pvd: this {self.kind} run wrote no snapshots (output.snapshots = 0, or a kind without VTU output)")
+        try:
+            return _snapshots.read_vtu(entries[i][1])
+        except IndexError:
+            raise IndexError(f"snapshot {i}: the run wrote {len(entries)} (res.times)") from None
+
+    def particles(self, i: int = -1) -> Dict[str, np.ndarray]:
+        """The particles of snapshot ``i`` (default: the last), read from ``particles_NNNNNN.vtu``.
+
+        Keys as ``Simulation.particles``: ``ids`` (N,) int, ``positions`` (N, 3) m, ``radii``
+        (N,) m, ``temperatures`` (N,) K, ``displacements`` (N, 3) m (zeros for heat runs), and
+        every other point array of the file under its own name (``coordination``, ``velocity_m_per_s``, …).
+        """
+        a = self._snapshot("particles", i)
+        n = len(a["Points"])
+        d = {
+            "ids": a["id"].astype(np.int64) if "id" in a else np.arange(n, dtype=np.int64),
+            "positions": np.asarray(a["Points"], dtype=float).reshape(n, 3),
+            "radii": a["radius_m"],
+            "temperatures": a.get("temperature_K", np.full(n, np.nan)),
+            "displacements": a["displacement_m"] if "displacement_m" in a else np.zeros((n, 3)),
+        }
+        for k, v in a.items():
+            if k not in ("Points", "id", "radius_m", "temperature_K", "displacement_m", "connectivity", "offsets", "types"):
+                d[k] = v
+        return d
+
+    def contacts(self, i: int = -1) -> Dict[str, np.ndarray]:
+        """The contacts of snapshot ``i`` (default: the last), read from ``contacts_NNNNNN.vtu``.
+
+        Keys as ``Simulation.contacts``: ``pairs`` (M, 2) int, ``neck_radii`` (M,) m, ``forces``
+        (M,) N (the applied load's normal force; zeros for heat runs), and every other cell
+        array under its own name (``contact_shrinkage``, ``conductance_W_per_K``, …).
+        """
+        a = self._snapshot("contacts", i)
+        pa, pb = a["particle_a"], a["particle_b"]
+        m = len(pa)
+        d = {
+            "pairs": np.stack([pa, pb], axis=1).astype(np.int64).reshape(m, 2),
+            "neck_radii": a["neck_radius_m"],
+            "forces": a["normal_force_N"] if "normal_force_N" in a else np.zeros(m),
+        }
+        for k, v in a.items():
+            if k not in ("Points", "particle_a", "particle_b", "neck_radius_m", "normal_force_N", "connectivity", "offsets", "types"):
+                d[k] = v
+        return d
+
     def __repr__(self) -> str:
         return f"RunResult(kind={self.kind!r}, out={str(self.out)!r}, wall_seconds={self.wall_seconds:.3g})"
 
@@ -203,8 +261,183 @@ def run(case: Union[Case, Mapping[str, Any], PathLike], out: Optional[PathLike] 
         out_path = Path(tmp.name)
     else:
         out_path = Path(out)
-    kind, wall = c._core.run(os.fspath(out_path), progress, threads)
+    line = _ProgressLine.make(progress)
+    try:
+        kind, wall, interrupted = c._core.run(os.fspath(out_path), progress, threads, line)
+    finally:
+        if line is not None:
+            line.close()
+    if interrupted:
+        raise KeyboardInterrupt(f"sinterdem.run interrupted: the outputs in {out_path} are written (summary.json: completed = false)")
     return RunResult(out_path, kind, wall, tmp)
+
+
+def _in_notebook() -> bool:
+    """Whether we run in a Jupyter kernel (stderr is then the notebook's, not a terminal)."""
+    return "ipykernel" in sys.modules and not (hasattr(sys.stderr, "isatty") and sys.stderr.isatty())
+
+
+class _ProgressLine:
+    """The plain updating progress line of a notebook (the Rust bar draws on a terminal only)."""
+
+    def __init__(self) -> None:
+        self.last = ""
+
+    @classmethod
+    def make(cls, progress: bool) -> Optional["_ProgressLine"]:
+        return cls() if progress and _in_notebook() else None
+
+    def __call__(self, t: float, end: float) -> None:
+        pct = 100.0 * t / end if end > 0 else 100.0
+        text = f"sinterdem: t = {t:.6g} s of {end:.6g} s ({pct:5.1f} %)"
+        if text != self.last:
+            sys.stderr.write("\r" + text)
+            sys.stderr.flush()
+            self.last = text
+
+    def close(self) -> None:
+        if self.last:
+            sys.stderr.write("\n")
+            sys.stderr.flush()
+
+
+class Simulation:
+    """A heat or compact run one step at a time (Yade's ``O.step()`` / ``PyRunner`` use).
+
+    ``sim = Simulation(case, out=None)`` prepares the case and writes the outputs due at t = 0
+    (``out=None``: a temporary directory that lives with ``sim`` and its result). Then:
+
+    - ``sim.step()``: one accepted step (the outputs due in it are written); returns whether the
+      run goes on; ``sim.advance(to=t)`` steps until the time reaches ``t`` [s] (steps are never
+      shortened for it, so a stepped run is the uninterrupted run, bit for bit);
+    - ``sim.time`` [s], ``sim.steps``, ``sim.end`` [s], ``sim.done``, ``sim.relative_density``
+      (compact);
+    - ``sim.particles`` / ``sim.contacts``: dicts of numpy arrays of the state now (copies, SI
+      units; docs/python.md gives their cost);
+    - ``sim.set_furnace_temperature(T)`` [K]: the furnace held at T from now on (the same as
+      the furnace profile written as a table with a jump now);
+      ``sim.set_applied_stress(sigma)`` [Pa]: the same for a compact's ``[load]``;
+    - ``sim.run(callback=f, every=n)``: steps to the end, calling ``f(sim)`` every ``n`` steps;
+      ``f`` returning ``False`` stops the run (``stop_reason = "stopped by the callback"``);
+    - ``sim.finish()``: writes ``summary.json`` and returns a :class:`RunResult` (a run not at
+      its end time is marked ``completed = false``, ``stop_reason = "stopped by the caller"``).
+
+    Steps run with the GIL released. Ctrl-C during a step stops the run after that step, writes
+    the outputs (``completed = false``, ``stop_reason = "interrupted"``) and raises
+    ``KeyboardInterrupt``. Also a context manager: ``with Simulation(case) as sim: …`` finishes on exit.
+    """
+
+    def __init__(self, case: Union[Case, Mapping[str, Any], PathLike], out: Optional[PathLike] = None, progress: bool = False) -> None:
+        c = _as_case(case)
+        self._tmp = None
+        if out is None:
+            self._tmp = tempfile.TemporaryDirectory(prefix="sinterdem-")
+            self.out = Path(self._tmp.name)
+        else:
+            self.out = Path(out)
+        self.case = c
+        self._line = _ProgressLine.make(progress)
+        self._core = _native.SimulationCore(c._core, os.fspath(self.out), progress, self._line)
+        self.kind: str = self._core.kind
+        self.result: Optional[RunResult] = None
+        self._final: Optional[tuple] = None  # (time, steps, end, relative density) once finished
+
+    def _guard(self, f, *args):
+        try:
+            return f(*args)
+        except KeyboardInterrupt:
+            self.finish()
+            raise
+
+    def step(self) -> bool:
+        """One accepted step; returns ``True`` while the run goes on."""
+        return self._guard(self._core.step)
+
+    def advance(self, to: float) -> bool:
+        """Steps until ``time >= to`` [s] or the end; returns ``True`` while the run goes on."""
+        return self._guard(self._core.advance, float(to))
+
+    def run(self, callback: Optional[Callable[["Simulation"], Any]] = None, every: int = 1) -> "RunResult":
+        """Steps to the end, calling ``callback(self)`` every ``every`` steps (and once at the
+        start); a callback returning ``False`` stops the run there. Returns :meth:`finish`."""
+        if every < 1:
+            raise ConfigError(f"every = {every}: expected a number of steps >= 1", key="every", value=every, allowed="[1, inf)")
+        going = not self.done
+        if callback is not None and going and callback(self) is False:
+            return self._stop_by_callback()
+        while going:
+            going = self._guard(self._core.steps, int(every)) if callback is not None else self._guard(self._core.steps, 1 << 62)
+            if callback is not None and callback(self) is False and going:
+                return self._stop_by_callback()
+        return self.finish()
+
+    def _stop_by_callback(self) -> "RunResult":
+        self._core.stop("stopped by the callback")
+        return self.finish()
+
+    @property
+    def time(self) -> float:
+        """Current time [s]."""
+        return self._final[0] if self._final else self._core.time
+
+    @property
+    def steps(self) -> int:
+        """Accepted steps so far."""
+        return self._final[1] if self._final else self._core.step_count
+
+    @property
+    def end(self) -> float:
+        """End time of the case [s]."""
+        return self._final[2] if self._final else self._core.end
+
+    @property
+    def done(self) -> bool:
+        """Whether the run is over (only :meth:`finish` is left)."""
+        return self.result is not None or self._core.done
+
+    @property
+    def relative_density(self) -> Optional[float]:
+        """Relative density of the compact now [1] (``None`` for heat runs)."""
+        return self._final[3] if self._final else self._core.relative_density
+
+    @property
+    def particles(self) -> Dict[str, np.ndarray]:
+        """The particles now: ``ids`` (N,) int64, ``positions`` (N, 3) m, ``radii`` (N,) m,
+        ``temperatures`` (N,) K, ``displacements`` (N, 3) m (a copy)."""
+        return self._core.particles()
+
+    @property
+    def contacts(self) -> Dict[str, np.ndarray]:
+        """The contacts now: ``pairs`` (M, 2) int64, ``neck_radii`` (M,) m, ``forces`` (M,) N (a copy)."""
+        return self._core.contacts()
+
+    def set_furnace_temperature(self, temperature: float) -> None:
+        """Holds the furnace (gas and walls; isothermal runs: every particle) at ``temperature`` [K] from now on."""
+        self._core.set_furnace_temperature(float(temperature))
+
+    def set_applied_stress(self, stress: float) -> None:
+        """Holds the applied stress of a compact's ``[load]`` at ``stress`` [Pa] (compressive positive) from now on."""
+        self._core.set_applied_stress(float(stress))
+
+    def finish(self) -> "RunResult":
+        """Writes ``summary.json`` (and the plots) and returns the :class:`RunResult`; later calls return the same result."""
+        if self.result is None:
+            self._final = (self._core.time, self._core.step_count, self._core.end, self._core.relative_density)
+            wall = self._core.finish()
+            if self._line is not None:
+                self._line.close()
+            self.result = RunResult(self.out, self.kind, wall or 0.0, self._tmp)
+        return self.result
+
+    def __enter__(self) -> "Simulation":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.finish()
+
+    def __repr__(self) -> str:
+        state = "finished" if self.result is not None else f"t = {self.time:.6g} s of {self.end:.6g} s, {self.steps} steps"
+        return f"Simulation(kind={self.kind!r}, {state}, out={str(self.out)!r})"
 
 
 def _file_for(spec: Union[Mapping[str, Any], PathLike], out: Path, name: str) -> str:

@@ -3,7 +3,7 @@
 //! `study::run_study`, `calibrate::run_file`, `cli::main`); the Python layer (`sinterdem/*.py`)
 //! adds the objects users hold (Case, RunResult, …). Nothing of the simulator is written twice.
 
-use numpy::PyArray1;
+use numpy::{PyArray1, PyArrayMethods};
 use pyo3::exceptions::{PyKeyError, PyTypeError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
@@ -211,12 +211,16 @@ impl CaseCore {
     }
 
     /// `sinterdem run`: runs the case into `out` through `sinterdem::kinds::run` with the GIL
-    /// released; returns (kind, wall seconds).
-    #[pyo3(signature = (out, progress=true, threads=None))]
-    fn run(&self, py: Python<'_>, out: PathBuf, progress: bool, threads: Option<usize>) -> PyResult<(String, f64)> {
+    /// released; returns (kind, wall seconds, interrupted). `poll(t, end)` (optional) is called
+    /// with the GIL about every 50 ms (Jupyter's progress line); Ctrl-C (Python's SIGINT
+    /// handler) stops a heat or compact run after its current step with its outputs written,
+    /// and `interrupted` is True (the Python layer raises KeyboardInterrupt).
+    #[pyo3(signature = (out, progress=true, threads=None, poll=None))]
+    fn run(&self, py: Python<'_>, out: PathBuf, progress: bool, threads: Option<usize>, poll: Option<Py<PyAny>>) -> PyResult<(String, f64, bool)> {
         let params = sinterdem::kinds::RunParams { base_dir: self.base_dir.clone(), progress, echo_log: false, plots: true, wall_limit: None };
         let (value, sets) = (&self.value, &self.sets);
-        let res = py.detach(|| -> Result<sinterdem::kinds::RunSummary, Error> {
+        let watch = Watch::new(poll);
+        let res = watch.detached(py, || -> Result<sinterdem::kinds::RunSummary, Error> {
             match threads {
                 Some(n) if n > 0 => {
                     let pool =
@@ -227,7 +231,7 @@ impl CaseCore {
             }
         });
         let s = res.map_err(|e| self.err(py, e))?;
-        Ok((s.kind.name().to_string(), s.wall_seconds))
+        Ok((s.kind.name().to_string(), s.wall_seconds, watch.interrupted()))
     }
 
     /// A bundled material (`copper`, `titanium`) as a `[[materials]]` table to edit: its
@@ -263,6 +267,235 @@ impl CaseCore {
 
     fn copy(&self) -> CaseCore {
         self.clone()
+    }
+}
+
+/// Watches a long call made with the GIL released: while it runs, every ~50 ms
+/// (`sinterdem::interrupt::POLL_INTERVAL`) it takes the GIL, lets Python run its signal handlers
+/// (Ctrl-C raises KeyboardInterrupt there: kept, and the run is asked to stop after its current
+/// step) and calls the progress callback with (t, end) [s].
+struct Watch {
+    poll: Option<Py<PyAny>>,
+    error: std::sync::Arc<std::sync::Mutex<Option<PyErr>>>,
+}
+
+/// Moves a value into a closure run with the GIL released on this same thread (the stepping
+/// object is not `Send`; `detach` runs the closure synchronously, on the calling thread).
+struct SameThread<T>(T);
+// SAFETY: `Python::detach` runs its closure on the calling thread before returning; the value
+// never reaches another thread.
+unsafe impl<T> Send for SameThread<T> {}
+impl<T> SameThread<T> {
+    fn get(self) -> T {
+        self.0
+    }
+}
+
+impl Watch {
+    fn new(poll: Option<Py<PyAny>>) -> Watch {
+        Watch { poll, error: Default::default() }
+    }
+
+    /// Runs `f` with the GIL released and this watch polled; the stop request is cleared before.
+    fn detached<T>(&self, py: Python<'_>, f: impl FnOnce() -> T) -> T {
+        sinterdem::interrupt::clear();
+        let poll = self.poll.as_ref().map(|p| p.clone_ref(py));
+        let error = self.error.clone();
+        let hook = move || -> bool {
+            Python::attach(|py| {
+                if let Err(e) = py.check_signals() {
+                    *error.lock().unwrap_or_else(|e| e.into_inner()) = Some(e);
+                    return true;
+                }
+                if let (Some(cb), Some((t, end))) = (poll.as_ref(), sinterdem::io::progress::latest()) {
+                    let _ = cb.call1(py, (t, end));
+                }
+                false
+            })
+        };
+        let _guard = sinterdem::interrupt::set_poll(Box::new(hook));
+        let f = SameThread(f);
+        let out = py.detach(move || SameThread((f.get())())).get();
+        sinterdem::interrupt::clear();
+        out
+    }
+
+    /// Whether Ctrl-C (or another signal handler's exception) stopped the call.
+    fn interrupted(&self) -> bool {
+        self.error.lock().unwrap_or_else(|e| e.into_inner()).is_some()
+    }
+
+    /// The exception a signal handler raised during the call, if any.
+    fn take_error(&self) -> Option<PyErr> {
+        self.error.lock().unwrap_or_else(|e| e.into_inner()).take()
+    }
+}
+
+/// A heat or compact run one step at a time (`sinterdem.Simulation`): `sinterdem::kinds::Stepper`.
+#[pyclass(module = "sinterdem._native", unsendable)]
+struct SimulationCore {
+    stepper: Option<sinterdem::kinds::Stepper>,
+    case: CaseCore,
+    kind: String,
+    poll: Option<Py<PyAny>>,
+}
+
+impl SimulationCore {
+    fn live(&mut self) -> PyResult<&mut sinterdem::kinds::Stepper> {
+        self.stepper.as_mut().ok_or_else(|| pyo3::exceptions::PyRuntimeError::new_err("the simulation is finished (finish() was called)"))
+    }
+
+    /// Runs `f` on the stepper with the GIL released and Ctrl-C watched; a Ctrl-C stops the run
+    /// (outputs written by `finish`) and is re-raised.
+    fn call<T>(&mut self, py: Python<'_>, f: impl FnOnce(&mut sinterdem::kinds::Stepper) -> Result<T, Error>) -> PyResult<T> {
+        let watch = Watch::new(self.poll.as_ref().map(|p| p.clone_ref(py)));
+        let stepper = SameThread(self.live()?);
+        let res = watch.detached(py, move || f(stepper.get()));
+        let res = res.map_err(|e| self.case.err(py, e));
+        if let Some(e) = watch.take_error() {
+            if let Some(s) = self.stepper.as_mut()
+                && !s.done()
+            {
+                s.stop("interrupted").map_err(|e| self.case.err(py, e))?;
+            }
+            return Err(e);
+        }
+        res
+    }
+}
+
+fn array<'py>(py: Python<'py>, v: Vec<f64>, cols: usize) -> PyResult<Bound<'py, PyAny>> {
+    let n = v.len() / cols.max(1);
+    let a = PyArray1::from_vec(py, v);
+    Ok(if cols > 1 { a.reshape([n, cols])?.into_any() } else { a.into_any() })
+}
+
+fn int_array<'py>(py: Python<'py>, v: Vec<i64>, cols: usize) -> PyResult<Bound<'py, PyAny>> {
+    let n = v.len() / cols.max(1);
+    let a = PyArray1::from_vec(py, v);
+    Ok(if cols > 1 { a.reshape([n, cols])?.into_any() } else { a.into_any() })
+}
+
+#[pymethods]
+impl SimulationCore {
+    /// Prepares the case and opens the outputs in `out` (writes those due at t = 0).
+    #[new]
+    #[pyo3(signature = (case, out, progress=true, poll=None))]
+    fn new(py: Python<'_>, case: &CaseCore, out: PathBuf, progress: bool, poll: Option<Py<PyAny>>) -> PyResult<SimulationCore> {
+        let params = sinterdem::kinds::RunParams { base_dir: case.base_dir.clone(), progress, echo_log: false, plots: true, wall_limit: None };
+        let (value, sets) = (case.value.clone(), case.sets.clone());
+        let res = py.detach(move || SameThread(sinterdem::kinds::Stepper::start(&value, &sets, &out, &params))).get();
+        let stepper = res.map_err(|e| case.err(py, e))?;
+        Ok(SimulationCore { kind: stepper.kind().name().to_string(), stepper: Some(stepper), case: case.clone(), poll })
+    }
+
+    /// One accepted step; returns whether the run goes on.
+    fn step(&mut self, py: Python<'_>) -> PyResult<bool> {
+        self.call(py, |s| s.step())
+    }
+
+    /// Steps until `to` [s] (the last step may pass it); returns whether the run goes on.
+    fn advance(&mut self, py: Python<'_>, to: f64) -> PyResult<bool> {
+        self.call(py, |s| s.advance(to))
+    }
+
+    /// Up to `n` steps, stopping early when the run ends; returns whether the run goes on.
+    fn steps(&mut self, py: Python<'_>, n: u64) -> PyResult<bool> {
+        self.call(py, |s| {
+            for _ in 0..n {
+                if !s.step()? {
+                    return Ok(false);
+                }
+            }
+            Ok(!s.done())
+        })
+    }
+
+    #[getter]
+    fn time(&mut self) -> PyResult<f64> {
+        Ok(self.live()?.time())
+    }
+
+    #[getter]
+    fn step_count(&mut self) -> PyResult<u64> {
+        Ok(self.live()?.steps())
+    }
+
+    #[getter]
+    fn end(&mut self) -> PyResult<f64> {
+        Ok(self.live()?.end())
+    }
+
+    #[getter]
+    fn done(&mut self) -> PyResult<bool> {
+        Ok(self.live()?.done())
+    }
+
+    #[getter]
+    fn kind(&self) -> String {
+        self.kind.clone()
+    }
+
+    #[getter]
+    fn relative_density(&mut self) -> PyResult<Option<f64>> {
+        Ok(self.live()?.relative_density())
+    }
+
+    /// The particles now: ids (N,) int64, positions (N, 3) m, radii (N,) m, temperatures (N,) K,
+    /// displacements (N, 3) m (copies).
+    fn particles<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let p = self.live()?.particles();
+        let d = PyDict::new(py);
+        d.set_item("ids", int_array(py, p.ids, 1)?)?;
+        d.set_item("positions", array(py, p.positions, 3)?)?;
+        d.set_item("radii", array(py, p.radii, 1)?)?;
+        d.set_item("temperatures", array(py, p.temperatures, 1)?)?;
+        d.set_item("displacements", array(py, p.displacements, 3)?)?;
+        Ok(d)
+    }
+
+    /// The contacts now: pairs (M, 2) int64, neck_radii (M,) m, forces (M,) N (copies).
+    fn contacts<'py>(&mut self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let c = self.live()?.contacts();
+        let d = PyDict::new(py);
+        d.set_item("pairs", int_array(py, c.pairs, 2)?)?;
+        d.set_item("neck_radii", array(py, c.neck_radii, 1)?)?;
+        d.set_item("forces", array(py, c.forces, 1)?)?;
+        Ok(d)
+    }
+
+    /// Holds the furnace at `temperature` [K] from now on.
+    fn set_furnace_temperature(&mut self, py: Python<'_>, temperature: f64) -> PyResult<()> {
+        let r = self.live()?.set_furnace_temperature(temperature);
+        r.map_err(|e| self.case.err(py, e))
+    }
+
+    /// Holds the applied stress at `stress` [Pa] from now on (compact with [load]).
+    fn set_applied_stress(&mut self, py: Python<'_>, stress: f64) -> PyResult<()> {
+        let r = self.live()?.set_applied_stress(stress);
+        r.map_err(|e| self.case.err(py, e))
+    }
+
+    /// Ends the run early with `reason` as its stop_reason.
+    fn stop(&mut self, py: Python<'_>, reason: &str) -> PyResult<()> {
+        let r = self.live()?.stop(reason);
+        r.map_err(|e| self.case.err(py, e))
+    }
+
+    /// Writes summary.json and the plots; returns the wall seconds. Idempotent: later calls do
+    /// nothing and return None.
+    fn finish(&mut self, py: Python<'_>) -> PyResult<Option<f64>> {
+        let Some(s) = self.stepper.take() else { return Ok(None) };
+        let s = SameThread(s);
+        let res = py.detach(move || SameThread(s.get().finish())).get();
+        let summary = res.map_err(|e| self.case.err(py, e))?;
+        Ok(Some(summary.wall_seconds))
+    }
+
+    /// Whether finish() was called.
+    #[getter]
+    fn finished(&self) -> bool {
+        self.stepper.is_none()
     }
 }
 
@@ -327,6 +560,14 @@ fn dump_toml(py: Python<'_>, d: &Bound<'_, PyDict>) -> PyResult<String> {
     toml::to_string(&v).map_err(|e| to_py_err(py, ConfigError::invalid(format!("cannot be written as TOML: {e}")).into(), None, &[]))
 }
 
+/// For the `sinterdem` console command (a process of its own): SIGINT and SIGTERM stop a heat or
+/// compact run after its current step with its outputs written (exit code 130 / 143), as the Rust
+/// binary does. Not for an interactive interpreter: it replaces Python's SIGINT handler.
+#[pyfunction]
+fn install_signal_handlers(py: Python<'_>) -> PyResult<()> {
+    sinterdem::interrupt::install_handlers().map_err(|e| to_py_err(py, sinterdem::error::IoError::new("<signal handlers>", e.to_string()).into(), None, &[]))
+}
+
 /// The command line: `sinterdem.cli_main(["sinterdem", "run", …])` returns the exit code.
 #[pyfunction]
 fn cli_main(py: Python<'_>, args: Vec<String>) -> i32 {
@@ -336,10 +577,12 @@ fn cli_main(py: Python<'_>, args: Vec<String>) -> i32 {
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<CaseCore>()?;
+    m.add_class::<SimulationCore>()?;
     m.add_function(wrap_pyfunction!(read_csv, m)?)?;
     m.add_function(wrap_pyfunction!(study, m)?)?;
     m.add_function(wrap_pyfunction!(calibrate, m)?)?;
     m.add_function(wrap_pyfunction!(cli_main, m)?)?;
+    m.add_function(wrap_pyfunction!(install_signal_handlers, m)?)?;
     m.add_function(wrap_pyfunction!(parse_toml, m)?)?;
     m.add_function(wrap_pyfunction!(dump_toml, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

@@ -51,9 +51,12 @@ impl StressProfile {
         for (k, r) in rows.iter().enumerate() {
             time.check(&format!("load.stress_table[{k}] time"), r[0])?;
             if let Some(&last) = times.last()
-                && r[0] <= last
+                && (r[0] < last || r[0] == last && k >= 2 && times[k - 2] == last)
             {
-                return Err(ConfigError::invalid(format!("load.stress_table[{k}]: time {} s is not after the previous row's {} s", r[0], last)));
+                return Err(ConfigError::invalid(format!(
+                    "load.stress_table[{k}]: time {} s is not after the previous row's {} s (two rows with the same time make a jump; three may not)",
+                    r[0], last
+                )));
             }
             stress.check(&format!("load.stress_table[{k}] stress"), r[1])?;
             times.push(r[0]);
@@ -68,18 +71,42 @@ impl StressProfile {
         Ok(StressProfile { times: vec![0.0], values: vec![v] })
     }
 
-    /// σ(t) [Pa]: linear between rows, the first value before the first row, the last after the last.
+    /// σ(t) [Pa]: linear between rows, the first value before the first row, the last after the
+    /// last; at a jump (two rows with the same time) the first row's value, the second's after it.
     pub fn at(&self, t: f64) -> f64 {
         let n = self.times.len();
         if t <= self.times[0] {
             return self.values[0];
         }
         if t >= self.times[n - 1] {
-            return self.values[n - 1];
+            return if n >= 2 && t == self.times[n - 1] && self.times[n - 2] == t { self.values[n - 2] } else { self.values[n - 1] };
         }
         let k = self.times.partition_point(|&x| x <= t);
+        if k >= 2 && self.times[k - 2] == t {
+            return self.values[k - 2];
+        }
         let (t0, t1, v0, v1) = (self.times[k - 1], self.times[k], self.values[k - 1], self.values[k]);
         v0 + (v1 - v0) * (t - t0) / (t1 - t0)
+    }
+
+    /// This history up to `t` [s], then `stress` [Pa] held from `t` on (a jump at `t` unless `t`
+    /// is 0): what `set_applied_stress` makes of it; [`StressProfile::rows`] is its table.
+    pub fn hold_from(&self, t: f64, stress: f64) -> Result<Self, ConfigError> {
+        if !(t.is_finite() && t > 0.0) {
+            return Self::constant(stress);
+        }
+        crate::config::check("load.stress", stress)?;
+        let k = self.times.partition_point(|&x| x < t);
+        let mut times = self.times[..k].to_vec();
+        let mut values = self.values[..k].to_vec();
+        times.extend([t, t]);
+        values.extend([self.at(t), stress]);
+        Ok(StressProfile { times, values })
+    }
+
+    /// The history as `[time s, stress Pa]` rows (`load.stress_table`).
+    pub fn rows(&self) -> Vec<[f64; 2]> {
+        self.times.iter().zip(&self.values).map(|(&a, &b)| [a, b]).collect()
     }
 
     /// The largest stress of the history [Pa].

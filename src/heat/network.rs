@@ -218,6 +218,12 @@ impl HeatNetwork {
         &self.sources
     }
 
+    /// Replaces the furnace's temperature histories (a caller holding the furnace at a new
+    /// temperature between steps); the exposed particles stay those of the case.
+    pub fn set_furnace(&mut self, furnace: Furnace) {
+        self.sources.furnace = Some(furnace);
+    }
+
     /// Number of unknowns (free particles).
     pub fn unknowns(&self) -> usize {
         self.free.len()

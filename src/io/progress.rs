@@ -12,6 +12,7 @@
 
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{LazyLock, Mutex};
 use std::time::Instant;
 
@@ -114,9 +115,27 @@ pub fn fmt_wall(s: f64) -> String {
     }
 }
 
+/// Simulated time and end time [s] of the last enabled [`Progress`] (f64 bits; NaN: none).
+static LATEST: [AtomicU64; 2] = [AtomicU64::new(0x7ff8_0000_0000_0000), AtomicU64::new(0x7ff8_0000_0000_0000)];
+
+fn publish(t: f64, end: f64) {
+    LATEST[0].store(t.to_bits(), Ordering::Relaxed);
+    LATEST[1].store(end.to_bits(), Ordering::Relaxed);
+}
+
+/// The simulated time and end time [s] last reported by a progress bar that was enabled
+/// (whether drawn or not): for embeddings that draw their own progress (the Python package's
+/// plain line in Jupyter, where stderr is not a terminal).
+pub fn latest() -> Option<(f64, f64)> {
+    let (t, end) = (f64::from_bits(LATEST[0].load(Ordering::Relaxed)), f64::from_bits(LATEST[1].load(Ordering::Relaxed)));
+    (t.is_finite() && end.is_finite()).then_some((t, end))
+}
+
 /// A progress bar over simulated time [s].
 pub struct Progress {
     bar: Option<ProgressBar>,
+    /// Publish the simulated time for [`latest`] (an enabled bar, drawn or not).
+    report: bool,
     end: f64,
     clock: Instant,
     eta: Mutex<Eta>,
@@ -133,11 +152,17 @@ impl Progress {
             );
             b
         });
-        Progress { bar, end: end_time, clock: Instant::now(), eta: Mutex::new(Eta::new(end_time, 0.0)) }
+        if enabled {
+            publish(0.0, end_time);
+        }
+        Progress { bar, report: enabled, end: end_time, clock: Instant::now(), eta: Mutex::new(Eta::new(end_time, 0.0)) }
     }
 
     /// Reports simulated time `t` [s].
     pub fn set(&self, t: f64, extra: &str) {
+        if self.report {
+            publish(t, self.end);
+        }
         if let Some(b) = &self.bar {
             let label = {
                 let mut eta = self.eta.lock().unwrap_or_else(|e| e.into_inner());

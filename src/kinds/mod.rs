@@ -13,6 +13,8 @@ pub mod generate;
 pub mod heat;
 pub mod keys;
 pub mod pair;
+pub mod state;
+pub mod stepper;
 pub mod titanium;
 
 use crate::config;
@@ -21,6 +23,8 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
+
+pub use stepper::Stepper;
 
 /// The kind of a case (`kind = "…"`, default `heat`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -141,6 +145,8 @@ pub struct RunLog {
     file: Option<Arc<Mutex<std::fs::File>>>,
     echo: bool,
     _route: Option<crate::logging::RunFile>,
+    /// The output directory's lock (docs/outputs.md "Guarantees"), held as long as the run's log.
+    lock: Option<crate::io::lock::OutputLock>,
 }
 
 impl RunLog {
@@ -149,7 +155,12 @@ impl RunLog {
         let path = dir.join("log.txt");
         let file = std::fs::OpenOptions::new().create(true).write(true).append(append).truncate(!append).open(path).ok().map(|f| Arc::new(Mutex::new(f)));
         let route = file.clone().map(crate::logging::RunFile::enter);
-        RunLog { file, echo, _route: route }
+        RunLog { file, echo, _route: route, lock: None }
+    }
+
+    /// Keeps the output directory's lock until the log is dropped (the end of the run).
+    pub fn hold(&mut self, lock: crate::io::lock::OutputLock) {
+        self.lock = Some(lock);
     }
 
     /// Writes one line.
@@ -168,49 +179,19 @@ impl RunLog {
 }
 
 /// Runs `case` with `overrides` into `out` and returns its summary. The output directory is
-/// created; `log.txt` in it receives the run's log.
+/// created; `log.txt` in it receives the run's log. Heat and compact runs are a [`Stepper`]
+/// stepped to the end (so the stepping API gives the same files); a stop request
+/// ([`crate::interrupt`]) ends them early with `completed = false`.
 pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunParams) -> Result<RunSummary, Error> {
     let wall = Instant::now();
-    let mut case = case.clone();
-    config::expand_includes(&mut case, &params.base_dir)?;
-    let value = resolve(&case, overrides)?;
-    let kind = Kind::of(&value)?;
-    let lock = crate::io::lock::OutputLock::acquire(out, "run")?;
-    // a new run owns its directory: a checkpoint left by an earlier run would let `resume` mix the
-    // two runs' outputs (docs/outputs.md "Guarantees")
-    let stale_checkpoint = remove_stale_checkpoint(out)?;
-    let mut log = RunLog::open(out, false, params.echo_log);
-    log.line(&format!("sinterdem {}: {} case → {}", env!("CARGO_PKG_VERSION"), kind.name(), out.display()));
-    if let Some(note) = lock.takeover_note() {
-        log.line(&note);
-    }
-    if stale_checkpoint {
-        log.line("removed checkpoint.json of an earlier run in this directory (a new run cannot be resumed from it)");
-    }
-    // the files the case names, fingerprinted for `resume` (docs/outputs.md "Guarantees")
-    crate::io::inputs::record(out, &value, &params.base_dir)?;
-    if !overrides.is_empty() {
-        log.line(&format!("overrides: {}", overrides.join(" ")));
+    let (value, kind, mut log) = open_run(case, overrides, out, params)?;
+    if matches!(kind, Kind::Heat | Kind::Compact) {
+        let mut s = Stepper::opened(value, kind, log, out, params, wall)?;
+        while s.step()? {}
+        return s.finish();
     }
     let mut logf = |m: &str| log.line(m);
-    for w in compact_only_keys(&value) {
-        logf(&format!("warning: {w}"));
-    }
-    let base = &params.base_dir;
-    validate_before_run(kind, &value)?;
     let summary = match kind {
-        Kind::Heat => {
-            let text = toml::to_string(&value).map_err(|e| ConfigError::invalid(format!("case cannot be re-serialised: {e}")))?;
-            let mut prep = crate::scene::prepare(value, base)?;
-            prep.source = Some((text, base.canonicalize().unwrap_or_else(|_| base.to_path_buf())));
-            crate::kinds::heat::run(prep, out, params.progress, &mut logf)?
-        }
-        Kind::Compact => {
-            let mut sim = crate::coupled::prepare(value, base, &mut logf)?;
-            sim.settings.plots = params.plots;
-            sim.settings.wall_limit = params.wall_limit;
-            crate::kinds::compact::run(sim, out, params.progress, &mut logf)?
-        }
         Kind::Pair => {
             let mut spec = crate::kinds::pair::parse_pair_case(&value)?;
             if !params.plots && spec.plot {
@@ -234,6 +215,7 @@ pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunPar
             logf(&format!("done: {} particles, solid fraction {:.4}, coordination {:.3}", s.particles, s.solid_fraction, s.coordination_mean));
             serde_json::to_value(&s).map_err(|e| IoError::new(out.join("summary.json"), e))?
         }
+        Kind::Heat | Kind::Compact => return Err(ConfigError::invalid("internal: heat and compact runs are stepped").into()),
     };
     Ok(RunSummary { kind, wall_seconds: wall.elapsed().as_secs_f64(), summary })
 }
@@ -257,6 +239,39 @@ fn remove_stale_checkpoint(dir: &Path) -> Result<bool, IoError> {
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(false),
         Err(e) => Err(IoError::new(&path, e)),
     }
+}
+
+/// The start of every run: includes expanded, overrides applied, the kind, the output directory
+/// and `log.txt` opened with the first lines (version, overrides, warnings about keys the kind
+/// ignores).
+pub(crate) fn open_run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunParams) -> Result<(toml::Value, Kind, RunLog), Error> {
+    let mut case = case.clone();
+    config::expand_includes(&mut case, &params.base_dir)?;
+    let value = resolve(&case, overrides)?;
+    let kind = Kind::of(&value)?;
+    let lock = crate::io::lock::OutputLock::acquire(out, "run")?;
+    // a new run owns its directory: a checkpoint left by an earlier run would let `resume` mix the
+    // two runs' outputs (docs/outputs.md "Guarantees")
+    let stale_checkpoint = remove_stale_checkpoint(out)?;
+    let mut log = RunLog::open(out, false, params.echo_log);
+    log.line(&format!("sinterdem {}: {} case → {}", env!("CARGO_PKG_VERSION"), kind.name(), out.display()));
+    if let Some(note) = lock.takeover_note() {
+        log.line(&note);
+    }
+    if stale_checkpoint {
+        log.line("removed checkpoint.json of an earlier run in this directory (a new run cannot be resumed from it)");
+    }
+    log.hold(lock);
+    // the files the case names, fingerprinted for `resume` (docs/outputs.md "Guarantees")
+    crate::io::inputs::record(out, &value, &params.base_dir)?;
+    if !overrides.is_empty() {
+        log.line(&format!("overrides: {}", overrides.join(" ")));
+    }
+    for w in compact_only_keys(&value) {
+        log.line(&format!("warning: {w}"));
+    }
+    validate_before_run(kind, &value)?;
+    Ok((value, kind, log))
 }
 
 /// Keys set in `case` that only compact runs use (thermal expansion, docs/coupled.md "Thermal

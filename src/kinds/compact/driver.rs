@@ -1,7 +1,7 @@
 //! The driver loop of a compact run: steps to the end time (or a stop criterion), writes the series,
 //! the due outputs and the checkpoints, then the summary. [`run_from`] is the loop; each of its
 //! stages (announce, open or resume the outputs, a series row, a checkpoint, the stop criteria,
-//! the summary) is a function below.
+//! the summary) is a function below; [`CompactRun`] is the loop one step at a time.
 
 use super::columns::{self, Row};
 use super::*;
@@ -9,7 +9,7 @@ use crate::coupled::*;
 use crate::error::{Error, IoError};
 use crate::io::{self, Series, SnapshotWriter};
 use serde_json::json;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// Runs a compact simulation to its end time, writing series, snapshots, checkpoints and the summary.
@@ -19,31 +19,106 @@ pub fn run(sim: Simulation, out: &Path, progress: bool, log: &mut dyn FnMut(&str
 
 /// Runs from a fresh start (`state = None`) or a checkpoint's output state; `stop_after_step`
 /// ends the run early after that step (as if killed right after its checkpoint, for tests), with
-/// `Ok(Value::Null)`.
+/// `Ok(Value::Null)`. The loop is [`CompactRun::step`] until it says the run is over.
 pub fn run_from(
-    mut sim: Simulation,
+    sim: Simulation,
     out: &Path,
     progress: bool,
     log: &mut dyn FnMut(&str),
     state: Option<OutputState>,
     stop_after_step: Option<u64>,
 ) -> Result<serde_json::Value, Error> {
-    let wall = Instant::now();
-    io::ensure_dir(out)?;
-    announce(&sim, log);
-    let mut outputs = Outputs::open(&sim, out, state, log)?;
-    let end = sim.settings.end;
-    let bar = io::progress::Progress::new(end, progress);
-    let mut stop_reason: Option<String> = None;
-    let mut failure: Option<Error> = None;
-    loop {
+    let mut run = CompactRun::start(sim, out, progress, state, log)?;
+    run.stop_after_step = stop_after_step;
+    while run.step(log)? {}
+    if run.killed {
+        run.bar.finish();
+        return Ok(serde_json::Value::Null);
+    }
+    run.finish(log)
+}
+
+/// A compact run in progress, one accepted step at a time (the stepping API: `sinterdem.Simulation`
+/// in Python). [`CompactRun::start`] opens the outputs and writes those due at the start,
+/// [`CompactRun::step`] takes one accepted step and writes what is due in it (series row,
+/// snapshots, analyses, checkpoint), [`CompactRun::finish`] writes `summary.json` and the plots.
+/// [`run_from`] is exactly this loop, so a stepped run and `sinterdem run` are identical.
+pub struct CompactRun {
+    /// The simulation (current state: `sim.t`, particles in `sim.prep.scene.particles`, contacts).
+    pub sim: Simulation,
+    out: PathBuf,
+    outputs: Outputs,
+    wall: Instant,
+    bar: io::progress::Progress,
+    stop_reason: Option<String>,
+    failure: Option<Error>,
+    /// The run is over (end time, stop criterion, model error or [`CompactRun::stop`]).
+    done: bool,
+    /// Step whose series row was written last, and the length of the last step [s].
+    row_step: u64,
+    last_dt: f64,
+    /// Tests: stop as if killed right after the checkpoint at or after this step.
+    stop_after_step: Option<u64>,
+    killed: bool,
+}
+
+impl CompactRun {
+    /// Opens the outputs of a fresh run (`state = None`) or of a checkpoint's output state and
+    /// writes those due at the current time.
+    pub fn start(sim: Simulation, out: &Path, progress: bool, state: Option<OutputState>, log: &mut dyn FnMut(&str)) -> Result<CompactRun, Error> {
+        let wall = Instant::now();
+        io::ensure_dir(out)?;
+        announce(&sim, log);
+        let outputs = Outputs::open(&sim, out, state, log)?;
+        let bar = io::progress::Progress::new(sim.settings.end, progress);
+        let row_step = sim.step;
+        let mut run = CompactRun {
+            sim,
+            out: out.to_path_buf(),
+            outputs,
+            wall,
+            bar,
+            stop_reason: None,
+            failure: None,
+            done: false,
+            row_step,
+            last_dt: 0.0,
+            stop_after_step: None,
+            killed: false,
+        };
+        run.write_due(log)?;
+        run.done = run.sim.t >= run.sim.settings.end;
+        Ok(run)
+    }
+
+    /// The snapshots and analyses due at the current time.
+    fn write_due(&mut self, log: &mut dyn FnMut(&str)) -> Result<(), Error> {
         let tic = Instant::now();
-        outputs.due.write(&sim, out, &mut outputs.snaps, log)?;
-        sim.timing.output += tic.elapsed().as_secs_f64();
-        if sim.t >= end {
-            break;
+        self.outputs.due.write(&self.sim, &self.out, &mut self.outputs.snaps, log)?;
+        self.sim.timing.output += tic.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    /// Whether the run is over (no more steps; [`CompactRun::finish`] is next).
+    pub fn done(&self) -> bool {
+        self.done
+    }
+
+    /// The output directory.
+    pub fn out(&self) -> &Path {
+        &self.out
+    }
+
+    /// Takes one accepted step and writes the outputs due in it; returns whether the run goes on.
+    /// A model error ends the run (the error is returned by [`CompactRun::finish`]); an
+    /// interrupt ([`crate::interrupt`]) or a stop criterion ends it after this step.
+    pub fn step(&mut self, log: &mut dyn FnMut(&str)) -> Result<bool, Error> {
+        if self.done {
+            return Ok(false);
         }
-        sim.stop_at = outputs.due.next_time(&sim);
+        let sim = &mut self.sim;
+        let end = sim.settings.end;
+        sim.stop_at = self.outputs.due.next_time(sim);
         let dt_used = sim.dt.min(sim.stop_at.min(end) - sim.t);
         match sim.advance_step(log) {
             Ok(()) => {}
@@ -51,33 +126,75 @@ pub fn run_from(
             // run stops with the last completed step summarised, then reports the error
             Err(Error::Model(m)) => {
                 log(&format!("stopped at t = {} s (step {}): {m}", sim.t, sim.step));
-                stop_reason = Some(format!("model error after t = {} s: {m}", sim.t));
-                failure = Some(Error::Model(m));
-                break;
+                self.stop_reason = Some(format!("model error after t = {} s: {m}", sim.t));
+                self.failure = Some(Error::Model(m));
+                self.done = true;
+                return Ok(false);
             }
             Err(e) => return Err(e),
         }
+        self.last_dt = dt_used;
         let tic = Instant::now();
-        let stop_now = stop_criterion(&sim, &wall, log);
+        let stop_now = stop_criterion(sim, &self.wall, log);
         if sim.step.is_multiple_of(sim.settings.series_every) || sim.t >= end || stop_now.is_some() {
-            outputs.row(&sim, dt_used)?;
+            self.outputs.row(sim, dt_used)?;
+            self.row_step = sim.step;
         }
         if sim.settings.checkpoint_every > 0 && sim.step.is_multiple_of(sim.settings.checkpoint_every) && sim.t < end {
-            outputs.checkpoint(&mut sim, out, &wall, log)?;
-            if stop_after_step.is_some_and(|s| sim.step >= s) {
-                bar.finish();
-                return Ok(serde_json::Value::Null);
+            self.outputs.checkpoint(sim, &self.out, &self.wall, log)?;
+            if self.stop_after_step.is_some_and(|s| sim.step >= s) {
+                self.killed = true;
+                self.done = true;
+                return Ok(false);
             }
         }
         sim.timing.output += tic.elapsed().as_secs_f64();
         if stop_now.is_some() {
-            stop_reason = stop_now;
-            break;
+            self.stop_reason = stop_now;
+            self.done = true;
+            return Ok(false);
         }
-        bar.set(sim.t, &format!("step {}, Δt = {:.3e} s, contacts {}", sim.step, sim.dt, sim.contacts.len()));
+        self.bar.set(sim.t, &format!("step {}, Δt = {:.3e} s, contacts {}", sim.step, sim.dt, sim.contacts.len()));
+        self.write_due(log)?;
+        self.done = self.sim.t >= end;
+        Ok(!self.done)
     }
-    bar.finish();
-    finish(&sim, out, outputs, stop_reason, failure, &wall, log)
+
+    /// Steps until the time reaches `to` [s] (or the run ends); the last step may pass `to`: the
+    /// steps are those of an uninterrupted run. Returns whether the run goes on.
+    pub fn advance(&mut self, to: f64, log: &mut dyn FnMut(&str)) -> Result<bool, Error> {
+        while !self.done && self.sim.t < to {
+            self.step(log)?;
+        }
+        Ok(!self.done)
+    }
+
+    /// Ends the run before its end time with `reason` as `stop_reason` (`completed = false`):
+    /// the series row of the current state is written if it is not yet.
+    pub fn stop(&mut self, reason: &str, log: &mut dyn FnMut(&str)) -> Result<(), Error> {
+        if self.done {
+            return Ok(());
+        }
+        log(&format!("t = {} s (step {}): {reason}: the run ends here", self.sim.t, self.sim.step));
+        if self.row_step != self.sim.step {
+            self.outputs.row(&self.sim, self.last_dt)?;
+            self.row_step = self.sim.step;
+        }
+        self.stop_reason = Some(reason.to_string());
+        self.done = true;
+        Ok(())
+    }
+
+    /// Writes the end of the run (`summary.json`, plots, the last state as a snapshot if the run
+    /// ended early) and returns the summary; a run not yet over is stopped first ("stopped by
+    /// the caller"). A model error that ended the run is returned here, after the outputs.
+    pub fn finish(mut self, log: &mut dyn FnMut(&str)) -> Result<serde_json::Value, Error> {
+        if !self.done {
+            self.stop("stopped by the caller", log)?;
+        }
+        self.bar.finish();
+        finish(&self.sim, &self.out, self.outputs, self.stop_reason, self.failure, &self.wall, log)
+    }
 }
 
 /// The start of the log: the run's size and step control, the particles without a path to a heat
@@ -202,6 +319,9 @@ fn stop_criterion(sim: &Simulation, wall: &Instant, log: &mut dyn FnMut(&str)) -
     } else if let Some(limit) = sim.settings.wall_limit.filter(|&l| wall.elapsed().as_secs_f64() > l && sim.t < sim.settings.end) {
         log(&format!("t = {} s (step {}): the wall-time limit of {limit} s is reached: the run ends here", sim.t, sim.step));
         Some(format!("wall-time limit of {limit} s reached"))
+    } else if sim.t < sim.settings.end && crate::interrupt::requested() {
+        log(&format!("t = {} s (step {}): interrupted (signal or KeyboardInterrupt): the outputs are written and the run ends here", sim.t, sim.step));
+        Some("interrupted".into())
     } else {
         None
     }

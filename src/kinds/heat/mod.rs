@@ -4,17 +4,16 @@
 
 mod output;
 mod step;
+mod stepper;
 
 use crate::error::{ConfigError, Error, IoError};
 use crate::heat::{HeatNetwork, PipeConductance};
 use crate::io::{self, Series, SnapshotWriter};
 use crate::scene::{Prepared, network_for, prepare};
-use output::Snapshots;
 use std::path::Path;
-use std::time::Instant;
-use step::Plan;
 
 pub use output::{COLUMNS, HeatRow};
+pub use stepper::HeatRun;
 
 /// The heat run's loop state: what a checkpoint must carry besides the temperatures.
 #[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
@@ -128,13 +127,10 @@ pub fn run_from(
 }
 
 /// [`run_from`] that also returns the particle temperatures [K] at the snapshot times [s] (with
-/// `collect`; the final state is always the last entry), for benchmarks and tests.
-///
-/// The stages: network and start or resume state (`setup`, `open_outputs`, `loop_state`,
-/// `Plan::new`), then per step `step::advance`, the series row, the due snapshots and the
-/// checkpoint, then the summary (`output::finish`).
+/// `collect`; the final state is always the last entry), for benchmarks and tests. The loop is
+/// [`HeatRun::step`] until the end.
 pub fn run_returning_temperatures(
-    mut prep: Prepared,
+    prep: Prepared,
     out: &Path,
     progress: bool,
     log: &mut dyn FnMut(&str),
@@ -142,42 +138,14 @@ pub fn run_returning_temperatures(
     stop_after_step: Option<usize>,
     collect: bool,
 ) -> Result<(serde_json::Value, Vec<(f64, Vec<f64>)>), Error> {
-    let wall = Instant::now();
-    io::ensure_dir(out)?;
-    let (mut net, parts) = setup(&mut prep, log)?;
-    let (mut series, writer) = open_outputs(&mut prep, &mut net, out, ck.as_ref(), log)?;
-    let mut st = loop_state(&prep, &net, ck);
-    let plan = Plan::new(&prep, log)?;
-    let mut snaps = Snapshots::new(writer, &prep.case, collect);
-    let bar = io::progress::Progress::new(plan.end, progress);
-    let first = st.t + 1e-12 * plan.end;
-    snaps.write_due(&plan.snap_times, &mut st, first, &prep)?;
-    while st.t < plan.end * (1.0 - 1e-12) {
-        let step = step::advance(&plan, &mut st, &mut prep, &mut net, &parts, log)?;
-        st.t += step.dt;
-        st.steps += 1;
-        if st.steps.is_multiple_of(prep.case.output.series_every as usize) || st.t >= plan.end * (1.0 - 1e-12) {
-            series.row(&io::values(COLUMNS, &HeatRow::new(&st, &step, &prep.scene.particles.temperature, &net)))?;
-            st.series_lines += 1;
-        }
-        let due = st.t + 1e-9 * step.dt;
-        snaps.write_due(&plan.snap_times, &mut st, due, &prep)?;
-        if plan.checkpoint_due(st.steps, st.t) {
-            output::write_checkpoint(&prep, out, &st, &plan, &snaps.writer, &net, wall)?;
-            if stop_after_step.is_some_and(|k| st.steps >= k) {
-                bar.finish();
-                return Ok((serde_json::Value::Null, vec![(st.t, prep.scene.particles.temperature.clone())]));
-            }
-        }
-        bar.set(st.t, "");
+    let mut run = HeatRun::start_from(prep, out, progress, log, ck, collect)?;
+    run.stop_after_step = stop_after_step;
+    while run.step(log)? {}
+    if run.killed {
+        run.bar.finish();
+        return Ok((serde_json::Value::Null, vec![(run.st.t, run.prep.scene.particles.temperature.clone())]));
     }
-    bar.finish();
-    let summary = output::finish(&prep, out, &st, &plan, &net, &snaps.writer, wall, log)?;
-    let mut collected = snaps.collected;
-    if collected.last().is_none_or(|c| c.0 != st.t) {
-        collected.push((st.t, prep.scene.particles.temperature.clone()));
-    }
-    Ok((summary, collected))
+    run.finish_collected(log)
 }
 
 /// The heat network of the case with its pipes' conductances (contacts, then gap pipes), the

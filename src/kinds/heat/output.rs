@@ -155,12 +155,18 @@ pub(super) fn finish(
     net: &HeatNetwork,
     snaps: &SnapshotWriter,
     wall: Instant,
+    stop_reason: Option<&str>,
     log: &mut dyn FnMut(&str),
 ) -> Result<serde_json::Value, Error> {
     let temps = &prep.scene.particles.temperature;
     let (mean, lo, hi) = stats(temps);
     let balance = if prep.isothermal.is_some() { 0.0 } else { energy_balance_rel(st.stored, st.heat_in, st.scale, st.stored0) };
-    let summary = summary(prep, st, plan, net, snaps, balance, st.wall_before + wall.elapsed().as_secs_f64());
+    let mut summary = summary(prep, st, plan, net, snaps, balance, st.wall_before + wall.elapsed().as_secs_f64());
+    if let Some(r) = stop_reason {
+        // only a run that ended early says so (a complete heat run's summary has no such fields)
+        summary["completed"] = json!(false);
+        summary["stop_reason"] = json!(r);
+    }
     io::write_json(&out.join("summary.json"), &summary)?;
     if snaps.hdf5_enabled() {
         io::hdf5::finish(out)?;

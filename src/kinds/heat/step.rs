@@ -34,19 +34,18 @@ impl Plan {
             1 => vec![end],
             k => (0..k).map(|i| end * i as f64 / (k - 1) as f64).collect(),
         };
-        let mut kinks: Vec<f64> = prep.sources.profiles.iter().flat_map(|p| p.breakpoints().to_vec()).collect();
-        if let Some(f) = &prep.sources.furnace {
-            kinks.extend_from_slice(f.gas.breakpoints());
-            kinks.extend_from_slice(f.wall.breakpoints());
-        }
-        kinks.retain(|k| *k > 0.0 && *k < end);
-        kinks.sort_by(f64::total_cmp);
+        let kinks = kinks_of(prep, end);
         // step control (eq. E3): None = the fixed Δt of the case
         let control = step_control(case)?;
         if let Some(c) = &control {
             log(&format!("Δt chosen by error: time.heat_tolerance = {} K per step, first step {dt0} s, Δt in [{:e}, {:e}] s", c.tolerance, c.dt_min, c.dt_max));
         }
         Ok(Plan { end, dt0, tiny: 1e-12 * end, snap_times, kinks, control, scheme: case.time.scheme, ck_every: case.output.checkpoint_every as usize })
+    }
+
+    /// Re-reads the kinks of the prescribed profiles (after the caller changed the furnace's).
+    pub fn update_kinks(&mut self, prep: &Prepared) {
+        self.kinks = kinks_of(prep, self.end);
     }
 
     /// Whether the step that ended at `t` after `steps` steps writes a checkpoint.
@@ -65,6 +64,18 @@ impl Plan {
             }
         }
     }
+}
+
+/// The breakpoints in (0, end) of the fixed-temperature profiles and the furnace's, sorted.
+fn kinks_of(prep: &Prepared, end: f64) -> Vec<f64> {
+    let mut kinks: Vec<f64> = prep.sources.profiles.iter().flat_map(|p| p.breakpoints().to_vec()).collect();
+    if let Some(f) = &prep.sources.furnace {
+        kinks.extend_from_slice(f.gas.breakpoints());
+        kinks.extend_from_slice(f.wall.breakpoints());
+    }
+    kinks.retain(|k| *k > 0.0 && *k < end);
+    kinks.sort_by(f64::total_cmp);
+    kinks
 }
 
 /// An accepted step: its Δt [s], radiation iterations, heat into the free particles [J].
