@@ -320,3 +320,38 @@ fn class11_compact_checkpoints_that_validated_but_gave_nan_are_refused() {
     let o = bin().arg("resume").arg(&run).arg("--quiet").output().unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
+
+#[test]
+fn class11_heat_checkpoints_with_overflowing_accounts_or_unequal_histories_are_refused() {
+    let d = common::tmp_dir("heat-ck-nan");
+    let case = d.join("heat.toml");
+    std::fs::write(
+        &case,
+        "[time]\nend = 10.0\ndt = 0.1\n[output]\nsnapshots = 0\nvtu = false\nhdf5 = false\ncheckpoint_every = 20\n[[materials]]\nname = \"copper\"\npreset = \"copper\"\n\
+         [particles]\nsource = \"pair\"\nradius = 25e-6\noverlap = 0.05\ninitial_temperature = 293.15\n[thermal.furnace]\nprofile = { constant = 1000.0 }\nconvection_coefficient = 10.0\n",
+    )
+    .unwrap();
+    let run = d.join("run");
+    let o = bin().arg("run").arg(&case).arg("--out").arg(&run).arg("--quiet").output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let good: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(run.join("checkpoint.json")).unwrap()).unwrap();
+    let n_hist = good.pointer("/state/hist").and_then(|h| h.as_array()).map_or(0, |h| h.len());
+    let edits: Vec<(&str, serde_json::Value, &str)> = vec![
+        ("/state/heat_in", serde_json::json!(1e308), "checkpoint.state.heat_in"),
+        ("/state/stored0", serde_json::json!(-1e300), "checkpoint.state.stored0"),
+        ("/state/hist_t", serde_json::json!(vec![1.0; n_hist + 1]), "state.hist_t"),
+    ];
+    for (pointer, v, needle) in edits {
+        let dir = d.join(format!("edit{}", pointer.replace('/', "-")));
+        copy_dir(&run, &dir);
+        let mut ck = good.clone();
+        *ck.pointer_mut(pointer).unwrap_or_else(|| panic!("{pointer} not in the checkpoint")) = v.clone();
+        std::fs::write(dir.join("checkpoint.json"), ck.to_string()).unwrap();
+        let o = bin().arg("resume").arg(&dir).arg("--quiet").output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{pointer} = {v}: {err}");
+        assert!(err.contains(needle), "{pointer} = {v}: {err}");
+    }
+    let o = bin().arg("resume").arg(&run).arg("--quiet").output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}

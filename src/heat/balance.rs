@@ -11,3 +11,23 @@ pub fn energy_balance_rel(stored_change: f64, heat_in: f64, scale: f64, stored_t
     let denom = scale.max(stored_change.abs()).max(ENERGY_BALANCE_FLOOR * stored_total.abs()).max(f64::MIN_POSITIVE);
     (stored_change - heat_in).abs() / denom
 }
+
+/// Largest magnitude of an energy account in a checkpoint [J]: sums over 1e12 steps of such
+/// values stay finite (an account of 1e308 J validated and turned a resumed run's balance into
+/// inf / NaN).
+pub const MAX_ENERGY_ACCOUNT_J: f64 = 1e100;
+
+/// An energy account `v` [J] read from a checkpoint under `key`: finite and within
+/// ±[`MAX_ENERGY_ACCOUNT_J`].
+pub fn energy_account(key: &str, v: f64) -> Result<(), crate::error::ConfigError> {
+    if v.is_finite() && v.abs() <= MAX_ENERGY_ACCOUNT_J {
+        Ok(())
+    } else {
+        Err(crate::error::ConfigError::OutOfRange {
+            key: key.to_string(),
+            value: v,
+            range: format!("[-{0}, {0}]", crate::error::fmt_value(MAX_ENERGY_ACCOUNT_J)),
+            unit: "J".into(),
+        })
+    }
+}

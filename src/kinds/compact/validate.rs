@@ -24,20 +24,6 @@ fn ranged(table_key: &str, key: impl FnOnce() -> String, v: f64) -> Result<(), C
     if r.contains(v) { Ok(()) } else { Err(out_of_range(key(), v, r.describe(), r.unit)) }
 }
 
-/// Largest magnitude of an energy account in a checkpoint [J]: sums over 1e12 steps of such
-/// values stay finite (an account of 1e308 J validated and turned the resumed run's balance into
-/// inf / NaN).
-pub const MAX_ENERGY_ACCOUNT_J: f64 = 1e100;
-
-/// An energy account of a checkpoint [J]: finite and within ±[`MAX_ENERGY_ACCOUNT_J`].
-pub fn energy_account(key: &str, v: f64) -> Result<(), ConfigError> {
-    if v.is_finite() && v.abs() <= MAX_ENERGY_ACCOUNT_J {
-        Ok(())
-    } else {
-        Err(out_of_range(key.to_string(), v, format!("[-{0}, {0}]", fmt_value(MAX_ENERGY_ACCOUNT_J)), "J"))
-    }
-}
-
 impl Checkpoint {
     /// Checks the checkpoint against its case: `n` particles, the case's step-control `settings`.
     pub fn validate(&self, n: usize, s: &Settings) -> Result<(), ConfigError> {
@@ -132,7 +118,7 @@ impl Checkpoint {
         }
         // accounts and output bookkeeping
         for (key, v) in [("checkpoint.heat_in", self.heat_in), ("checkpoint.heat_stored", self.heat_stored), ("checkpoint.heat_scale", self.heat_scale)] {
-            energy_account(key, v)?;
+            crate::heat::balance::energy_account(key, v)?;
         }
         finite(|| "checkpoint.mechanics_counters".into(), self.mechanics_counters.2, "1")?;
         if let Some((h, dt)) = &self.heat_history {

@@ -104,8 +104,19 @@ pub fn resume(dir: &Path, progress: bool, log: &mut dyn FnMut(&str)) -> Result<s
     if !(st.t.is_finite() && st.t >= 0.0 && st.t <= end) || st.steps as f64 > 1e12 || st.series_lines == 0 || st.hist.iter().any(|h| h.len() != n) {
         return Err(bad(format!("loop state out of range (t = {} s of end {end} s, steps {}, series lines {})", st.t, st.steps, st.series_lines)));
     }
+    for (key, v) in [("heat_in", st.heat_in), ("stored", st.stored), ("stored_plain", st.stored_plain), ("scale", st.scale), ("stored0", st.stored0)] {
+        crate::heat::balance::energy_account(&format!("checkpoint.state.{key}"), v).map_err(|e| bad(e.to_string()))?;
+    }
+    // the error-estimate history: as many times as temperature vectors (E1), positive steps
+    if !st.hist_t.is_empty() && st.hist_t.len() != st.hist.len() {
+        return Err(bad(format!("state.hist_t has {} times for {} temperature vectors (state.hist)", st.hist_t.len(), st.hist.len())));
+    }
+    let positive = |v: Option<f64>| v.is_none_or(|x| x.is_finite() && x > 0.0);
+    if !positive(st.hist_dt) || !positive(st.dt_next) || st.hist.iter().flatten().chain(&st.hist_t).any(|v| !v.is_finite()) {
+        return Err(bad(format!("state.hist, hist_t, hist_dt or dt_next is not finite and positive (hist_dt {:?} s, dt_next {:?} s)", st.hist_dt, st.dt_next)));
+    }
     if let Some((h, dt)) = &ck.bdf2
-        && (h.len() != n || !(dt.is_finite() && *dt > 0.0))
+        && (h.len() != n || !(dt.is_finite() && *dt > 0.0) || h.iter().any(|t| !t.is_finite()))
     {
         return Err(bad("BDF2 history does not match the case".into()));
     }
