@@ -27,11 +27,13 @@
 
 pub mod law;
 mod neighbours;
+mod periodic;
 pub mod sinter;
 mod state;
 mod sweep;
 mod walls;
 
+pub use periodic::minimum_image;
 pub use state::DriverState;
 pub use walls::{Wall, WallControl};
 
@@ -250,6 +252,11 @@ pub struct Explicit<M: ContactModel> {
     /// Run the sweeps on rayon when the neighbour-pair count exceeds this (the results do not
     /// depend on it).
     pub parallel_threshold: usize,
+    /// Periodic box `[0, L_x) × [0, L_y) × [0, L_z)` [m] (None: open space bounded by the walls);
+    /// set by [`Self::set_periodic_box`], strained by [`Self::strain_box`] (docs/packing.md (G1)–(G3)).
+    periodic: Option<V3>,
+    /// The periodic box at the last neighbour build [m].
+    built_box: V3,
 }
 
 impl<M: ContactModel> Explicit<M> {
@@ -289,6 +296,8 @@ impl<M: ContactModel> Explicit<M> {
             last_dissipation: 0.0,
             ready: false,
             parallel_threshold: 20_000,
+            periodic: None,
+            built_box: V3::zeros(),
         })
     }
 
