@@ -9,15 +9,9 @@
 
 use super::law::ContactModel;
 use super::{Explicit, V3};
+pub use crate::contacts::detect::minimum_image;
 use crate::error::{ConfigError, Error};
 use crate::particles::Particles;
-
-/// The minimum-image branch `d − L·round(d/L)` per axis (docs/packing.md (G1)) of a difference of
-/// positions `d` [m] in the periodic box `l` [m].
-#[inline]
-pub fn minimum_image(d: V3, l: &V3) -> V3 {
-    V3::new(d.x - l.x * (d.x / l.x).round(), d.y - l.y * (d.y / l.y).round(), d.z - l.z * (d.z / l.z).round())
-}
 
 /// Refuses a box edge that is not finite and at least two largest diameters `4 r_max` [m]: then a
 /// pair touches through one image only and the minimum image (G1) is exact.
