@@ -20,6 +20,10 @@
 //! Parallel sweeps write only their own contact slot; a second pass gathers onto particles through
 //! a CSR incidence table in a fixed order, so results are bit-identical for any thread count.
 //!
+//! Periodic box ([`Explicit::set_periodic_box`], docs/packing.md (G1)–(G4)): no walls; every pair's
+//! branch is the minimum image, the neighbour list the periodic cell list, and the caller strains the
+//! box affinely ([`Explicit::strain_box`]) with the velocities as fluctuations about the affine flow.
+//!
 //! Energy ([`Energy`]): kinetic (translation + rotation), elastic (normal and tangential springs),
 //! gravitational potential, dissipated (viscous normal and tangential, Coulomb sliding, Cundall local
 //! damping) and the work done by the walls on the particles. Their balance

@@ -54,7 +54,14 @@ const fn rg(key: &'static str, lo: f64, hi: f64, lo_open: bool, unit: &'static s
 pub static RANGES: &[Range] = &[
     rg("packing.particles", 2.0, 1e8, false, "1", "number of particles"),
     rg("packing.seed", 0.0, 1.8e19, false, "1", "random seed (integer)"),
-    rg("packing.target_solid_fraction", 0.05, 0.72, false, "1", "solid fraction the walls compress to (eq. 49 with the wall box)"),
+    rg(
+        "packing.target_solid_fraction",
+        0.05,
+        0.72,
+        false,
+        "1",
+        "solid fraction the walls compress to (eq. 49 with the wall box); periodic: exactly sum(V_i)/(Lx Ly Lz) (docs/packing.md (G6))",
+    ),
     rg("packing.box.*", 0.0, 10.0, true, "m", "box edge; only the shape is kept, scaled to the volume of the target"),
     rg(
         "packing.lamina_width",
