@@ -173,6 +173,9 @@ pub struct PeriodicReport {
     /// Solid fraction at which the compaction first stalled at the compaction pressure (jammed),
     /// or the target if it never did.
     pub first_jam_solid_fraction: f64,
+    /// Final mean unbalanced force ratio (Yade's `unbalancedForce`): mean |F_i| over the particles /
+    /// mean normal force over the contacts (0 without contacts).
+    pub unbalanced_force_ratio: f64,
 }
 
 /// The packing itself: positions [m], radii [m], and the box [m].

@@ -67,6 +67,10 @@ pub fn generate_periodic(case: &GenerateCase, progress: bool) -> Result<(Packing
         sim.max_pair_overlap(&p),
         sim.counters.rebuilds
     ));
+    let contacts = sim.contact_states();
+    let f_contact = contacts.iter().map(|c| c.1.abs()).sum::<f64>() / contacts.len().max(1) as f64;
+    let f_particle = sim.forces().iter().map(|f| f.norm()).sum::<f64>() / n as f64;
+    extra.unbalanced_force_ratio = if f_contact > 0.0 { f_particle / f_contact } else { 0.0 };
     // report: positions wrapped into the box, scaled to SI, in draw order
     let mut pos_si = vec![V3::zeros(); n];
     let mut rad_si = vec![0.0; n];
