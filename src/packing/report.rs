@@ -80,11 +80,11 @@ pub fn laminae_periodic(pos: &[Vector3<f64>], rad: &[f64], l: &Vector3<f64>, axi
 
 /// Solid fractions of the eight octants `[0, L/2) / [L/2, L)` per axis of a periodic box `[0, l)`
 /// (docs/packing.md (G8)), in the order x fastest: the fraction of the points of a regular grid
-/// (cell centres, about `r_min/4` apart, at most 256 per axis) that lie in a sphere, images included.
+/// (cell centres, about `r_min/8` apart, at most 256 per axis) that lie in a sphere, images included.
 pub fn octant_solid_fractions(pos: &[Vector3<f64>], rad: &[f64], l: &Vector3<f64>) -> [f64; 8] {
     let r_min = rad.iter().copied().fold(f64::INFINITY, f64::min);
     // an even number of points per axis, so that each octant gets the same number
-    let m: [usize; 3] = std::array::from_fn(|a| (2 * ((l[a] / (0.25 * r_min) / 2.0).ceil() as usize)).clamp(2, 256));
+    let m: [usize; 3] = std::array::from_fn(|a| (2 * ((l[a] / (0.125 * r_min) / 2.0).ceil() as usize)).clamp(2, 256));
     let h: [f64; 3] = std::array::from_fn(|a| l[a] / m[a] as f64);
     let mut inside = vec![false; m[0] * m[1] * m[2]];
     for (x, &r) in pos.iter().zip(rad) {
