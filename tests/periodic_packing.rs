@@ -250,5 +250,16 @@ fn bad_periodic_values_are_refused_naming_the_key() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("packing.protocol.cloud_solid_fraction"), "{e}");
+    // a target above random close packing (≈ 0.64) ends with an error in bounded time, naming it
+    let t = std::time::Instant::now();
+    let e = packing::generate_case(
+        &bundled(&[("particles = 500", "particles = 150"), ("target_solid_fraction = 0.62", "target_solid_fraction = 0.655")]),
+        &dir,
+        false,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("target_solid_fraction") || e.contains("thresholds not met"), "{e}");
+    assert!(t.elapsed().as_secs_f64() < 120.0);
     let _ = std::fs::remove_dir_all(dir);
 }

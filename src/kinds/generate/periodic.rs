@@ -45,7 +45,8 @@ pub fn generate_periodic(case: &GenerateCase, progress: bool) -> Result<(Packing
         )
         .into());
     }
-    let l0 = target * (case.target_solid_fraction / proto.cloud_solid_fraction).cbrt();
+    // the cloud is never denser than the target (then the compaction is empty)
+    let l0 = target * (case.target_solid_fraction / proto.cloud_solid_fraction).cbrt().max(1.0);
     let (mut p, order) = insert(&radii, l0, &mut rng)?;
     let law = LinearSpringDashpot { stiffness: 1.0, damping: Damping::restitution_ratio(proto.restitution) };
     let (dt, tc) = time_step(&law, &p, proto.dt_fraction, 0.0, false)?;
@@ -249,6 +250,8 @@ fn relax(sim: &mut Sim, p: &mut Particles, mut mu: f64, proto: &Protocol, pr: &P
     let ke_tol = proto.kinetic_energy_rel * n as f64;
     let ov_tol = proto.max_overlap_rel;
     let (mut steps, mut quiet) = (0u64, 0u32);
+    // frictionless, at rest and still overlapping: the overlap every 100 such checks
+    let (mut stuck, mut ov_at_check) = (0u32, f64::INFINITY);
     let met = loop {
         sim.run(p, 50)?;
         steps += 50;
@@ -274,6 +277,18 @@ fn relax(sim: &mut Sim, p: &mut Particles, mut mu: f64, proto: &Protocol, pr: &P
             }
             quiet = 0;
             pr.say(format!("at rest with largest overlap {ov:.2e} r: friction lowered to {mu:.4}"));
+        }
+        if mu == 0.0 && ov >= ov_tol && ke < 100.0 * ke_tol {
+            stuck += 1;
+            if stuck.is_multiple_of(100) {
+                if ov > 0.99 * ov_at_check {
+                    // the target is above the jamming point of the frictionless packing: it cannot
+                    // become stress-free in this box (the caller reports the thresholds not met)
+                    pr.say(format!("frictionless, at rest and jammed with largest overlap {ov:.2e} r: giving up"));
+                    break false;
+                }
+                ov_at_check = ov;
+            }
         }
         if ov < ov_tol && sim.settings.viscous_damping == 0.0 {
             sim.settings.viscous_damping = DRAIN_DAMPING;
