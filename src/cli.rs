@@ -236,6 +236,10 @@ enum Bench {
         /// Output directory.
         #[arg(long, default_value = "out/bench-generate")]
         out: PathBuf,
+        /// Periodic packings (cubic box, target 0.62; docs/packing.md "Periodic packings") instead
+        /// of the walled box.
+        #[arg(long)]
+        periodic: bool,
     },
     /// The coupled loop: the copper compact whole (stage shares), then the cost per step of FCC
     /// compacts of the given sizes.
@@ -497,9 +501,9 @@ fn run_bench(which: Bench) -> Result<(), Error> {
             println!("{report}");
             Ok(())
         }
-        Bench::Generate { particles, out } => {
+        Bench::Generate { particles, out, periodic } => {
             crate::io::ensure_dir(&out)?;
-            println!("{}", crate::bench::generate::bench_generate(&out, &particles)?);
+            println!("{}", crate::bench::generate::bench_generate(&out, &particles, periodic)?);
             Ok(())
         }
         Bench::Sweep { contacts, steps, dt } => {

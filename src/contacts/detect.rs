@@ -106,6 +106,13 @@ fn bucket(cells: &[usize], ncell: usize) -> (Vec<u32>, Vec<u32>) {
     (start, order)
 }
 
+/// The minimum-image branch `d − L·round(d/L)` per axis (docs/packing.md (G1)) of a difference of
+/// positions `d` [m] in the periodic box `l` [m].
+#[inline]
+pub fn minimum_image(d: Vector3<f64>, l: &Vector3<f64>) -> Vector3<f64> {
+    Vector3::new(d.x - l.x * (d.x / l.x).round(), d.y - l.y * (d.y / l.y).round(), d.z - l.z * (d.z / l.z).round())
+}
+
 /// A touching pair of a periodic box: `i < j` and the image shift `s` (in box lengths) such that
 /// `x_j + s·L − x_i` is the minimum-image branch vector.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -20,6 +20,10 @@
 //! Parallel sweeps write only their own contact slot; a second pass gathers onto particles through
 //! a CSR incidence table in a fixed order, so results are bit-identical for any thread count.
 //!
+//! Periodic box ([`Explicit::set_periodic_box`], docs/packing.md (G1)–(G4)): no walls; every pair's
+//! branch is the minimum image, the neighbour list the periodic cell list, and the caller strains the
+//! box affinely ([`Explicit::strain_box`]) with the velocities as fluctuations about the affine flow.
+//!
 //! Energy ([`Energy`]): kinetic (translation + rotation), elastic (normal and tangential springs),
 //! gravitational potential, dissipated (viscous normal and tangential, Coulomb sliding, Cundall local
 //! damping) and the work done by the walls on the particles. Their balance
@@ -27,11 +31,13 @@
 
 pub mod law;
 mod neighbours;
+mod periodic;
 pub mod sinter;
 mod state;
 mod sweep;
 mod walls;
 
+pub use periodic::minimum_image;
 pub use state::DriverState;
 pub use walls::{Wall, WallControl};
 
@@ -250,6 +256,11 @@ pub struct Explicit<M: ContactModel> {
     /// Run the sweeps on rayon when the neighbour-pair count exceeds this (the results do not
     /// depend on it).
     pub parallel_threshold: usize,
+    /// Periodic box `[0, L_x) × [0, L_y) × [0, L_z)` [m] (None: open space bounded by the walls);
+    /// set by [`Self::set_periodic_box`], strained by [`Self::strain_box`] (docs/packing.md (G1)–(G3)).
+    periodic: Option<V3>,
+    /// The periodic box at the last neighbour build [m].
+    built_box: V3,
 }
 
 impl<M: ContactModel> Explicit<M> {
@@ -289,6 +300,8 @@ impl<M: ContactModel> Explicit<M> {
             last_dissipation: 0.0,
             ready: false,
             parallel_threshold: 20_000,
+            periodic: None,
+            built_box: V3::zeros(),
         })
     }
 

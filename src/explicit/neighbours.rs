@@ -4,13 +4,23 @@
 
 use super::law::ContactModel;
 use super::{Explicit, Out, PARTICLE_CHUNK, Slot, V3};
-use crate::contacts::detect::touching_pairs;
+use crate::contacts::detect::{touching_pairs, touching_pairs_periodic};
 use crate::particles::Particles;
 use rayon::prelude::*;
 
 impl<M: ContactModel> Explicit<M> {
     pub(super) fn rebuild(&mut self, p: &Particles) {
-        let new_pairs = touching_pairs(&p.position, &p.radius, self.settings.skin);
+        let new_pairs = match self.periodic {
+            None => touching_pairs(&p.position, &p.radius, self.settings.skin),
+            Some(l) => {
+                // minimum image (docs/packing.md (G1)); the sweeps recompute the branch at every
+                // step, so only the pair is kept, in the walled list's (i, j) order
+                let mut v: Vec<(u32, u32)> = touching_pairs_periodic(&p.position, &p.radius, l, self.settings.skin).into_iter().map(|q| (q.i, q.j)).collect();
+                v.sort_unstable();
+                self.built_box = l;
+                v
+            }
+        };
         // carry history over by pair (both lists sorted)
         let mut new_slots = vec![Slot::<M::State>::default(); new_pairs.len()];
         let mut new_out = vec![Out::default(); new_pairs.len()];

@@ -37,7 +37,8 @@ impl<M: ContactModel> Explicit<M> {
         let dt = self.settings.dt;
         let h = 0.5 * dt;
         let rot = self.settings.rotation;
-        let half = 0.5 * self.settings.skin;
+        // half the skin; less while a periodic box is strained (docs/packing.md (G3))
+        let (half, box_forced) = self.rebuild_threshold();
         let h2 = half * half;
         let check = self.ready && self.built_at.len() == p.len();
         let par = self.parallel();
@@ -84,7 +85,7 @@ impl<M: ContactModel> Explicit<M> {
                 // not `any`: it would stop early and skip the remaining chunks' drift
                 .fold(false, |a, b| a || b)
         };
-        !check || moved
+        !check || moved || box_forced
     }
 
     /// Contact forces at the current positions (one slot per neighbour pair); returns (elastic
@@ -95,11 +96,15 @@ impl<M: ContactModel> Explicit<M> {
         let dt = st.dt;
         let rot = st.rotation;
         let pairs = &self.pairs;
+        let pbox = self.periodic;
         let par = self.pairs.len() > self.parallel_threshold;
         let tan = TangentialParams { friction: st.friction, stiffness_ratio: st.tangential_stiffness_ratio, damping_ratio: st.tangential_damping_ratio, dt };
         let kernel = |c: usize, slot: &mut Slot<M::State>, out: &mut Out, touching: &mut bool| -> (f64, f64) {
             let (i, j) = (pairs[c].0 as usize, pairs[c].1 as usize);
-            let d = p.position[i] - p.position[j];
+            let mut d = p.position[i] - p.position[j];
+            if let Some(l) = &pbox {
+                d = super::minimum_image(d, l);
+            }
             let dist2 = d.norm_squared();
             let reach = p.radius[i] + p.radius[j];
             if dist2 >= reach * reach || dist2 == 0.0 {

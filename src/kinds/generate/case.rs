@@ -27,6 +27,7 @@ struct PackingFile {
     #[serde(rename = "box")]
     box_: Vec<f64>,
     lamina_width: Option<f64>,
+    boundary: Option<String>,
     size: SizeFile,
     #[serde(default)]
     protocol: ProtocolFile,
@@ -64,6 +65,7 @@ struct ProtocolFile {
     contact_gap_rel: Option<f64>,
     dt_fraction: Option<f64>,
     max_steps: Option<f64>,
+    strain_rate: Option<f64>,
 }
 
 /// Protocol parameters (dimensionless; see the module docs).
@@ -80,6 +82,9 @@ pub struct Protocol {
     pub contact_gap_rel: f64,
     pub dt_fraction: f64,
     pub max_steps: u64,
+    /// Periodic packings: compaction strain rate of the box, −L̇/L in 1 per scaled time unit
+    /// √(m̄/k_n) (docs/packing.md (G5)).
+    pub strain_rate: f64,
 }
 
 impl Default for Protocol {
@@ -96,6 +101,7 @@ impl Default for Protocol {
             contact_gap_rel: 1e-3,
             dt_fraction: 0.08,
             max_steps: 5_000_000,
+            strain_rate: 1e-4,
         }
     }
 }
@@ -112,6 +118,9 @@ pub struct GenerateCase {
     pub lamina_width: Option<f64>,
     pub size: SizeDistribution,
     pub protocol: Protocol,
+    /// `packing.boundary = "periodic"`: the periodic protocol (docs/packing.md, "Periodic
+    /// packings"); false: the walled box (default, `"walls"`).
+    pub periodic: bool,
 }
 
 fn chk(key: &str, v: f64) -> Result<f64, ConfigError> {
@@ -151,6 +160,16 @@ pub fn parse_generate_case(case: &toml::Value) -> Result<GenerateCase, Error> {
     }
     crate::config::plausible::check_memory("packing.particles", particles as f64, crate::config::plausible::BYTES_PER_PARTICLE_GENERATE)?;
     let protocol = protocol(&pf.protocol)?;
+    let periodic = match pf.boundary.as_deref() {
+        None | Some("walls") => false,
+        Some("periodic") => true,
+        Some(other) => return Err(ConfigError::inconsistent("packing.boundary", format!("\"{other}\": expected \"walls\" (default) or \"periodic\"")).into()),
+    };
+    if pf.protocol.strain_rate.is_some() && !periodic {
+        return Err(
+            ConfigError::inconsistent("packing.protocol.strain_rate", "is used by boundary = \"periodic\" only (the walls have their own servo)").into()
+        );
+    }
     if target >= 0.66 {
         // frictionless random close packing is ≈ 0.64; a few % above is reachable only with overlap
         return Err(ConfigError::inconsistent(
@@ -159,7 +178,7 @@ pub fn parse_generate_case(case: &toml::Value) -> Result<GenerateCase, Error> {
         )
         .into());
     }
-    Ok(GenerateCase { particles, seed, target_solid_fraction: target, box_size: [pf.box_[0], pf.box_[1], pf.box_[2]], lamina_width, size, protocol })
+    Ok(GenerateCase { particles, seed, target_solid_fraction: target, box_size: [pf.box_[0], pf.box_[1], pf.box_[2]], lamina_width, size, protocol, periodic })
 }
 
 /// `[packing.size]`: the diameter distribution, with the keys its `distribution` needs.
@@ -234,6 +253,7 @@ fn protocol(pr: &ProtocolFile) -> Result<Protocol, ConfigError> {
         contact_gap_rel: get(pr.contact_gap_rel, "contact_gap_rel", d.contact_gap_rel)?,
         dt_fraction: get(pr.dt_fraction, "dt_fraction", d.dt_fraction)?,
         max_steps: get(pr.max_steps, "max_steps", d.max_steps as f64)? as u64,
+        strain_rate: get(pr.strain_rate, "strain_rate", d.strain_rate)?,
     };
     Ok(protocol)
 }

@@ -31,10 +31,11 @@
 
 mod case;
 mod output;
+mod periodic;
 mod protocol;
 
 pub use case::{GenerateCase, Protocol, parse_generate_case, requested_mean_diameter};
-pub use output::{coordination, write_outputs};
+pub use output::{contact_pairs, coordination, coordination_in, write_outputs};
 pub use protocol::generate;
 
 use crate::config::ranges::Range;
@@ -53,7 +54,14 @@ const fn rg(key: &'static str, lo: f64, hi: f64, lo_open: bool, unit: &'static s
 pub static RANGES: &[Range] = &[
     rg("packing.particles", 2.0, 1e8, false, "1", "number of particles"),
     rg("packing.seed", 0.0, 9.2e18, false, "1", "random seed (a TOML integer: 0 to 2^63 - 1)"),
-    rg("packing.target_solid_fraction", 0.05, 0.72, false, "1", "solid fraction the walls compress to (eq. 49 with the wall box)"),
+    rg(
+        "packing.target_solid_fraction",
+        0.05,
+        0.72,
+        false,
+        "1",
+        "solid fraction the walls compress to (eq. 49 with the wall box); periodic: exactly sum(V_i)/(Lx Ly Lz) (docs/packing.md (G6))",
+    ),
     rg("packing.box.*", 0.0, 10.0, true, "m", "box edge; only the shape is kept, scaled to the volume of the target"),
     rg(
         "packing.lamina_width",
@@ -80,6 +88,14 @@ pub static RANGES: &[Range] = &[
     rg("packing.protocol.contact_gap_rel", 0.0, 0.5, false, "1", "gap / mean radius below which a pair counts as a contact in the report"),
     rg("packing.protocol.dt_fraction", 1e-3, 0.2, false, "1", "time step / collision time"),
     rg("packing.protocol.max_steps", 100.0, 1e9, false, "1", "step budget of the whole protocol"),
+    rg(
+        "packing.protocol.strain_rate",
+        1e-7,
+        1e-2,
+        false,
+        "1",
+        "boundary = \"periodic\": box compaction strain rate -dL/(L dt) per scaled time unit sqrt(m/k_n) (docs/packing.md (G5))",
+    ),
 ];
 
 /// `sinterdem check` for a generate case: parse and validate only.
@@ -127,6 +143,39 @@ pub struct GenerateSummary {
     pub dt_fraction: f64,
     pub wall_time: f64,
     pub thresholds_met: bool,
+    /// `"periodic"` for a periodic packing; absent for the walled box (whose summary is unchanged).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub boundary: Option<String>,
+    /// Periodic packings: the box [L_x, L_y, L_z] [m] from the origin, the `particles.periodic_box`
+    /// of a case reading `packing.csv` (equal to `box_size`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub box_size_m: Option<[f64; 3]>,
+    /// Periodic packings: homogeneity and compaction figures (docs/packing.md (G5)–(G8)).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub periodic: Option<PeriodicReport>,
+}
+
+/// What a periodic packing reports beside the walled summary (docs/packing.md, "Periodic packings").
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct PeriodicReport {
+    /// Solid fractions of the eight octants (x fastest), grid estimate (G8).
+    pub octant_solid_fraction: [f64; 8],
+    /// Contacts (gap < contact_gap_rel·r̄) across the faces normal to x, y, z.
+    pub contacts_across_faces: [usize; 3],
+    /// Per axis: mean density of the laminae within one mean diameter of a face, and of the others (G7).
+    pub face_laminae_mean: [f64; 3],
+    pub interior_laminae_mean: [f64; 3],
+    /// Largest kinetic energy per particle during the box compaction / (k_n r̄²) (scaled units).
+    pub compaction_kinetic_energy_max_rel: f64,
+    /// Virial pressure (G4) at the end of the compaction as an overlap, p (2r̄)²/k_n (the servo holds
+    /// it below `compaction_overlap`).
+    pub compaction_pressure_end_rel: f64,
+    /// Solid fraction at which the compaction first stalled at the compaction pressure (jammed),
+    /// or the target if it never did.
+    pub first_jam_solid_fraction: f64,
+    /// Final mean unbalanced force ratio (Yade's `unbalancedForce`): mean |F_i| over the particles /
+    /// mean normal force over the contacts (0 without contacts).
+    pub unbalanced_force_ratio: f64,
 }
 
 /// The packing itself: positions [m], radii [m], and the box [m].
@@ -142,7 +191,7 @@ pub struct Packing {
 /// not meet its thresholds within `max_steps`, the outputs are still written and a SolveError says so.
 pub fn generate_case(case: &toml::Value, out_dir: &Path, progress: bool) -> Result<GenerateSummary, Error> {
     let c = parse_generate_case(case)?;
-    let (packing, summary) = generate(&c, progress)?;
+    let (packing, summary) = if c.periodic { periodic::generate_periodic(&c, progress)? } else { generate(&c, progress)? };
     // a non-finite figure is a model error, not a summary with null in it
     let s = &summary;
     let figures = [

@@ -1,23 +1,79 @@
 //! What a generate run reports and writes: coordination, the summary, and the output files.
 
-use super::{GenerateCase, GenerateSummary, Packing, V3, requested_mean_diameter};
+use super::{GenerateCase, GenerateSummary, Packing, PeriodicReport, V3, requested_mean_diameter};
+use crate::contacts::detect::{PeriodicPair, minimum_image, touching_pairs, touching_pairs_periodic};
 use crate::error::{Error, IoError};
 use crate::packing::report;
 use std::path::Path;
 
 /// Coordination of every particle: neighbours with gap < `gap` [m].
 pub fn coordination(pos: &[V3], rad: &[f64], gap: f64) -> (Vec<u32>, usize) {
-    let pairs = crate::contacts::detect::touching_pairs(pos, rad, gap);
+    coordination_in(pos, rad, gap, None)
+}
+
+/// The pairs with gap < `gap` [m]: in open space (`periodic` None, every shift 0) or by minimum
+/// image in the periodic box `[0, L)` [m] (docs/packing.md (G1)).
+pub fn contact_pairs(pos: &[V3], rad: &[f64], gap: f64, periodic: Option<V3>) -> Vec<PeriodicPair> {
+    match periodic {
+        None => touching_pairs(pos, rad, gap).into_iter().map(|(i, j)| PeriodicPair { i, j, shift: [0; 3] }).collect(),
+        Some(l) => touching_pairs_periodic(pos, rad, l, gap),
+    }
+}
+
+/// The branch x_i − x_j [m] of a pair (minimum image in a periodic box).
+fn branch(pos: &[V3], q: &PeriodicPair, periodic: Option<V3>) -> V3 {
+    let d = pos[q.i as usize] - pos[q.j as usize];
+    periodic.map_or(d, |l| minimum_image(d, &l))
+}
+
+/// Coordination of every particle (neighbours with gap < `gap` [m], minimum image in a `periodic`
+/// box) and the number of strictly overlapping pairs.
+pub fn coordination_in(pos: &[V3], rad: &[f64], gap: f64, periodic: Option<V3>) -> (Vec<u32>, usize) {
     let mut z = vec![0u32; pos.len()];
     let mut overl = 0;
-    for &(i, j) in &pairs {
-        z[i as usize] += 1;
-        z[j as usize] += 1;
-        if (pos[i as usize] - pos[j as usize]).norm() < rad[i as usize] + rad[j as usize] {
+    for q in &contact_pairs(pos, rad, gap, periodic) {
+        let (i, j) = (q.i as usize, q.j as usize);
+        z[i] += 1;
+        z[j] += 1;
+        if branch(pos, q, periodic).norm() < rad[i] + rad[j] {
             overl += 1;
         }
     }
     (z, overl)
+}
+
+/// The report of a periodic packing in the box `l` [m] (docs/packing.md (G6)–(G8)): octants,
+/// contacts across each pair of faces, the laminae at the faces; `extra` carries the compaction's
+/// figures, filled in here.
+pub(super) fn periodic_report(pos: &[V3], rad: &[f64], l: V3, gap: f64, width: f64, mut extra: PeriodicReport) -> PeriodicReport {
+    extra.octant_solid_fraction = report::octant_solid_fractions(pos, rad, &l);
+    extra.contacts_across_faces = [0; 3];
+    for q in contact_pairs(pos, rad, gap, Some(l)) {
+        for a in 0..3 {
+            // wrapped positions more than half a box apart along a: the contact crosses face a
+            let d = pos[q.i as usize][a].rem_euclid(l[a]) - pos[q.j as usize][a].rem_euclid(l[a]);
+            if d.abs() > 0.5 * l[a] {
+                extra.contacts_across_faces[a] += 1;
+            }
+        }
+    }
+    let d_mean = 2.0 * rad.iter().sum::<f64>() / rad.len() as f64;
+    for a in 0..3 {
+        let lam = report::laminae_periodic(pos, rad, &l, a, width);
+        let (mut face, mut nf, mut inner, mut ni) = (0.0, 0usize, 0.0, 0usize);
+        for (c, d) in lam.centres.iter().zip(&lam.density) {
+            if c.min(l[a] - c) < d_mean {
+                face += d;
+                nf += 1;
+            } else {
+                inner += d;
+                ni += 1;
+            }
+        }
+        extra.face_laminae_mean[a] = face / nf.max(1) as f64;
+        extra.interior_laminae_mean[a] = if ni > 0 { inner / ni as f64 } else { extra.face_laminae_mean[a] };
+    }
+    extra
 }
 
 pub(super) fn summarise(
@@ -32,18 +88,21 @@ pub(super) fn summarise(
     steps: u64,
     wall: f64,
     met: bool,
+    periodic: Option<V3>,
 ) -> GenerateSummary {
     let n = pos.len();
     let vp: f64 = rad.iter().map(|&r| crate::units::sphere_volume(r)).sum();
     let vbox = box_si.iter().product::<f64>();
-    let (z, overl) = coordination(pos, rad, case.protocol.contact_gap_rel * r_unit);
+    let (z, overl) = coordination_in(pos, rad, case.protocol.contact_gap_rel * r_unit, periodic);
     let mut ov: f64 = 0.0;
-    for &(i, j) in &crate::contacts::detect::touching_pairs(pos, rad, 0.0) {
-        ov = ov.max(rad[i as usize] + rad[j as usize] - (pos[i as usize] - pos[j as usize]).norm());
+    for q in &contact_pairs(pos, rad, 0.0, periodic) {
+        ov = ov.max(rad[q.i as usize] + rad[q.j as usize] - branch(pos, q, periodic).norm());
     }
-    for (x, &r) in pos.iter().zip(rad) {
-        for a in 0..3 {
-            ov = ov.max(r - x[a]).max(r - (box_si[a] - x[a]));
+    if periodic.is_none() {
+        for (x, &r) in pos.iter().zip(rad) {
+            for a in 0..3 {
+                ov = ov.max(r - x[a]).max(r - (box_si[a] - x[a]));
+            }
         }
     }
     let width = case.lamina_width.unwrap_or(r_unit);
@@ -52,7 +111,10 @@ pub(super) fn summarise(
     let mut dev = [0.0; 3];
     let mut mean = [0.0; 3];
     for a in 0..3 {
-        let l = report::laminae(pos, rad, &lo, &hi, a, width, 2.0 * r_unit);
+        let l = match periodic {
+            None => report::laminae(pos, rad, &lo, &hi, a, width, 2.0 * r_unit),
+            Some(b) => report::laminae_periodic(pos, rad, &b, a, width),
+        };
         let inner: Vec<f64> = l.density.iter().zip(&l.interior).filter(|(_, i)| **i).map(|(d, _)| *d).collect();
         if !inner.is_empty() {
             mean[a] = inner.iter().sum::<f64>() / inner.len() as f64;
@@ -86,6 +148,9 @@ pub(super) fn summarise(
         dt_fraction: case.protocol.dt_fraction,
         wall_time: wall,
         thresholds_met: met,
+        boundary: periodic.map(|_| "periodic".to_string()),
+        box_size_m: periodic.map(|_| box_si),
+        periodic: None,
     }
 }
 
@@ -99,17 +164,21 @@ pub fn write_outputs(case: &GenerateCase, packing: &Packing, summary: &GenerateS
     }
     report::write_text(&out_dir.join("packing.csv"), &csv)?;
     let gap = case.protocol.contact_gap_rel * summary.mean_radius;
-    let (z, _) = coordination(&packing.positions, &packing.radii, gap);
-    let pairs: Vec<[u32; 2]> = crate::contacts::detect::touching_pairs(&packing.positions, &packing.radii, gap).into_iter().map(|(i, j)| [i, j]).collect();
+    let pbox = case.periodic.then(|| V3::from(packing.box_size));
+    let (z, _) = coordination_in(&packing.positions, &packing.radii, gap, pbox);
+    let pairs: Vec<[u32; 2]> = contact_pairs(&packing.positions, &packing.radii, gap, pbox).into_iter().map(|q| [q.i, q.j]).collect();
     // the generator is athermal: the VTU carries no temperature
-    report::write_vtu(out_dir, "packing", &packing.positions, &packing.radii, &[], &z, &pairs)?;
+    report::write_vtu(out_dir, "packing", &packing.positions, &packing.radii, &[], &z, &pairs, pbox)?;
     // laminae (eq. 48)
     let hi = V3::new(packing.box_size[0], packing.box_size[1], packing.box_size[2]);
     // relative density of laminae (Ivannikov et al. 2022 eq. 48); position_m = lamina centre
     let mut lam = String::from("axis,position_m,relative_density,interior\n");
     let mut series = Vec::new();
     for a in 0..3 {
-        let l = report::laminae(&packing.positions, &packing.radii, &V3::zeros(), &hi, a, summary.lamina_width, 2.0 * summary.mean_radius);
+        let l = match pbox {
+            None => report::laminae(&packing.positions, &packing.radii, &V3::zeros(), &hi, a, summary.lamina_width, 2.0 * summary.mean_radius),
+            Some(b) => report::laminae_periodic(&packing.positions, &packing.radii, &b, a, summary.lamina_width),
+        };
         for k in 0..l.centres.len() {
             lam.push_str(&format!("{},{:.6e},{:.6},{}\n", ["x", "y", "z"][a], l.centres[k], l.density[k], l.interior[k]));
         }

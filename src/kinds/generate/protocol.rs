@@ -11,12 +11,12 @@ use std::time::Instant;
 
 type Sim = Explicit<LinearSpringDashpot>;
 
-struct Progress {
-    on: bool,
-    t0: Instant,
+pub(super) struct Progress {
+    pub(super) on: bool,
+    pub(super) t0: Instant,
 }
 impl Progress {
-    fn say(&self, msg: impl AsRef<str>) {
+    pub(super) fn say(&self, msg: impl AsRef<str>) {
         if self.on {
             tracing::info!("[generate {:7.2} s] {}", self.t0.elapsed().as_secs_f64(), msg.as_ref());
         }
@@ -69,10 +69,10 @@ fn max_overlap(p: &Particles, walls: &[Wall], pairs: &[(u32, u32)]) -> f64 {
 const BACKOFF_STRAIN_RATE: f64 = 1.3e-5;
 /// Background viscous damping rate [1 per scaled time unit] of the final relaxation: the kinetic
 /// energy falls by e^{-0.1} per time unit (≈ 6 steps), a damping ratio of ≈ 0.01 of the contacts.
-const DRAIN_DAMPING: f64 = 0.05;
+pub(super) const DRAIN_DAMPING: f64 = 0.05;
 
 /// Morton (Z-order) key of a lattice cell: the bits of the three indices interleaved.
-fn morton(ix: usize, iy: usize, iz: usize) -> u64 {
+pub(super) fn morton(ix: usize, iy: usize, iz: usize) -> u64 {
     fn spread(v: usize) -> u64 {
         let mut x = (v as u64) & 0x1f_ffff;
         x = (x | x << 32) & 0x1f00000000ffff;
@@ -129,6 +129,7 @@ pub fn generate(case: &GenerateCase, progress: bool) -> Result<(Packing, Generat
         steps_total,
         t0.elapsed().as_secs_f64(),
         met,
+        None,
     );
     Ok((Packing { positions: pos_si, radii: rad_si, box_size: box_si }, summary))
 }
@@ -145,15 +146,21 @@ struct Scaled {
     target: [f64; 3],
 }
 
-/// Draws the diameters and scales the requested box shape to the target volume.
-fn scaled_sizes(case: &GenerateCase, rng: &mut Rng) -> Result<Scaled, Error> {
+/// The drawn sizes in scaled units: length unit r̄ [m], radii in draw order, largest radius, Σ V_i.
+pub(super) fn draw_radii(case: &GenerateCase, rng: &mut Rng) -> (f64, Vec<f64>, f64, f64) {
     let n = case.particles;
-    let proto = &case.protocol;
     let diam: Vec<f64> = (0..n).map(|_| case.size.sample(rng)).collect();
     let r_unit = diam.iter().sum::<f64>() / (2.0 * n as f64); // length unit: mean radius [m]
     let radii: Vec<f64> = diam.iter().map(|d| 0.5 * d / r_unit).collect();
     let r_max = radii.iter().copied().fold(0.0, f64::max);
     let vp: f64 = radii.iter().map(|&r| crate::units::sphere_volume(r)).sum();
+    (r_unit, radii, r_max, vp)
+}
+
+/// Draws the diameters and scales the requested box shape to the target volume.
+fn scaled_sizes(case: &GenerateCase, rng: &mut Rng) -> Result<Scaled, Error> {
+    let proto = &case.protocol;
+    let (r_unit, radii, r_max, vp) = draw_radii(case, rng);
     // target box (scaled)
     let shape = case.box_size;
     // compaction aims slightly above the target: unloading from the compaction pressure expands
@@ -244,7 +251,7 @@ fn simulation(proto: &Protocol, s: &Scaled, cloud: &Cloud, p: &Particles, pr: &P
 }
 
 /// The error of a stage that ran out of `packing.protocol.max_steps`.
-fn out_of_steps(budget: u64, stage: &str, steps: u64) -> Error {
+pub(super) fn out_of_steps(budget: u64, stage: &str, steps: u64) -> Error {
     SolveError::new("packing generation", format!("{stage}: step budget packing.protocol.max_steps = {budget} exhausted after {steps} steps")).into()
 }
 
