@@ -83,7 +83,9 @@ impl CellSettings {
             "normal" => 3,
             "all" => 6,
             o => {
-                return Err(ConfigError::invalid(format!("mechanics.cell.components = \"{o}\": expected \"normal\" (xx, yy, zz) or \"all\" (also yz, xz, xy)")));
+                return Err(ConfigError::invalid(format!(
+                    "mechanics.cell.components = \"{o}\": expected \"normal\" (xx, yy, zz) or \"all\" (also yz, xz, xy)"
+                )));
             }
         };
         let given = [&spec.xx, &spec.yy, &spec.zz, &spec.yz, &spec.xz, &spec.xy];
@@ -232,6 +234,24 @@ impl CellState {
     pub fn lengths(&self) -> Vector3<f64> {
         let m = self.matrix();
         Vector3::from_fn(|a, _| m.column(a).norm())
+    }
+
+    /// The cell's part of `summary.json` (docs/outputs.md "Periodic cell").
+    pub fn summary(&self) -> serde_json::Value {
+        let l = self.lengths();
+        let l0 = Matrix3::from_column_slice(&self.cell0);
+        let s = &self.stress;
+        serde_json::json!({
+            "cell_m": self.cell,
+            "cell0_m": self.cell0,
+            "lengths_m": [l.x, l.y, l.z],
+            "volume_m3": self.volume(),
+            "volume_strain": self.volume() / l0.determinant() - 1.0,
+            "mean_stress_Pa": s,
+            "mean_normal_stress_Pa": (s[0] + s[1] + s[2]) / 3.0,
+            "gauge_reaction": self.gauge_reaction,
+            "distribution_solves": self.solves,
+        })
     }
 
     /// Volume det(L) [m³].

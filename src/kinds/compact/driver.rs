@@ -342,5 +342,8 @@ fn summary(sim: &Simulation, due: &Due, stop_reason: Option<String>, wall_second
     summary["sintering_shrinkage_x"] = json!(ss.x);
     summary["sintering_shrinkage_y"] = json!(ss.y);
     summary["sintering_shrinkage_z"] = json!(ss.z);
+    if let Some(c) = &sim.cell {
+        summary["periodic_cell"] = c.summary();
+    }
     summary
 }
