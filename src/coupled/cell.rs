@@ -424,3 +424,33 @@ impl super::Simulation {
         Ok(())
     }
 }
+
+impl super::Simulation {
+    /// The sintering stress of the cell (B23) `[xx, yy, zz, yz, xz, xy]` [Pa], tension positive:
+    /// the virial `(1/V) Σ_c F_s,c l_c ⊗ l_c/|l_c|` of the forces `F_s = v0/M_c` (M14) that hold
+    /// every contact at rest at its current state and temperature — the mean stress under which
+    /// the free approach of every contact vanishes (exact for a lattice, the uniform-force
+    /// estimate for a random packing). None for a walled run.
+    pub fn sintering_stress(&self) -> Result<Option<[f64; 6]>, crate::error::Error> {
+        let Some(cell) = &self.cell else { return Ok(None) };
+        let p = &self.prep.scene.particles;
+        let iso = self.prep.isothermal.as_ref().map(|prof| prof.temperature(self.t));
+        let mut sum = Matrix3::zeros();
+        for (k, (c, &[i, j])) in self.contacts.state.iter().zip(&self.contacts.pairs).enumerate() {
+            let (ti, tj) = (p.temperature[i as usize], p.temperature[j as usize]);
+            let t = iso.unwrap_or(if self.settings.harmonic { 2.0 * ti * tj / (ti + tj) } else { 0.5 * (ti + tj) });
+            let pm = crate::models::diffusion7::PairMaterials {
+                a: &self.d7_materials[p.material[i as usize] as usize],
+                b: &self.d7_materials[p.material[j as usize] as usize],
+                factors: self.settings.factors,
+            };
+            let ctx = |e: ModelError| e.with_context(format!("sintering stress: contact {k} ({i}–{j}) at t = {} s", self.t));
+            let coeffs = pm.params_at(t).at(t).map_err(ctx)?;
+            let (v0, m) = crate::models::diffusion7::load_response(&c.y, &coeffs).map_err(ctx)?;
+            let l = self.branch(i, j);
+            sum += l * l.transpose() * (v0 / m / l.norm());
+        }
+        let v = sum / cell.volume();
+        Ok(Some([v[(0, 0)], v[(1, 1)], v[(2, 2)], v[(1, 2)], v[(0, 2)], v[(0, 1)]]))
+    }
+}
