@@ -76,16 +76,17 @@ fn lattices_shrink_in_every_axis_as_the_free_pair() {
     }
 }
 
-/// The random periodic packing: free sintering leaves the mean stress zero to solver tolerance
-/// (the virial of the bond forces against the sintering stress scale σ_F = ΣΔF·d/V of the
-/// same step); a uniaxial compressive stress of 1 MPa along x shrinks it more along x than
+/// The random periodic packing: free sintering (all six components) leaves the mean stress zero
+/// to solver tolerance (against the held cell's mean stress, the scale of the bond forces); a uniaxial compressive stress of 1 MPa along x shrinks it more along x than
 /// across and more than free sintering; held at zero strain rate the cell carries a tensile
 /// mean stress.
 #[test]
 fn random_cell_free_pressed_and_constrained() {
     let dir = common::tmp_dir("periodic-random");
     let end = 200.0;
-    let free = run(periodic_case(end, &random_particles(), "", &[]), &dir.join("free"));
+    // all six components free: the whole mean stress vanishes (with components = "normal" the
+    // shears are held at zero strain and their reactions are reported instead)
+    let free = run(periodic_case(end, &random_particles(), "components = \"all\"", &[]), &dir.join("free"));
     let pressed = run(periodic_case(end, &random_particles(), "xx = { stress = -1.0e6 }", &[]), &dir.join("pressed"));
     let held = run(
         periodic_case(end, &random_particles(), "xx = { strain_rate = 0.0 }\nyy = { strain_rate = 0.0 }\nzz = { strain_rate = 0.0 }", &[]),
@@ -100,7 +101,7 @@ fn random_cell_free_pressed_and_constrained() {
     let stress = free["periodic_cell"]["mean_stress_Pa"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect::<Vec<_>>();
     let scale = held["periodic_cell"]["mean_normal_stress_Pa"].as_f64().unwrap();
     println!("free: mean stress {stress:?} Pa; held: mean stress {scale:e} Pa, tensor {}", held["periodic_cell"]["mean_stress_Pa"]);
-    assert!(stress.iter().all(|s| s.abs() < 1e-6 * scale.abs()), "{stress:?} against {scale:e}");
+    assert!(stress.iter().all(|s| s.abs() < 1e-9 * scale.abs()), "{stress:?} against {scale:e}");
     assert!(free["periodic_cell"]["gauge_reaction"].as_f64().unwrap() < 1e-6);
     let (px, py, pz) = (f(&pressed, "shrinkage_x"), f(&pressed, "shrinkage_y"), f(&pressed, "shrinkage_z"));
     println!("pressed 1 MPa along x: shrinkage {px:.6e} {py:.6e} {pz:.6e}");
@@ -173,7 +174,7 @@ fn bad_periodic_cases_are_clear_errors() {
     assert!(e.contains("mechanics.cell.xy") && e.contains("\"all\""), "{e}");
     let e = error_of(periodic_case(10.0, &random_particles(), "components = \"some\"", &[]));
     assert!(e.contains("mechanics.cell.components") && e.contains("\"normal\""), "{e}");
-    let e = error_of(periodic_case(10.0, &random_particles(), "", &["mechanics.boundary=\"torus\""]));
+    let e = error_of(periodic_case(10.0, &common::file_particles(&walled_file), "", &["mechanics.boundary=\"torus\""]));
     assert!(e.contains("mechanics.boundary") && e.contains("\"walls\""), "{e}");
     // a periodic box on a walled compact; [load] on a periodic cell; a cell table on walls
     let text = common::compact_text(&common::time_to(10.0), &[common::COPPER], &random_particles(), common::AT_1293_K);
