@@ -17,7 +17,9 @@
 //! ```
 //!
 //! Modules: [`bond`] element, [`assembly`] block assembly, [`constraints`] rattlers/planes/pins,
-//! [`solve`] parameters, Newton report, solver choice, [`cg`] PCG, [`bench`] the benchmark.
+//! [`solve`] parameters, Newton report, solver choice, [`cg`] PCG, `newton` the Newton drivers and
+//! the warm start, [`periodic`] the periodic cell (cell strain by static condensation, gauge,
+//! virial stress; docs/mechanics.md (B13)–(B22)).
 
 pub mod amg;
 pub mod assembly;
