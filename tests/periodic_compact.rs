@@ -187,3 +187,20 @@ fn bad_periodic_cases_are_clear_errors() {
     let e = error_of(common::case_value(&text, &[]));
     assert!(e.contains("mechanics.cell") && e.contains("\"periodic\""), "{e}");
 }
+
+/// (M14) as the sintering stress (B23) uses it: at the state of docs/diffusion7.md §11 (copper,
+/// 1293 K, R = 25 µm) the force F_s = v0/M_c, applied as a tension, stops the approach
+/// (−(ẏ4 + ẏ7) = 0 to 1e-9 of v0), and it is the 4.3·10⁻⁴ N docs/diffusion7.md gives.
+#[test]
+fn load_response_gives_the_force_that_stops_a_contact() {
+    use sinterdem::models::diffusion7::{ContactParams, Material, PathFactors, evaluate, load_response};
+    let r = 25e-6;
+    let y = [0.3 * r, r, 0.05 * r, 0.97 * r, r, 0.05 * r, 0.97 * r];
+    let mut k = ContactParams::single(&Material::copper(), 0, PathFactors::default()).at(1293.0).unwrap();
+    let (v0, m) = load_response(&y, &k).unwrap();
+    let f_s = v0 / m;
+    assert!(v0 > 0.0 && (f_s / 4.3e-4 - 1.0).abs() < 0.02, "v0 = {v0:e} m/s, M_c = {m:e} m/(N s), F_s = {f_s:e} N");
+    k.normal_force = -f_s;
+    let e = evaluate(&y, &k).unwrap();
+    assert!((e.dydt[3] + e.dydt[6]).abs() < 1e-9 * v0, "{:e}", e.dydt[3] + e.dydt[6]);
+}
