@@ -204,3 +204,27 @@ fn load_response_gives_the_force_that_stops_a_contact() {
     let e = evaluate(&y, &k).unwrap();
     assert!((e.dydt[3] + e.dydt[6]).abs() < 1e-9 * v0, "{:e}", e.dydt[3] + e.dydt[6]);
 }
+
+/// `output.conductivity_at` of a periodic run writes the full tensor, and at t = 0 it is the
+/// tensor `sinterdem conductivity` gives the same packing with `boundary = "periodic"` (the same
+/// necks, minimum-image branch vectors and cell volume), to round-off.
+#[test]
+fn conductivity_tensor_of_a_periodic_run() {
+    let dir = common::tmp_dir("periodic-kappa");
+    let v = periodic_case(1.0, &random_particles(), "", &["output.conductivity_at=[0.0]"]);
+    let sim = coupled::prepare(v.clone(), Path::new("."), &mut |_| {}).unwrap();
+    let p = &sim.prep.scene.particles;
+    let (pipes, branch) =
+        sinterdem::heat::conductivity::periodic_pipes(p, nalgebra::Vector3::repeat(BOX), &sim.prep.scene.materials, &sim.prep.conductance).unwrap();
+    let want = sinterdem::heat::conductivity::periodic(p, &pipes, &branch, nalgebra::Vector3::repeat(BOX)).unwrap();
+    let s = run(v, &dir.join("out"));
+    let got = &s["conductivity"][0];
+    assert_eq!(got["method"], "periodic");
+    for r in 0..3 {
+        for c in 0..3 {
+            let k = got["kappa_eff_W_per_mK"][r][c].as_f64().unwrap();
+            assert!((k - want[(r, c)]).abs() < 1e-12 * want[(0, 0)], "κ[{r}][{c}] = {k} vs {}", want[(r, c)]);
+        }
+    }
+    assert!(want[(0, 0)] > 100.0 && want[(0, 0)] < 140.0, "{want}");
+}
