@@ -349,33 +349,6 @@ pub fn describe(s: &CellSettings) -> String {
         .join(", ")
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn controls_and_errors() {
-        let spec: CellSpec = toml::from_str("xx = { stress_table = [[0.0, 0.0], [100.0, -1e6]] }\nzz = { strain_rate = 0.0 }").unwrap();
-        let s = CellSettings::from_spec("periodic", Some(&spec)).unwrap().unwrap();
-        assert_eq!(s.controls.len(), 3);
-        assert_eq!(s.controls[0].stress_at(50.0), Some(-5e5));
-        assert_eq!(s.controls[0].stress_at(500.0), Some(-1e6));
-        assert_eq!(s.controls[1], Control::Stress(vec![[0.0, 0.0]]));
-        assert_eq!(s.step_controls(50.0, 10.0, &[0.0; 6])[2], CellControl::Strain(0.0));
-        let both: CellSpec = toml::from_str("yy = { stress = 0.0, strain_rate = 0.0 }").unwrap();
-        let e = CellSettings::from_spec("periodic", Some(&both)).unwrap_err().to_string();
-        assert!(e.contains("mechanics.cell.yy") && e.contains("not both"), "{e}");
-        let shear: CellSpec = toml::from_str("xy = { stress = 0.0 }").unwrap();
-        let e = CellSettings::from_spec("periodic", Some(&shear)).unwrap_err().to_string();
-        assert!(e.contains("mechanics.cell.xy") && e.contains("components = \"all\""), "{e}");
-        let big: CellSpec = toml::from_str("xx = { stress = 2e9 }").unwrap();
-        let e = CellSettings::from_spec("periodic", Some(&big)).unwrap_err().to_string();
-        assert!(e.contains("mechanics.cell.xx.stress") && e.contains("Pa"), "{e}");
-        assert!(CellSettings::from_spec("walls", Some(&big)).is_err());
-        assert!(CellSettings::from_spec("wall", None).unwrap_err().to_string().contains("\"periodic\""));
-    }
-}
-
 impl super::Simulation {
     /// (P3) on a periodic cell: every contact's normal force from the bonded equilibrium under the
     /// prescribed cell stress at `t0` [s] alone (strain-controlled components held), solved when
@@ -453,5 +426,32 @@ impl super::Simulation {
         }
         let v = sum / cell.volume();
         Ok(Some([v[(0, 0)], v[(1, 1)], v[(2, 2)], v[(1, 2)], v[(0, 2)], v[(0, 1)]]))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn controls_and_errors() {
+        let spec: CellSpec = toml::from_str("xx = { stress_table = [[0.0, 0.0], [100.0, -1e6]] }\nzz = { strain_rate = 0.0 }").unwrap();
+        let s = CellSettings::from_spec("periodic", Some(&spec)).unwrap().unwrap();
+        assert_eq!(s.controls.len(), 3);
+        assert_eq!(s.controls[0].stress_at(50.0), Some(-5e5));
+        assert_eq!(s.controls[0].stress_at(500.0), Some(-1e6));
+        assert_eq!(s.controls[1], Control::Stress(vec![[0.0, 0.0]]));
+        assert_eq!(s.step_controls(50.0, 10.0, &[0.0; 6])[2], CellControl::Strain(0.0));
+        let both: CellSpec = toml::from_str("yy = { stress = 0.0, strain_rate = 0.0 }").unwrap();
+        let e = CellSettings::from_spec("periodic", Some(&both)).unwrap_err().to_string();
+        assert!(e.contains("mechanics.cell.yy") && e.contains("not both"), "{e}");
+        let shear: CellSpec = toml::from_str("xy = { stress = 0.0 }").unwrap();
+        let e = CellSettings::from_spec("periodic", Some(&shear)).unwrap_err().to_string();
+        assert!(e.contains("mechanics.cell.xy") && e.contains("components = \"all\""), "{e}");
+        let big: CellSpec = toml::from_str("xx = { stress = 2e9 }").unwrap();
+        let e = CellSettings::from_spec("periodic", Some(&big)).unwrap_err().to_string();
+        assert!(e.contains("mechanics.cell.xx.stress") && e.contains("Pa"), "{e}");
+        assert!(CellSettings::from_spec("walls", Some(&big)).is_err());
+        assert!(CellSettings::from_spec("wall", None).unwrap_err().to_string().contains("\"periodic\""));
     }
 }
