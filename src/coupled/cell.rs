@@ -454,4 +454,32 @@ mod tests {
         assert!(CellSettings::from_spec("walls", Some(&big)).is_err());
         assert!(CellSettings::from_spec("wall", None).unwrap_err().to_string().contains("\"periodic\""));
     }
+
+    /// The search of a sheared cell finds exactly the pairs a brute-force minimum-image search
+    /// over all pairs finds (B14), each once.
+    #[test]
+    fn sheared_cell_search_equals_brute_force() {
+        let mut seed = 11u64;
+        let mut rng = || crate::mechanics::fixtures::rng(&mut seed);
+        let (n, r) = (300, 1.0);
+        let mut cell = CellState::new(Vector3::new(14.0, 15.0, 16.0));
+        let shear = Matrix3::new(0.0, 0.03, -0.02, 0.03, 0.0, 0.025, -0.02, 0.025, 0.0);
+        cell.deform(&shear);
+        let m = cell.matrix();
+        let pos: Vec<Vector3<f64>> = (0..n).map(|_| m * Vector3::new(rng(), rng(), rng()) + Vector3::new(rng() - 0.5, 0.0, 0.0) * 4.0).collect();
+        let rad: Vec<f64> = (0..n).map(|_| r * (0.8 + 0.4 * rng())).collect();
+        let margin = 0.1;
+        let mut got = cell.touching(&pos, &rad, margin).unwrap();
+        got.sort_unstable();
+        let mut want = Vec::new();
+        for i in 0..n {
+            for j in i + 1..n {
+                if cell.branch(&pos[i], &pos[j]).norm() < rad[i] + rad[j] + margin {
+                    want.push((i as u32, j as u32));
+                }
+            }
+        }
+        assert!(want.len() > 50, "{}", want.len());
+        assert_eq!(got, want);
+    }
 }
