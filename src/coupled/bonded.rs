@@ -3,6 +3,7 @@
 
 use super::{Contacts, MechanicsSettings};
 use crate::error::{Error, ModelError};
+use crate::mechanics::periodic::{CellControl, CellInput, CellStep};
 use crate::mechanics::{BondedSystem, Constraints, MechParams, NodalLoad, StepInput};
 use crate::models::diffusion7 as d7;
 use nalgebra::Vector3;
@@ -56,7 +57,8 @@ impl MechanicsStage {
 
     /// Builds the bonded system with the plane constraints of the initial packing.
     pub fn build(&mut self, p: &crate::particles::Particles, young: f64, poisson: f64) -> Result<(), Error> {
-        let cons = if self.settings.constrain_planes {
+        // a periodic cell has no planes: its gauge is set by the periodic analysis (B19)
+        let cons = if self.settings.constrain_planes && self.settings.cell.is_none() {
             Constraints::principal_planes(&p.position, &p.radius, self.settings.plane_gap)?
         } else {
             Constraints::none(p.len())
@@ -162,6 +164,63 @@ impl MechanicsStage {
         }
         self.count(&out.info);
         Ok((normal, force))
+    }
+
+    /// The periodic step (docs/mechanics.md (B13)–(B21)) for the eigen-approach `approach` [m]
+    /// per contact and the cell controls: the whole displacement increment per particle [m], ξ
+    /// per contact [m] and the cell's part of the result.
+    pub(super) fn solve_periodic(
+        &mut self,
+        p: &crate::particles::Particles,
+        contacts: &Contacts,
+        approach: &[f64],
+        cell: &nalgebra::Matrix3<f64>,
+        controls: &[CellControl],
+    ) -> Result<(Vec<Vector3<f64>>, Vec<f64>, CellStep), Error> {
+        let sys = self.sys.as_mut().ok_or_else(|| ModelError::new("mechanics: the bonded system was not built"))?;
+        if self.bonds != contacts.len() {
+            sys.set_topology(&contacts.pairs)?;
+            self.bonds = contacts.len();
+        }
+        let y4_y7: Vec<[f64; 2]> = contacts.state.iter().map(|c| [c.y_prev[3], c.y_prev[6]]).collect();
+        let load: Vec<f64> = contacts
+            .state
+            .iter()
+            .zip(approach)
+            .zip(&contacts.pairs)
+            .map(|((c, &a), &[i, j])| d7::load_increment(a, 0.0, c.r_mean(), sys.link_elastic(i, j)[0]))
+            .collect();
+        let inp = StepInput { positions: &p.position, radii: &p.radius, y4_y7: &y4_y7, load: &load, external: None };
+        let ci = CellInput { cell, controls };
+        let (out, cs) = match sys.step_periodic(&inp, &ci) {
+            Err(Error::Solve(_)) => {
+                sys.drop_factor();
+                sys.step_periodic(&inp, &ci)?
+            }
+            r => r?,
+        };
+        for (r, d) in self.rotation.iter_mut().zip(&out.dtheta) {
+            *r += d;
+        }
+        self.count(&out.info);
+        Ok((out.du, out.xi, cs))
+    }
+
+    /// The load distribution of docs/pressure.md (P3) on a periodic cell: the bonded equilibrium
+    /// under the cell stress `stress` [Pa] alone (strain-controlled components held), at the
+    /// current geometry; the axial force per contact [N], compression positive. Nothing moves.
+    pub(super) fn distribute_periodic(
+        &mut self,
+        p: &crate::particles::Particles,
+        contacts: &Contacts,
+        cell: &nalgebra::Matrix3<f64>,
+        controls: &[CellControl],
+    ) -> Result<Vec<f64>, Error> {
+        let zero = vec![0.0; contacts.len()];
+        let rotation = self.rotation.clone();
+        let (_, _, cs) = self.solve_periodic(p, contacts, &zero, cell, controls)?;
+        self.rotation = rotation;
+        Ok(cs.axial_force)
     }
 
     /// Adds a solve's counters and times to the stage's totals.

@@ -26,8 +26,22 @@ impl Contacts {
     }
 }
 
-pub(super) fn dist(p: &crate::particles::Particles, i: u32, j: u32) -> f64 {
-    (p.position[j as usize] - p.position[i as usize]).norm()
+impl super::Simulation {
+    /// The branch vector `x_j − x_i` of particles `i`, `j` [m]: the minimum image in a periodic
+    /// cell (docs/mechanics.md (B14)), the plain difference otherwise.
+    pub fn branch(&self, i: u32, j: u32) -> nalgebra::Vector3<f64> {
+        let p = &self.prep.scene.particles;
+        let (xi, xj) = (p.position[i as usize], p.position[j as usize]);
+        match &self.cell {
+            Some(c) => c.branch(&xi, &xj),
+            None => xj - xi,
+        }
+    }
+
+    /// Centre distance of particles `i`, `j` [m] (minimum image in a periodic cell).
+    pub fn distance(&self, i: u32, j: u32) -> f64 {
+        self.branch(i, j).norm()
+    }
 }
 
 /// Initial neck radius [m] of a contact created with `contacts.new_contact_state =

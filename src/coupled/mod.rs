@@ -17,6 +17,7 @@
 //! `observables` (what the outputs report), [`expansion`], [`load`].
 
 mod bonded;
+pub mod cell;
 mod contacts;
 pub mod expansion;
 pub mod load;

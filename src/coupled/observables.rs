@@ -71,14 +71,24 @@ impl Simulation {
         (sum / n.max(1) as f64, lo, hi)
     }
 
-    /// The applied stress σ(t) at the current time [Pa] (0 without a load).
+    /// The applied stress σ(t) at the current time [Pa] (0 without a load; a periodic cell: the
+    /// mean of its prescribed normal stresses, compressive positive).
     pub fn applied_stress(&self) -> f64 {
+        // a periodic cell: the mean prescribed normal stress, compressive positive
+        if let Some(cs) = self.settings.mechanics.cell.as_ref() {
+            let s = cs.stress_at(self.t);
+            return -(s[0] + s[1] + s[2]) / 3.0;
+        }
         self.load.as_ref().map_or(0.0, |l| l.settings.stress.at(self.t))
     }
 
     /// (P4): the macroscopic stress `[xx, yy, zz, yz, xz, xy]` [Pa] (tension positive) of the
-    /// contact forces of the applied load at the current time, over the box volume of (S6).
+    /// contact forces of the applied load at the current time, over the box volume of (S6); a
+    /// periodic cell: its mean (virial) stress (B20) accumulated over the steps.
     pub fn macroscopic_stress(&self) -> [f64; 6] {
+        if let Some(c) = &self.cell {
+            return c.stress;
+        }
         let Some(ls) = self.load.as_ref() else { return [0.0; 6] };
         if ls.ref_total == 0.0 {
             return [0.0; 6];
@@ -119,6 +129,11 @@ impl Simulation {
             Some(e) => p.radius.iter().zip(&e).map(|(&r, e)| crate::units::sphere_volume(r * (1.0 + e))).sum(),
             None => p.radius.iter().map(|&r| crate::units::sphere_volume(r)).sum(),
         };
+        // a periodic cell: the solid volume over the cell's volume det(L), exact because the model
+        // conserves each particle's volume (docs/mechanics.md (B22))
+        if let Some(c) = &self.cell {
+            return v / c.volume();
+        }
         let e = self.extents();
         v / (e.x * e.y * e.z)
     }

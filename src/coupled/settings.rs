@@ -173,6 +173,8 @@ pub struct MechanicsSettings {
     pub rtol: f64,
     /// Warm start of the bonded solve (docs/mechanics.md (B12)).
     pub warm_start: bool,
+    /// The periodic cell's controls (`boundary = "periodic"`); None: walls.
+    pub cell: Option<super::cell::CellSettings>,
 }
 
 impl MechanicsSettings {
@@ -193,6 +195,7 @@ impl MechanicsSettings {
             reuse_factor: m.reuse_factor,
             rtol,
             warm_start: m.warm_start,
+            cell: super::cell::CellSettings::from_spec(&m.boundary, m.cell.as_ref())?,
         })
     }
 }

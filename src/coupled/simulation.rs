@@ -73,6 +73,9 @@ pub struct Simulation {
     pub load: Option<super::load::LoadState>,
     /// Thermal expansion of the particles (docs/coupled.md (X1)–(X12)); None: no material expands.
     pub expansion: Option<super::expansion::ThermalExpansion>,
+    /// The periodic cell (`mechanics.boundary = "periodic"`, docs/mechanics.md "Periodic cell");
+    /// None: walls.
+    pub cell: Option<super::cell::CellState>,
 }
 
 impl Simulation {
@@ -144,8 +147,10 @@ impl Simulation {
             source: (String::new(), std::path::PathBuf::new()),
             load: None,
             expansion: None,
+            cell: None,
             prep,
         };
+        sim.cell = super::cell::start(&sim.settings, &sim.prep, log)?;
         sim.extent0 = sim.extents();
         sim.dt = sim.settings.dt0;
         if let Some(prof) = &sim.prep.isothermal {
@@ -212,6 +217,9 @@ impl Simulation {
     /// Extent from the principal planes to the mean far face along each axis [m], with the
     /// thermally expanded radii (docs/coupled.md (X12)).
     pub fn extents(&self) -> Vector3<f64> {
+        if let Some(c) = &self.cell {
+            return c.lengths();
+        }
         let p = &self.prep.scene.particles;
         let free = !self.settings.mechanics.constrain_planes;
         let eps = self.thermal_strains();

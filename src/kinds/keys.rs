@@ -12,6 +12,7 @@ pub fn tables() -> Vec<&'static [Range]> {
     let mut t: Vec<&'static [Range]> = vec![ranges::TABLE, crate::models::diffusion7::RANGES, super::generate::RANGES];
     t.extend(super::explicit_sinter::laws::LAWS.iter().map(|law| law.ranges));
     t.push(super::explicit_sinter::RANGES);
+    t.push(crate::coupled::cell::RANGES);
     t
 }
 

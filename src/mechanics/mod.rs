@@ -17,7 +17,9 @@
 //! ```
 //!
 //! Modules: [`bond`] element, [`assembly`] block assembly, [`constraints`] rattlers/planes/pins,
-//! [`solve`] parameters, Newton report, solver choice, [`cg`] PCG, [`bench`] the benchmark.
+//! [`solve`] parameters, Newton report, solver choice, [`cg`] PCG, `newton` the Newton drivers and
+//! the warm start, [`periodic`] the periodic cell (cell strain by static condensation, gauge,
+//! virial stress; docs/mechanics.md (B13)–(B22)).
 
 pub mod amg;
 pub mod assembly;
@@ -26,6 +28,8 @@ pub mod cg;
 pub mod cholesky;
 pub mod constraints;
 pub mod fixtures;
+mod newton;
+pub mod periodic;
 pub mod solve;
 
 pub use bond::{BondGeometry, element_matrix, frame, h_matrix, kinematics, link_stiffness, skew};
@@ -36,6 +40,7 @@ use crate::error::{ConfigError, Error, ModelError, SolveError};
 pub use assembly::{BlockMatrix, Incidence};
 use cholesky::BondCholesky;
 use nalgebra::Vector3;
+use newton::{STALE_CG_REFRESH, initial_residual, newton_on_factor, not_finite, stale_factor_cg, warm_start};
 use rayon::prelude::*;
 use solve::Kept;
 use std::time::Instant;
@@ -111,6 +116,8 @@ pub struct BondedSystem {
     elastic: Option<Vec<[f64; 2]>>,
     /// The last solutions (newest last) for the warm start (B12); emptied by [`Self::drop_factor`].
     history: Vec<Vec<f64>>,
+    /// `report` is a periodic cell's analysis ([`periodic::analyse`]), not the constraints'.
+    periodic_report: bool,
 }
 
 impl BondedSystem {
@@ -132,6 +139,7 @@ impl BondedSystem {
             amg_fresh_iterations: 0,
             elastic: None,
             history: Vec::new(),
+            periodic_report: false,
         })
     }
 
@@ -292,9 +300,12 @@ impl BondedSystem {
     /// The topology analysis of the current bonds, taken out of the system (the caller puts it
     /// back): the kept one, or made now (once per topology).
     fn analysis(&mut self, positions: &[Vector3<f64>], info: &mut MechInfo) -> Result<TopologyReport, Error> {
-        if let Some(rep) = self.report.take() {
+        if let Some(rep) = self.report.take()
+            && !self.periodic_report
+        {
             return Ok(rep);
         }
+        self.periodic_report = false;
         let t0 = Instant::now();
         let rep = constraints::analyse(self.n, &self.pairs, positions, &self.constraints)?;
         info.topology_rebuilt = true;
@@ -304,10 +315,35 @@ impl BondedSystem {
 
     /// [`Self::step`] with the topology analysis `rep`.
     fn step_with(&mut self, rep: &TopologyReport, inp: &StepInput, mut info: MechInfo, t_start: Instant) -> Result<MechStep, Error> {
-        let n = self.n;
-        let (geom, blocks, rhs, r_scale) = self.prepare(rep, inp, &mut info)?;
-        let b_norm = cg::dot(&rhs, &rhs).sqrt();
-        let mut x = vec![0.0; 6 * n];
+        let (geom, blocks, rhs, r_scale) = self.prepare(rep, inp, None, &mut info)?;
+        let x = self.solve_rhs(rep, inp.positions, r_scale, &blocks, &rhs, true, &mut info)?;
+        let du: Vec<Vector3<f64>> = x.chunks(6).map(|c| Vector3::new(c[0], c[1], c[2])).collect();
+        let dtheta: Vec<Vector3<f64>> = x.chunks(6).map(|c| Vector3::new(c[3], c[4], c[5]) / r_scale).collect();
+        let xi: Vec<f64> = self.pairs.iter().zip(&geom).map(|(&[a, b], g)| (du[a as usize] - du[b as usize]).dot(&g.e3)).collect();
+        if let Some(c) = xi.iter().position(|v| !v.is_finite()) {
+            return Err(SolveError::new("mechanics", format!("non-finite approach at contact {c}")).into());
+        }
+        info.total_seconds = t_start.elapsed().as_secs_f64();
+        Ok(MechStep { du, dtheta, xi, e3: geom.iter().map(|g| g.e3).collect(), info })
+    }
+
+    /// Solves the assembled system `blocks` (topology `rep`) for the scaled right-hand side `rhs`
+    /// with the solver of the parameters (B10); `record`: the solution joins the warm-start
+    /// history (B12) and the warm start is used (the extra right-hand sides of a periodic cell's
+    /// condensation neither use nor join it). Returns the scaled solution on all 6n DOF.
+    #[allow(clippy::too_many_arguments)]
+    fn solve_rhs(
+        &mut self,
+        rep: &TopologyReport,
+        positions: &[Vector3<f64>],
+        r_scale: f64,
+        blocks: &BlockMatrix,
+        rhs: &[f64],
+        record: bool,
+        info: &mut MechInfo,
+    ) -> Result<Vec<f64>, Error> {
+        let b_norm = cg::dot(rhs, rhs).sqrt();
+        let mut x = vec![0.0; 6 * self.n];
         let above = match (self.params.reuse_factor, self.params.warm_start) {
             (true, true) => solve::AMG_ABOVE_EQUATIONS_WARM,
             (true, false) => AMG_ABOVE_EQUATIONS,
@@ -321,44 +357,43 @@ impl BondedSystem {
         // the warm start (B12) serves the CG-based solvers; a Cholesky step is a direct solve (with
         // a reused factor, it saved 17 % of the Newton iterations of the copper compact and cost as
         // much time as it saved, docs/mechanics.md)
-        let warm = self.params.warm_start && matches!(solver, LinearSolver::Amg | LinearSolver::Pcg);
+        let warm = record && self.params.warm_start && matches!(solver, LinearSolver::Amg | LinearSolver::Pcg);
         // the residual b − K x₀ of the warm start, handed to the solver
         let mut r0 = None;
         if b_norm > 0.0 && rep.n_eq > 0 && warm && !self.history.is_empty() {
             let t0 = Instant::now();
-            let op = amg::FineOp { blocks: &blocks, pairs: &self.pairs, inc: &self.inc, fixed: &rep.fixed };
-            let (rel, r) = warm_start(&op, &self.history, &rhs, b_norm, &mut x);
+            let op = amg::FineOp { blocks, pairs: &self.pairs, inc: &self.inc, fixed: &rep.fixed };
+            let (rel, r) = warm_start(&op, &self.history, rhs, b_norm, &mut x);
             info.warm_start = rel;
             r0 = r;
             info.solve_seconds += t0.elapsed().as_secs_f64();
         }
         if b_norm > 0.0 && rep.n_eq > 0 {
             match solver {
-                LinearSolver::Pcg => self.newton_pcg(rep, &blocks, &rhs, b_norm, &mut x, r0, &mut info)?,
-                LinearSolver::Amg => self.newton_amg(rep, inp.positions, r_scale, &blocks, &rhs, b_norm, &mut x, r0, &mut info)?,
-                _ => self.newton_cholesky(rep, inp.positions, &blocks, &rhs, b_norm, &mut x, &mut info)?,
+                LinearSolver::Pcg => self.newton_pcg(rep, blocks, rhs, b_norm, &mut x, r0, info)?,
+                LinearSolver::Amg => self.newton_amg(rep, positions, r_scale, blocks, rhs, b_norm, &mut x, r0, info)?,
+                _ => self.newton_cholesky(rep, positions, blocks, rhs, b_norm, &mut x, info)?,
             }
         }
-
         if warm && b_norm > 0.0 {
             if self.history.len() == WARM_START_DEPTH {
                 self.history.remove(0);
             }
             self.history.push(x.clone());
         }
-        let du: Vec<Vector3<f64>> = x.chunks(6).map(|c| Vector3::new(c[0], c[1], c[2])).collect();
-        let dtheta: Vec<Vector3<f64>> = x.chunks(6).map(|c| Vector3::new(c[3], c[4], c[5]) / r_scale).collect();
-        let xi: Vec<f64> = self.pairs.iter().zip(&geom).map(|(&[a, b], g)| (du[a as usize] - du[b as usize]).dot(&g.e3)).collect();
-        if let Some(c) = xi.iter().position(|v| !v.is_finite()) {
-            return Err(SolveError::new("mechanics", format!("non-finite approach at contact {c}")).into());
-        }
-        info.total_seconds = t_start.elapsed().as_secs_f64();
-        Ok(MechStep { du, dtheta, xi, e3: geom.iter().map(|g| g.e3).collect(), info })
+        Ok(x)
     }
 
     /// Geometry, assembly and the scaled load vector with the topology analysis `rep`:
-    /// `(geometry per bond, blocks, rhs, r̄)`.
-    fn prepare(&self, rep: &TopologyReport, inp: &StepInput, info: &mut MechInfo) -> Result<(Vec<BondGeometry>, BlockMatrix, Vec<f64>, f64), Error> {
+    /// `(geometry per bond, blocks, rhs, r̄)`. `branch`: the branch vector `x_B − x_A` of each bond
+    /// (a periodic cell's minimum image, docs/mechanics.md (B13)); None: the difference of the centres.
+    fn prepare(
+        &self,
+        rep: &TopologyReport,
+        inp: &StepInput,
+        branch: Option<&[Vector3<f64>]>,
+        info: &mut MechInfo,
+    ) -> Result<(Vec<BondGeometry>, BlockMatrix, Vec<f64>, f64), Error> {
         let n = self.n;
         info.equations = rep.n_eq;
         info.components = rep.components;
@@ -375,8 +410,9 @@ impl BondedSystem {
             .zip(inp.y4_y7.par_iter())
             .enumerate()
             .map(|(c, (&[a, b], &[y4, y7]))| {
-                BondGeometry::new(&inp.positions[a as usize], &inp.positions[b as usize], y4, y7)
-                    .map_err(|err| Error::from(err.with_context(format!("contact {c} between particles {a} and {b}"))))
+                let x_a = inp.positions[a as usize];
+                let x_b = branch.map_or(inp.positions[b as usize], |l| x_a + l[c]);
+                BondGeometry::new(&x_a, &x_b, y4, y7).map_err(|err| Error::from(err.with_context(format!("contact {c} between particles {a} and {b}"))))
             })
             .collect();
         let geom = geom?;
@@ -418,7 +454,7 @@ impl BondedSystem {
         self.check_input(inp)?;
         let mut info = MechInfo::default();
         let rep = self.analysis(inp.positions, &mut info)?;
-        let prepared = self.prepare(&rep, inp, &mut info);
+        let prepared = self.prepare(&rep, inp, None, &mut info);
         self.report = Some(rep.clone());
         let (_, blocks, rhs, r_scale) = prepared?;
         Ok((blocks, rhs, r_scale, rep, self.inc.clone()))
@@ -653,229 +689,4 @@ impl AmgSolve<'_> {
         }
         (Some(h), Err(solve::not_converged(info, params.rtol, "AMG-PCG").into()))
     }
-}
-
-/// Newton with the factor `chol` of the current topology, refactorised when it is not
-/// factored, not to be reused or slow (stale).
-fn newton_on_factor(
-    params: &MechParams,
-    refresh: &mut bool,
-    rep: &TopologyReport,
-    op: &amg::FineOp,
-    chol: &mut BondCholesky,
-    b: &[f64],
-    b_norm: f64,
-    x: &mut [f64],
-    info: &mut MechInfo,
-) -> Result<(), Error> {
-    // the reduced lower-triangle values, gathered only when a factorisation needs them
-    let mut values: Vec<f64> = Vec::new();
-    let gather = |values: &mut Vec<f64>, info: &mut MechInfo| {
-        if values.is_empty() {
-            let t0 = Instant::now();
-            op.blocks.for_each_lower(op.pairs, rep, |_, _, v| values.push(v));
-            info.assemble_seconds += t0.elapsed().as_secs_f64();
-        }
-    };
-    let mut fresh = false;
-    if !params.reuse_factor || !chol.is_factored() || *refresh {
-        gather(&mut values, info);
-        info.factor_seconds += chol.factorize(&values)?;
-        info.factorizations += 1;
-        fresh = true;
-        *refresh = false;
-    }
-    let (mut r, mut rel) = initial_residual(op, b, b_norm, x, None);
-    let mut red = vec![0.0; rep.n_eq];
-    while info.newton_iterations < params.max_newton {
-        for (d, &e) in rep.eq.iter().enumerate() {
-            if e != u32::MAX {
-                red[e as usize] = r[d];
-            }
-        }
-        info.solve_seconds += chol.solve_in_place(&mut red)?;
-        for (d, &e) in rep.eq.iter().enumerate() {
-            if e != u32::MAX {
-                x[d] += red[e as usize];
-            }
-        }
-        info.newton_iterations += 1;
-        let new_rel = op.residual(b, b_norm, x, &mut r);
-        info.residuals.push(new_rel);
-        if !new_rel.is_finite() {
-            return Err(not_finite(info).into());
-        }
-        if new_rel <= params.rtol {
-            return Ok(());
-        }
-        // a stale factor that converges slowly (or diverges) is replaced by a fresh one
-        if !fresh && new_rel > 0.1 * rel {
-            gather(&mut values, info);
-            info.factor_seconds += chol.factorize(&values)?;
-            info.factorizations += 1;
-            fresh = true;
-        }
-        rel = new_rel;
-    }
-    Err(solve::not_converged(info, params.rtol, "Cholesky").into())
-}
-
-/// CG iterations at most with a stale factor before a fresh factorisation takes over [1].
-const STALE_CG_MAX_ITER: usize = 40;
-/// A stale-factor CG that needed more iterations than this triggers a fresh factorisation at the
-/// next step [1] (one factorisation costs about as much as 20 iterations at 10³ particles).
-const STALE_CG_REFRESH: usize = 12;
-
-/// CG on the current stiffness `op` preconditioned by the factor `chol` of an earlier stiffness
-/// with equation map `chol_eq` (DOF of the current map `eq` that it lacks get the inverse of
-/// their particle's diagonal block). `Some(iterations)` when the true scaled residual reaches
-/// `rtol`, `None` when CG does not converge within [`STALE_CG_MAX_ITER`] iterations. The
-/// preconditioner is block diagonal over the two DOF sets, each block SPD, so CG applies.
-fn stale_factor_cg(
-    chol: &mut BondCholesky,
-    chol_eq: &[u32],
-    op: &amg::FineOp,
-    eq: &[u32],
-    blocks: &BlockMatrix,
-    b: &[f64],
-    b_norm: f64,
-    rtol: f64,
-    x: &mut [f64],
-    info: &mut MechInfo,
-) -> Result<Option<usize>, Error> {
-    let n_old = chol_eq.iter().filter(|&&e| e != u32::MAX).count();
-    // particles with DOF that the factor does not know: their block-Jacobi inverse on those DOF
-    let mut extra: Vec<(usize, u8, nalgebra::Matrix6<f64>)> = Vec::new();
-    for i in 0..eq.len() / 6 {
-        let new_only = (0..6).fold(0u8, |m, k| if eq[6 * i + k] != u32::MAX && chol_eq[6 * i + k] == u32::MAX { m | (1 << k) } else { m });
-        if new_only == 0 {
-            continue;
-        }
-        let mut d = blocks.diag[i];
-        for k in 0..6 {
-            if new_only & (1 << k) == 0 {
-                d.row_mut(k).fill(0.0);
-                d.column_mut(k).fill(0.0);
-                d[(k, k)] = 1.0;
-            }
-        }
-        match d.cholesky() {
-            Some(c) => extra.push((i, new_only, c.inverse())),
-            None => return Ok(None),
-        }
-    }
-    let mut red = vec![0.0; n_old];
-    let mut solve_s = 0.0;
-    let res = {
-        let mut prec = |r: &[f64], z: &mut [f64]| -> Result<(), SolveError> {
-            for (d, &e) in chol_eq.iter().enumerate() {
-                if e != u32::MAX {
-                    red[e as usize] = r[d];
-                }
-            }
-            solve_s += chol.solve_in_place(&mut red)?;
-            for d in 0..z.len() {
-                z[d] = if eq[d] != u32::MAX && chol_eq[d] != u32::MAX { red[chol_eq[d] as usize] } else { 0.0 };
-            }
-            for (i, m, inv) in &extra {
-                let v = inv * nalgebra::Vector6::from_column_slice(&r[6 * i..6 * i + 6]);
-                for k in 0..6 {
-                    if m & (1 << k) != 0 {
-                        z[6 * i + k] = v[k];
-                    }
-                }
-            }
-            Ok(())
-        };
-        cg::pcg_with(|v, out| op.matvec(v, out), &mut prec, b, x, 0.5 * rtol, STALE_CG_MAX_ITER)
-    };
-    info.solve_seconds += solve_s;
-    match res {
-        Ok(pi) => {
-            info.pcg_iterations += pi.iterations;
-            info.newton_iterations += 1;
-            let mut r = vec![0.0; b.len()];
-            let rel = op.residual(b, b_norm, x, &mut r);
-            info.residuals.push(rel);
-            if rel <= rtol {
-                return Ok(Some(pi.iterations));
-            }
-        }
-        // not converged (or the stale operator lost definiteness): a fresh factor takes over
-        Err(_) => info.pcg_iterations += STALE_CG_MAX_ITER,
-    }
-    Ok(None)
-}
-
-/// `(b − K x, ‖b − K x‖₂/‖b‖₂)`: `known` when the warm start computed it, no product when `x`
-/// is zero.
-fn initial_residual(op: &amg::FineOp, b: &[f64], b_norm: f64, x: &[f64], known: Option<Vec<f64>>) -> (Vec<f64>, f64) {
-    if let Some(r) = known {
-        let rel = cg::dot(&r, &r).sqrt() / b_norm;
-        return (r, rel);
-    }
-    let mut r = b.to_vec();
-    if x.iter().all(|&v| v == 0.0) {
-        return (r, 1.0);
-    }
-    let rel = op.residual(b, b_norm, x, &mut r);
-    (r, rel)
-}
-
-/// The warm start (docs/mechanics.md (B12)): the Galerkin projection of `K x = b` onto the span of
-/// the earlier solutions `history` (fixed DOF of the current topology zeroed), `x₀ = V c` with
-/// `(VᵀKV) c = Vᵀb`, the K-norm-optimal start in that span. The directions are made
-/// K-orthonormal newest first; one that keeps less than 1e-12 of its K-norm² after
-/// orthogonalisation (parallel to those kept) is dropped. Writes `x` and returns the relative
-/// residual ‖b − K x₀‖₂/‖b‖₂ with the residual (1, None and `x = 0` when no direction lowers it).
-fn warm_start(op: &amg::FineOp, history: &[Vec<f64>], b: &[f64], b_norm: f64, x: &mut [f64]) -> (f64, Option<Vec<f64>>) {
-    let n = b.len();
-    let mut basis: Vec<(Vec<f64>, Vec<f64>)> = Vec::with_capacity(history.len());
-    for h in history.iter().rev() {
-        let mut v = h.clone();
-        for (i, m) in op.fixed.iter().enumerate() {
-            for k in 0..6 {
-                if m & (1 << k) != 0 {
-                    v[6 * i + k] = 0.0;
-                }
-            }
-        }
-        let mut kv = vec![0.0; n];
-        op.matvec(&v, &mut kv);
-        let vkv0 = cg::dot(&v, &kv);
-        for (u, ku) in &basis {
-            let c = cg::dot(&v, ku);
-            v.par_iter_mut().zip(u.par_iter()).for_each(|(vi, ui)| *vi -= c * ui);
-            kv.par_iter_mut().zip(ku.par_iter()).for_each(|(vi, ui)| *vi -= c * ui);
-        }
-        let vkv = cg::dot(&v, &kv);
-        if !(vkv.is_finite() && vkv > 1e-12 * vkv0) {
-            continue;
-        }
-        let s = 1.0 / vkv.sqrt();
-        v.par_iter_mut().for_each(|vi| *vi *= s);
-        kv.par_iter_mut().for_each(|vi| *vi *= s);
-        basis.push((v, kv));
-    }
-    x.iter_mut().for_each(|v| *v = 0.0);
-    if basis.is_empty() {
-        return (1.0, None);
-    }
-    // K-orthonormal basis: x₀ = Σ (uᵢ·b) uᵢ, r₀ = b − Σ (uᵢ·b) K uᵢ
-    let mut r = b.to_vec();
-    for (u, ku) in &basis {
-        let c = cg::dot(u, b);
-        x.par_iter_mut().zip(u.par_iter()).for_each(|(xi, ui)| *xi += c * ui);
-        r.par_iter_mut().zip(ku.par_iter()).for_each(|(ri, ki)| *ri -= c * ki);
-    }
-    let rel = cg::dot(&r, &r).sqrt() / b_norm;
-    if !(rel.is_finite() && rel < 1.0) {
-        x.iter_mut().for_each(|v| *v = 0.0);
-        return (1.0, None);
-    }
-    (rel, Some(r))
-}
-
-fn not_finite(info: &MechInfo) -> SolveError {
-    SolveError { stage: "mechanics Newton".into(), message: "non-finite residual (singular or ill-posed stiffness)".into(), residuals: info.residuals.clone() }
 }

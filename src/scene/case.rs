@@ -153,6 +153,45 @@ pub struct MechanicsSpec {
     /// (docs/mechanics.md (B12)) instead of from zero (default true).
     #[serde(default = "yes")]
     pub warm_start: bool,
+    /// "walls" (default: the principal planes of docs/mechanics.md "Constraints") or "periodic"
+    /// (a periodic cell on `particles.periodic_box`, docs/mechanics.md "Periodic cell").
+    #[serde(default = "walls")]
+    pub boundary: String,
+    /// The controls of the periodic cell's strain components (`boundary = "periodic"`).
+    pub cell: Option<CellSpec>,
+}
+
+fn walls() -> String {
+    "walls".into()
+}
+
+/// One component's control in the case file: exactly one of `stress`, `stress_table`, `strain_rate`.
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ComponentSpec {
+    /// Constant mean stress [Pa], tension positive.
+    pub stress: Option<f64>,
+    /// Piecewise-linear stress history `[[time s, stress Pa], …]`, times strictly increasing.
+    pub stress_table: Option<Vec<[f64; 2]>>,
+    /// Prescribed strain rate [1/s] (engineering shear rate for a shear).
+    pub strain_rate: Option<f64>,
+}
+
+/// `[mechanics.cell]`.
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct CellSpec {
+    /// "normal" (default: the three normal strains solved, the cell stays orthorhombic) or "all"
+    /// (the shears too).
+    pub components: Option<String>,
+    pub xx: Option<ComponentSpec>,
+    pub yy: Option<ComponentSpec>,
+    pub zz: Option<ComponentSpec>,
+    pub yz: Option<ComponentSpec>,
+    pub xz: Option<ComponentSpec>,
+    pub xy: Option<ComponentSpec>,
+    /// (P5) limit of the contact normal force under a cell stress [Pa] (default: none).
+    pub contact_stress_limit: Option<f64>,
 }
 
 /// Default Newton tolerance of compact runs: 1e-6. `sinterdem bench precision` (copper compact,
@@ -164,7 +203,16 @@ fn mech_rtol() -> f64 {
 
 impl Default for MechanicsSpec {
     fn default() -> Self {
-        MechanicsSpec { constrain_planes: true, plane_margin: margin(), solver: auto(), reuse_factor: true, rtol: mech_rtol(), warm_start: true }
+        MechanicsSpec {
+            constrain_planes: true,
+            plane_margin: margin(),
+            solver: auto(),
+            reuse_factor: true,
+            rtol: mech_rtol(),
+            warm_start: true,
+            boundary: walls(),
+            cell: None,
+        }
     }
 }
 

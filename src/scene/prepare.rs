@@ -106,10 +106,11 @@ pub fn prepare_scene(value: toml::Value, base: &Path) -> Result<Prepared, Error>
         return Err(ConfigError::invalid("output.snapshots and output.series_every must be whole numbers").into());
     }
     let conductance = conductance_of(&case)?;
-    if compact && case.particles.periodic_box.is_some() {
+    let periodic = case.mechanics.as_ref().is_some_and(|m| m.boundary == "periodic");
+    if compact && case.particles.periodic_box.is_some() && !periodic {
         return Err(ConfigError::inconsistent(
             "particles.periodic_box",
-            "compact runs have no periodic cell yet (walls and faces only); the box is read by sinterdem conductivity with conductivity.boundary = \"periodic\"",
+            "a walled compact run has no periodic cell: set mechanics.boundary = \"periodic\" to run the packing as a periodic cell (docs/mechanics.md \"Periodic cell\"), or drop the box",
         )
         .into());
     }

@@ -2,7 +2,7 @@
 //! current necks (docs/heat-model.md).
 
 use super::Window;
-use crate::coupled::{NeckSource, Simulation, contacts::dist};
+use crate::coupled::{NeckSource, Simulation};
 use crate::error::{Error, ModelError};
 use crate::heat::{Conductance, HeatStepInfo};
 
@@ -53,8 +53,8 @@ impl Simulation {
                     NeckSource::VolumeConserving => {
                         // in the reference geometry of the contact (X9)
                         let d = match &eps {
-                            Some(e) => crate::coupled::expansion::ThermalExpansion::reference_distance(p, e, i as usize, j as usize, dist(p, i, j)),
-                            None => dist(p, i, j),
+                            Some(e) => crate::coupled::expansion::ThermalExpansion::reference_distance(p, e, i as usize, j as usize, self.distance(i, j)),
+                            None => self.distance(i, j),
                         };
                         let h = ri + rj - d;
                         crate::neck::solve(ri, rj, h).map_err(|e| e.with_context(format!("contact {k} ({i}–{j}) at t = {} s", self.t)))?.a

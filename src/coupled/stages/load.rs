@@ -38,6 +38,9 @@ impl Simulation {
     /// [`crate::coupled::load::REDISTRIBUTE_EVERY`] steps, otherwise the last solve scaled by the total
     /// applied force. Without a load (or at zero stress) every normal force is exactly 0.
     pub(in crate::coupled) fn update_load_forces(&mut self, t0: f64) -> Result<(), Error> {
+        if self.cell.is_some() {
+            return self.update_cell_forces(t0);
+        }
         let Some(f) = self.load_forces_at(t0) else { return Ok(()) };
         let total = crate::coupled::load::total_force(&f);
         let m = self.contacts.len();

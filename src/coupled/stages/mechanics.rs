@@ -31,7 +31,7 @@ pub(in crate::coupled) fn mechanics(sim: &mut Simulation, w: &Window, temps_old:
     let mut e3 = Vec::with_capacity(m);
     let mut approach = Vec::with_capacity(m);
     for (c, &[i, j]) in sim.contacts.state.iter().zip(&sim.contacts.pairs) {
-        let d = p.position[j as usize] - p.position[i as usize];
+        let d = sim.branch(i, j);
         e3.push(d / d.norm());
         approach.push((c.y_prev[3] - c.y[3]) + (c.y_prev[6] - c.y[6]));
     }
@@ -57,6 +57,8 @@ pub(in crate::coupled) fn mechanics(sim: &mut Simulation, w: &Window, temps_old:
             }
         }
         approach
+    } else if sim.cell.is_some() {
+        periodic_solve(sim, w, &approach)?
     } else {
         bonded_solve(sim, t1, &approach, thermal.as_ref())?
     };
@@ -89,6 +91,36 @@ fn bonded_solve(sim: &mut Simulation, t1: f64, approach: &[f64], thermal: Option
     }
     for (x, d) in sim.prep.scene.particles.position.iter_mut().zip(&du) {
         *x += d;
+    }
+    Ok(xi)
+}
+
+/// The bonded solve on the periodic cell (docs/mechanics.md (B13)–(B21)): the cell controls of
+/// the window `w`, the particles moved by `Δu + ΔE·x`, the cell deformed to `(I + ΔE)·L`, the
+/// mean stress (B20) accumulated; returns ξ per contact [m].
+fn periodic_solve(sim: &mut Simulation, w: &Window, approach: &[f64]) -> Result<Vec<f64>, Error> {
+    let (Some(cell), Some(cs)) = (sim.cell.as_ref(), sim.settings.mechanics.cell.as_ref()) else {
+        return Err(crate::error::ModelError::new("periodic mechanics: the cell was not set up").into());
+    };
+    let controls = cs.step_controls(w.t1, w.dt, &cell.applied);
+    let target = cs.stress_at(w.t1);
+    let m = cell.matrix();
+    let (du, xi, step) = sim.mechanics.solve_periodic(&sim.prep.scene.particles, &sim.contacts, approach, &m, &controls)?;
+    for (x, d) in sim.prep.scene.particles.position.iter_mut().zip(&du) {
+        *x += d;
+    }
+    let Some(cell) = sim.cell.as_mut() else { return Ok(xi) };
+    cell.deform(&crate::mechanics::periodic::strain_tensor(&step.strain));
+    for k in 0..6 {
+        cell.stress[k] += step.stress[k];
+    }
+    for (k, c) in controls.iter().enumerate() {
+        if matches!(c, crate::mechanics::periodic::CellControl::Stress(_)) {
+            cell.applied[k] = target[k];
+        }
+    }
+    if step.load_scale > 0.0 {
+        cell.gauge_reaction = cell.gauge_reaction.max(step.gauge_reaction / step.load_scale);
     }
     Ok(xi)
 }

@@ -1,7 +1,7 @@
 //! Stage 1, topology: contacts for the pairs that have come to touch (docs/coupled.md "New
 //! contacts").
 
-use crate::coupled::{NewContactState, Simulation, contacts::dist, new_contact_neck};
+use crate::coupled::{NewContactState, Simulation, new_contact_neck};
 use crate::error::{Error, ModelError};
 use crate::models::diffusion7::Contact7;
 
@@ -32,7 +32,10 @@ impl Simulation {
             None => (&p.radius[..]).into(),
         };
         let r_mean = if eps.is_some() { radii.iter().sum::<f64>() / radii.len().max(1) as f64 } else { p.mean_radius() };
-        let found = crate::contacts::detect::touching_pairs(&p.position, &radii, gap * r_mean);
+        let found = match &self.cell {
+            Some(c) => c.touching(&p.position, &radii, gap * r_mean)?,
+            None => crate::contacts::detect::touching_pairs(&p.position, &radii, gap * r_mean),
+        };
         let existing: std::collections::HashSet<(u32, u32)> = self.contacts.pairs.iter().map(|&[i, j]| (i, j)).collect();
         let mut added = 0;
         // overlap at detection relative to the smaller radius (log only)
@@ -43,8 +46,8 @@ impl Simulation {
             }
             let (ri, rj) = (p.radius[i as usize], p.radius[j as usize]);
             let d_now = match &eps {
-                Some(e) => crate::coupled::expansion::ThermalExpansion::reference_distance(p, e, i as usize, j as usize, dist(p, i, j)),
-                None => dist(p, i, j),
+                Some(e) => crate::coupled::expansion::ThermalExpansion::reference_distance(p, e, i as usize, j as usize, self.distance(i, j)),
+                None => self.distance(i, j),
             };
             overlaps.push((ri + rj - d_now) / ri.min(rj));
             // a pair within the gap tolerance starts as touching (I1 needs d ≤ R_A + R_B)

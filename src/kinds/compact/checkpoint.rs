@@ -63,6 +63,9 @@ pub struct Checkpoint {
     /// The applied load's state (docs/pressure.md); absent for runs without a load.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub load: Option<crate::coupled::load::LoadCheckpoint>,
+    /// The periodic cell (docs/mechanics.md "Periodic cell"); absent for walled runs.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cell: Option<crate::coupled::cell::CellState>,
 }
 
 /// Format tag of compact checkpoints.
@@ -97,6 +100,7 @@ impl Simulation {
             heat_history: self.heat.as_ref().and_then(|h| h.history().cloned()),
             output,
             load: self.load.as_ref().map(|l| l.to_checkpoint()),
+            cell: self.cell.clone(),
         }
     }
 
@@ -132,6 +136,14 @@ impl Simulation {
         sim.limited_corrections = ck.limited_corrections;
         if let (Some(l), Some(c)) = (sim.load.as_mut(), ck.load.as_ref()) {
             l.restore(c);
+        }
+        if sim.cell.is_some() != ck.cell.is_some() {
+            return Err(
+                ConfigError::invalid("checkpoint: the periodic cell of the case and of the checkpoint do not match (mechanics.boundary changed?)").into()
+            );
+        }
+        if ck.cell.is_some() {
+            sim.cell = ck.cell.clone();
         }
         log(&format!("resumed from the checkpoint at t = {} s (step {}, {} contacts)", sim.t, sim.step, sim.contacts.len()));
         Ok((sim, ck.output.clone()))

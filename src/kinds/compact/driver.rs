@@ -462,5 +462,12 @@ fn summary(sim: &Simulation, due: &Due, stop_reason: Option<String>, wall_second
     summary["sintering_shrinkage_x"] = json!(ss.x);
     summary["sintering_shrinkage_y"] = json!(ss.y);
     summary["sintering_shrinkage_z"] = json!(ss.z);
+    if let Some(c) = &sim.cell {
+        summary["periodic_cell"] = c.summary();
+        if let Ok(Some(s)) = sim.sintering_stress() {
+            summary["periodic_cell"]["sintering_stress_Pa"] = json!(s);
+            summary["periodic_cell"]["sintering_stress_mean_Pa"] = json!((s[0] + s[1] + s[2]) / 3.0);
+        }
+    }
     summary
 }

@@ -29,6 +29,19 @@ pub struct Evaluation {
     pub dg_dt: f64,
 }
 
+/// The linear response of the approach rate to a normal force (M13)–(M14) at state `y` [m]
+/// with coefficients `k` (their `normal_force` ignored): `(v0, M_c)`, the unloaded approach rate
+/// `v0 = −(ẏ4 + ẏ7)` [m/s] and the mobility `M_c = Ω[(k_gb + k_lat,A·a)/(∂V/∂y4)² +
+/// (k_gb + k_lat,B·a)/(∂V/∂y7)²]` [m/(N·s)], so that `−(ẏ4 + ẏ7) = v0 + M_c·F_n` and
+/// `F_s = v0/M_c` is the (tensile) force that holds the contact at rest.
+pub fn load_response(y: &[f64; 7], k: &Coeffs) -> Result<(f64, f64), ModelError> {
+    let k0 = Coeffs { normal_force: 0.0, ..*k };
+    let e = evaluate(y, &k0)?;
+    let a = y[0];
+    let m = k.omega * ((k.k_gb + k.k_lat_gb[0] * a) / (e.dv[3] * e.dv[3]) + (k.k_gb + k.k_lat_gb[1] * a) / (e.dv[6] * e.dv[6]));
+    Ok((-(e.dydt[3] + e.dydt[6]), m))
+}
+
 /// Full evaluation of the model at state `y` [m] with transport coefficients `k` (one temperature).
 #[inline]
 pub fn evaluate(y: &[f64; 7], k: &Coeffs) -> Result<Evaluation, ModelError> {

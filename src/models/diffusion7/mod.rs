@@ -19,6 +19,6 @@ pub mod ranges;
 
 pub use advance::{PairMaterials, SolverOptions, TemperaturePath, advance};
 pub use contact::{Contact7, Correction, correct_y4_y7, initial_state, initial_state_with_neck, load_increment, sintering_force};
-pub use kinetics::{Evaluation, evaluate, invariants, rates, rates_with};
+pub use kinetics::{Evaluation, evaluate, invariants, load_response, rates, rates_with};
 pub use material::{ContactParams, Material, PathFactors, Phase};
 pub use ranges::RANGES;
