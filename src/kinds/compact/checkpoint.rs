@@ -52,6 +52,10 @@ pub struct Checkpoint {
     /// Mechanics counters: Newton iterations, numeric factorisations, largest final scaled residual.
     #[serde(default)]
     pub mechanics_counters: (u64, u64, f64),
+    /// Counters of `mechanics_profile`: topology analyses and CG iterations (so that a resumed
+    /// run's summary equals the uninterrupted one's; absent in older checkpoints: zero).
+    #[serde(default)]
+    pub mechanics_profile_counts: (u64, u64),
     pub pairs: Vec<[u32; 2]>,
     pub contacts: Vec<Contact7>,
     pub dl_bar: Vec<f64>,
@@ -93,6 +97,7 @@ impl Simulation {
             temperature: p.temperature.clone(),
             rotation: self.mechanics.rotation.iter().map(|x| [x.x, x.y, x.z]).collect(),
             mechanics_counters: (self.mechanics.newton_iterations, self.mechanics.factorizations, self.mechanics.max_residual),
+            mechanics_profile_counts: (self.mechanics.profile.topology_changes, self.mechanics.profile.cg_iterations),
             pairs: self.contacts.pairs.clone(),
             contacts: self.contacts.state.clone(),
             dl_bar: self.contacts.dl_bar.clone(),
@@ -119,6 +124,7 @@ impl Simulation {
         p.temperature = ck.temperature.clone();
         sim.mechanics.rotation = ck.rotation.iter().map(|x| Vector3::new(x[0], x[1], x[2])).collect();
         (sim.mechanics.newton_iterations, sim.mechanics.factorizations, sim.mechanics.max_residual) = ck.mechanics_counters;
+        (sim.mechanics.profile.topology_changes, sim.mechanics.profile.cg_iterations) = ck.mechanics_profile_counts;
         sim.contacts = Contacts { pairs: ck.pairs.clone(), state: ck.contacts.clone(), dl_bar: ck.dl_bar.clone(), substeps: ck.substeps.clone() };
         if let Some(h) = sim.heat.as_mut() {
             h.set_history(ck.heat_history.clone());
