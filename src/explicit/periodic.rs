@@ -183,7 +183,7 @@ mod tests {
         assert!(half == 0.0 && forced, "{half} {forced}");
         let e = sim.strain_box(&mut p, V3::new(3.9, 8.0, 9.0)).unwrap_err().to_string();
         assert!(e.contains("periodic_box") && e.contains('4'), "{e}");
-        let walled = Explicit::new(Settings::new(0.1, 1.0), sim.law.clone(), vec![crate::explicit::Wall::new(V3::z(), V3::zeros())]);
+        let walled = Explicit::new(Settings::new(0.1, 1.0), sim.law, vec![crate::explicit::Wall::new(V3::z(), V3::zeros())]);
         let e = walled.unwrap().set_periodic_box(l, &p).unwrap_err().to_string();
         assert!(e.contains("walls"), "{e}");
     }
