@@ -89,11 +89,13 @@ def _images(center, radius, L):
     return out
 
 
-def build_mesh(pk: rp.Packing, m: float = 1.0, n_a: float = 5.0, grow: float = 0.5,
+def build_mesh(pk: rp.Packing, m=1.0, n_a: float = 5.0, grow: float = 0.5,
                s_max: float = 0.45, order: int = 2, ext: float = 0.25,
                verbose: bool = False, threads: int = 1):
-    """Returns (doflocs (3, N) of the order-`order` mesh, tets (4, nt) vertex
-    indices, edge mid-node positions dict) -> via mesh_to_skfem."""
+    """The geometry is built once; for each mesh factor in `m` (a number or a
+    list) returns (X node coordinates by gmsh tag, T element node tags
+    (nt, 4 or 10), solid volume of the geometry) -- a list if m is a list."""
+    ms = list(m) if isinstance(m, (list, tuple)) else [m]
     import gmsh
     L = pk.L
     nk = necks(pk)
@@ -156,9 +158,11 @@ def build_mesh(pk: rp.Packing, m: float = 1.0, n_a: float = 5.0, grow: float = 0
         N = np.array([k["n"] for k in nk])
         A = np.array([k["a"] for k in nk])
         H = np.array([k["hn"] for k in nk])
-        S0 = m * A / n_a
+        fac = [1.0]
 
         def size(dim, tag, x, y, z, lc):
+            m = fac[0]
+            S0 = m * A / n_a
             p = np.array([x, y, z])
             dv = p - C
             dv -= L * np.round(dv / L)
@@ -173,20 +177,24 @@ def build_mesh(pk: rp.Packing, m: float = 1.0, n_a: float = 5.0, grow: float = 0
         gmsh.option.setNumber("Mesh.Algorithm3D", 1)
         # the size callback is Python: sample it sparsely along the curves
         gmsh.option.setNumber("Mesh.LcIntegrationPrecision", 1e-3)
-        gmsh.model.mesh.generate(3)
-        if order == 2:
-            gmsh.model.mesh.setOrder(2)
-        tags, coords, _ = gmsh.model.mesh.getNodes()
-        etype = 11 if order == 2 else 4
-        _, enodes = gmsh.model.mesh.getElementsByType(etype)
         vol = sum(gmsh.model.occ.getMass(3, t) for _, t in gmsh.model.getEntities(3))
+        out = []
+        for m in ms:
+            fac[0] = m
+            gmsh.model.mesh.clear()
+            gmsh.model.mesh.generate(3)
+            if order == 2:
+                gmsh.model.mesh.setOrder(2)
+            tags, coords, _ = gmsh.model.mesh.getNodes()
+            etype = 11 if order == 2 else 4
+            _, enodes = gmsh.model.mesh.getElementsByType(etype)
+            X = np.zeros((int(tags.max()) + 1, 3))
+            X[tags] = coords.reshape(-1, 3)
+            nn = 10 if order == 2 else 4
+            out.append((X, enodes.reshape(-1, nn).astype(np.int64), vol))
     finally:
         gmsh.finalize()
-    X = np.zeros((int(tags.max()) + 1, 3))
-    X[tags] = coords.reshape(-1, 3)
-    nn = 10 if order == 2 else 4
-    T = enodes.reshape(-1, nn).astype(np.int64)
-    return X, T, vol
+    return out
 
 
 def mesh_to_skfem(X, T):
@@ -314,7 +322,7 @@ def solve_kappa(M, L, verbose=False, p2=True):
         sols = []
         for b in rhs:
             res = []
-            x = ml.solve(b, tol=1e-11, accel="cg", maxiter=500, residuals=res)
+            x = ml.solve(b, tol=1e-10, accel="cg", maxiter=500, residuals=res)
             sols.append(x)
         how = f"amg-cg ({len(res)} it)"
     ts = time.time() - t0
@@ -337,22 +345,28 @@ def mesh_factor(level):
     return 2.0 ** (1.0 - level / 3.0)
 
 
-def fe_kappa(pk, level, order=2, verbose=False, **kw):
-    """kappa_eff/kappa_s on mesh level `level`: isoparametric P2 (order=2,
-    gmsh's curved order-2 mesh) or P1 on straight tetrahedra (order=1)."""
-    m = mesh_factor(level)
+def fe_kappa_levels(pk, levels, order=2, verbose=False, **kw):
+    """kappa_eff/kappa_s on the mesh levels (one geometry, remeshed): lists
+    of 3x3 tensors and info dicts.  order=2: isoparametric P2 (gmsh's curved
+    order-2 mesh); order=1: P1 on straight tetrahedra."""
     t0 = time.time()
-    X, T, vol = build_mesh(pk, m=m, order=order, **kw)
-    tm = time.time() - t0
-    M = mesh_to_skfem(X, T)
-    t1 = time.time()
-    K, info = solve_kappa(M, pk.L, verbose, p2=(order == 2))
-    info.update(straightened=int(getattr(M, "n_straightened", 0)), level=level, mesh_factor=m, t_mesh=tm, t_solve=time.time() - t1,
-                solid_volume_fraction=vol / pk.L ** 3)
-    if verbose:
-        print(f"  level {level}: tets {info['ntets']} dofs {info['ndofs']} mesh {tm:.1f}s "
-              f"solve {info['t_solve']:.1f}s  diag {np.diag(K)}", flush=True)
-    return K, info
+    meshes = build_mesh(pk, m=[mesh_factor(L_) for L_ in levels], order=order, **kw)
+    tm = (time.time() - t0) / len(levels)
+    Ks, infos = [], []
+    for level, (X, T, vol) in zip(levels, meshes):
+        M = mesh_to_skfem(X, T)
+        t1 = time.time()
+        K, info = solve_kappa(M, pk.L, verbose, p2=(order == 2))
+        info.update(straightened=int(getattr(M, "n_straightened", 0)), level=level,
+                    mesh_factor=mesh_factor(level), t_mesh=tm, t_solve=time.time() - t1,
+                    solid_volume_fraction=vol / pk.L ** 3)
+        if verbose:
+            print(f"  level {level}: tets {info['ntets']} dofs {info['ndofs']} "
+                  f"(geometry+mesh {tm:.1f}s per level) solve {info['t_solve']:.1f}s  "
+                  f"diag {np.diag(K)}", flush=True)
+        Ks.append(K)
+        infos.append(info)
+    return Ks, infos
 
 
 def extrapolate(hs, fs):
@@ -428,11 +442,7 @@ def run_case(name, levels=(0, 1, 2), verbose=True, order=2):
     if verbose:
         print(f"{name}: {json.dumps(st)}", flush=True)
         print(f"  network fe_fit diag {np.diag(Kn_fit)}; linear diag {np.diag(Kn_lin)}", flush=True)
-    Ks, infos = [], []
-    for L_ in levels:
-        K, info = fe_kappa(pk, L_, order=order, verbose=verbose)
-        Ks.append(K)
-        infos.append(info)
+    Ks, infos = fe_kappa_levels(pk, levels, order=order, verbose=verbose)
     hs = [info["ndofs"] ** (-1.0 / 3.0) for info in infos]
     out = dict(name=name, stats=st, Kn_fit=Kn_fit, Kn_lin=Kn_lin, Ks=Ks, infos=infos)
     if len(levels) >= 3:

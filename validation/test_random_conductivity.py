@@ -1,0 +1,167 @@
+"""sinterdem's pipe network against the 3-D periodic FE of random sintered
+packings (issue 23 item 4; docs/validation-conductance.md "Random periodic
+packings").  Run with validation/run_tests.sh.
+
+Default: the smallest case (16 equal spheres, TEST_CASE) on the three
+coarsest levels -- geometry, three meshes, three P2 solves and the binary,
+about 2-3 minutes on 2 busy cores.  SINTERDEM_FE_LONG=1 adds every case of
+fe_random.CASES on the table's levels (about 5 minutes per case) and checks
+them against validation/data/random_conductivity.csv (written by
+`python validation/fe_random.py --table`)."""
+import csv
+import math
+import os
+
+import numpy as np
+import pytest
+
+import fe_random as fr
+import random_packing as rp
+
+LONG = os.environ.get("SINTERDEM_FE_LONG", "") not in ("", "0")
+TEST_CASE = "n16-h002"
+TEST_LEVELS = (-1, 0, 1)
+# The network's relative deviation from the converged FE (mean of the
+# diagonal) may differ from the stored one by this much on the coarse test
+# levels (their extrapolation is less accurate than the table's).
+DEV_TOL = 0.01
+
+
+def needs_binary():
+    if not os.path.isfile(fr.sinterdem_bin()):
+        pytest.skip(f"sinterdem binary not found at {fr.sinterdem_bin()} (cargo build --release "
+                    "--features h5, or set SINTERDEM_BIN)")
+
+
+def stored_table():
+    with open(fr.TABLE) as fh:
+        rows = list(csv.DictReader(ln for ln in fh if not ln.startswith("#")))
+    out = {}
+    for r in rows:
+        out.setdefault(r["case"], {})[r["level"]] = r
+    return out
+
+
+def test_table_has_every_case_with_extrapolation():
+    t = stored_table()
+    assert set(t) == set(fr.CASES)
+    for name, rows in t.items():
+        ex = rows["extrap"]
+        p = float(ex["ndofs"])               # observed order of the mean
+        assert 0.3 < p < 8.0, (name, p)
+        lv = sorted(int(k) for k in rows if k != "extrap")
+        fe = [float(rows[str(k)]["fe_mean"]) for k in lv]
+        assert all(b < a for a, b in zip(fe, fe[1:])), (name, fe)   # decreasing in h
+        assert float(ex["fe_mean"]) < fe[-1]
+
+
+# ------------------------------------------------------------- packings
+@pytest.mark.parametrize("name", ["n16-h002", "n16s-h012"])
+def test_packing_generator(name):
+    n, eta, spread, seed = fr.CASES[name]
+    pk = rp.make_packing(n, eta, spread, seed)
+    pk2 = rp.make_packing(n, eta, spread, seed)
+    assert np.array_equal(pk.x, pk2.x) and np.array_equal(pk.r, pk2.r)     # seeded
+    st = rp.stats(pk)
+    assert abs(st["mean_h_over_r"] / eta - 1) < 0.15
+    assert st["min_h_over_r"] > 0.2 * eta
+    assert st["coordination_min"] >= 1
+    # every other pair is clearly apart (no hair-thin gaps)
+    i, j = np.triu_indices(n, 1)
+    dv, _ = rp._min_image(pk.x, pk.L, i, j)
+    d = np.linalg.norm(dv, axis=1)
+    bonded = set(map(tuple, pk.bonds.tolist()))
+    free = np.array([(a, b) not in bonded for a, b in zip(i, j)])
+    assert np.all(d[free] > (pk.r[i] + pk.r[j])[free] + 0.04)
+    assert pk.L >= 4 * pk.r.max()               # sinterdem's periodic box condition
+    if spread:
+        assert pk.r.max() / pk.r.min() > 1.15
+
+
+def test_network_sees_the_same_contacts(tmp_path):
+    needs_binary()
+    pk = rp.make_packing(*fr.CASES["n16s-h006"])
+    K, res = fr.network_kappa(pk, str(tmp_path), "t")
+    assert res["periodic_contacts"] == len(pk.bonds)
+    assert np.allclose(K, K.T, atol=1e-12)
+
+
+def test_periodic_identification_pairs_faces():
+    """A unit cube's P2 DOFs: the identification leaves exactly the DOFs of
+    the half-open cube [0, 1)^3."""
+    from skfem import MeshTet1, Basis, ElementTetP2
+    M = MeshTet1.init_tensor(*(np.linspace(0, 1, 4),) * 3)
+    b = Basis(M, ElementTetP2())
+    rep = fr.periodic_map(b.doflocs, 1.0)
+    x = b.doflocs.T
+    inner = np.all(x < 1 - 1e-9, axis=1)
+    assert len(np.unique(rep)) == int(inner.sum())
+    assert np.all(inner[np.unique(rep)])
+
+
+def test_solid_cube_gives_identity():
+    """The full periodic cube (no pores) must give kappa_eff = kappa_s I."""
+    from skfem import MeshTet1
+    M = MeshTet1.init_tensor(*(np.linspace(0, 2.0, 4),) * 3)
+    K, _ = fr.solve_kappa(M, 2.0)
+    assert np.allclose(K, np.eye(3), atol=1e-9)
+
+
+# ------------------------------------------------- FE against the network
+def compare(name, levels):
+    needs_binary()
+    r = fr.run_case(name, levels, verbose=False)
+    fe_mean = [np.trace(K) / 3 for K in r["Ks"]]
+    net = np.trace(r["Kn_fit"]) / 3
+    return r, fe_mean, net
+
+
+@pytest.fixture(scope="module")
+def smallest():
+    return compare(TEST_CASE, TEST_LEVELS)
+
+
+def test_fe_converges(smallest):
+    r, fe, _ = smallest
+    # error decreasing with h (the energy form is a Galerkin upper bound) at
+    # a positive observed order
+    assert fe[0] > fe[1] > fe[2], fe
+    assert r["p"] > 0.3, r["p"]
+    # the extrapolation is a small correction
+    assert abs(r["mean_x"] / fe[-1] - 1) < 0.02
+    for K in r["Ks"]:
+        assert np.allclose(K, K.T, atol=1e-6 * np.trace(K))
+
+
+def test_network_against_fe_smallest(smallest):
+    """Network (fe_fit law) against the converged FE: the deviation must be
+    the measured one of the stored table (within DEV_TOL), and the stored
+    table's finest-level value reproduces."""
+    r, fe, net = smallest
+    dev = net / r["mean_x"] - 1
+    t = stored_table()[TEST_CASE]
+    dev_stored = float(t["extrap"]["net_fit_mean"]) / float(t["extrap"]["fe_mean"]) - 1
+    assert abs(dev - dev_stored) < DEV_TOL, (dev, dev_stored)
+    assert float(t["0"]["fe_mean"]) == pytest.approx(fe[1], rel=2e-3)
+    # the diagonal components one by one, and the off-diagonal
+    for k in range(3):
+        assert abs(r["Kn_fit"][k, k] / r["diag_x"][k] - 1) < abs(dev_stored) + 0.03
+    assert abs(r["Kn_fit"][0, 1] - r["Ks"][-1][0, 1]) < 0.03 * r["mean_x"]
+
+
+def test_network_within_two_percent_smallest(smallest):
+    r, fe, net = smallest
+    assert abs(net / r["mean_x"] - 1) < 0.02
+
+
+# ------------------------------------------------------------ long mode
+@pytest.mark.skipif(not LONG, reason="set SINTERDEM_FE_LONG=1 for every case (~5 min each)")
+@pytest.mark.parametrize("name", sorted(fr.CASES))
+def test_long_case_reproduces_table(name):
+    t = stored_table()[name]
+    levels = tuple(sorted(int(k) for k in t if k != "extrap"))
+    r, fe, net = compare(name, levels)
+    for L_, f in zip(levels, fe):
+        assert f == pytest.approx(float(t[str(L_)]["fe_mean"]), rel=2e-3)
+    assert r["mean_x"] == pytest.approx(float(t["extrap"]["fe_mean"]), rel=2e-3)
+    assert net == pytest.approx(float(t["extrap"]["net_fit_mean"]), rel=1e-9)
