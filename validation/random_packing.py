@@ -264,3 +264,72 @@ if __name__ == "__main__":
     a = ap.parse_args()
     pk = make_packing(a.n, a.eta, a.spread, a.seed)
     print(json.dumps(stats(pk), indent=1))
+
+
+# --------------------------------------------------------------------------
+# an independent Python twin of the periodic network homogenisation of
+# `sinterdem conductivity` (docs/heat-model.md "Effective conductivity"), for
+# checking the binary and trying pipe-conductance variants
+# --------------------------------------------------------------------------
+def network_kappa_py(pk: Packing, half):
+    """kappa_eff/kappa_s of the pipe network: pipes K_ij = 1/(1/K_i + 1/K_j),
+    K_i = half(a, r_i, bond index, 'i'|'j') (kappa_s = 1); T_i = G.x_i + theta_i,
+    theta periodic; kappa_kl = (1/V) sum K_ij (e_k.b + dtheta_k)(e_l.b + dtheta_l)."""
+    import scipy.sparse as sps
+    import scipy.sparse.linalg as spl
+    from fe_conductance import neck_radius
+    n = len(pk.r)
+    b = pk.branch()
+    i, j = pk.bonds[:, 0], pk.bonds[:, 1]
+    K = np.empty(len(i))
+    for e, (ii, jj) in enumerate(zip(i, j)):
+        h = pk.r[ii] + pk.r[jj] - np.linalg.norm(b[e])
+        a = neck_radius(pk.r[ii], pk.r[jj], h)[0]
+        K[e] = 1.0 / (1.0 / half(a, pk.r[ii], e, "i") + 1.0 / half(a, pk.r[jj], e, "j"))
+    Lp = sps.coo_matrix((np.concatenate([K, K, -K, -K]),
+                         (np.concatenate([i, j, i, j]), np.concatenate([i, j, j, i]))),
+                        shape=(n, n)).tocsc()
+    keep = np.arange(1, n)
+    th = []
+    for k in range(3):
+        g = K * b[:, k]                       # flux of the imposed gradient along each pipe
+        rhs = np.zeros(n)
+        np.add.at(rhs, i, g)
+        np.add.at(rhs, j, -g)
+        t = np.zeros(n)
+        t[keep] = spl.spsolve(Lp[keep][:, keep], rhs[keep])
+        th.append(t)
+    dT = [b[:, k] + th[k][j] - th[k][i] for k in range(3)]
+    V = pk.L ** 3
+    return np.array([[np.sum(K * dT[k] * dT[l]) / V for l in range(3)] for k in range(3)])
+
+
+def neck_geometry_stats(pk: Packing) -> dict:
+    """Crowding of necks on the spheres: the angle between the axes of two
+    necks of one sphere, and how many such pairs have overlapping caps
+    (angle < asin(a1/r) + asin(a2/r))."""
+    from fe_conductance import neck_radius
+    b = pk.branch()
+    axes = [[] for _ in pk.r]
+    for e, (ii, jj) in enumerate(pk.bonds):
+        d = np.linalg.norm(b[e])
+        a = neck_radius(pk.r[ii], pk.r[jj], pk.r[ii] + pk.r[jj] - d)[0]
+        axes[ii].append((b[e] / d, a))
+        axes[jj].append((-b[e] / d, a))
+    angles, crowded = [], 0
+    for k, ax in enumerate(axes):
+        for p in range(len(ax)):
+            for q in range(p + 1, len(ax)):
+                ang = math.acos(max(-1.0, min(1.0, float(ax[p][0] @ ax[q][0]))))
+                angles.append(ang)
+                lim = math.asin(min(1, ax[p][1] / pk.r[k])) + math.asin(min(1, ax[q][1] / pk.r[k]))
+                crowded += ang < lim
+    angles = np.degrees(np.array(angles))
+    cov = 0.0
+    for k, ax in enumerate(axes):     # fraction of the sphere surface under caps
+        for (_, a) in ax:
+            hc = pk.r[k] - math.sqrt(max(pk.r[k] ** 2 - a * a, 0))
+            cov += 2 * math.pi * pk.r[k] * hc / (4 * math.pi * pk.r[k] ** 2)
+    return dict(min_neck_angle_deg=float(angles.min()), mean_neck_angle_deg=float(angles.mean()),
+                overlapping_cap_pairs=int(crowded), neck_pairs=len(angles),
+                cap_coverage=cov / len(pk.r))

@@ -165,3 +165,31 @@ def test_long_case_reproduces_table(name):
         assert f == pytest.approx(float(t[str(L_)]["fe_mean"]), rel=2e-3)
     assert r["mean_x"] == pytest.approx(float(t["extrap"]["fe_mean"]), rel=2e-3)
     assert net == pytest.approx(float(t["extrap"]["net_fit_mean"]), rel=1e-9)
+
+
+# ------------------------------------------------ network twin, statistics
+def test_python_network_twin_matches_binary(tmp_path):
+    """random_packing.network_kappa_py (used to try pipe-law variants) is the
+    binary's periodic homogenisation to round-off (fe_fit law)."""
+    needs_binary()
+    from test_conductance import rust_fit_coefficients
+    import fe_conductance as fc
+    coef = rust_fit_coefficients()
+    pk = rp.make_packing(*fr.CASES["n16s-h012"])
+    Kb, _ = fr.network_kappa(pk, str(tmp_path), "t")
+    Kp = rp.network_kappa_py(pk, lambda a, r, e, s: fc.fe_fit_eval(a / r, coef) * math.pi * a)
+    assert np.allclose(Kp, Kb, rtol=1e-9, atol=1e-12)
+
+
+def test_monte_carlo_volume_matches_occ():
+    """The check that catches failed OCC booleans: the Monte-Carlo volume of
+    the union agrees with the exact volume of one isolated pair."""
+    pk = rp.Packing(x=np.array([[3.0, 3.0, 3.0], [4.9, 3.0, 3.0]]), r=np.array([1.0, 1.0]),
+                    L=8.0, bonds=np.array([[0, 1]]), shifts=np.zeros((1, 3), int), meta={})
+    import fe_conductance as fc
+    a, hc, _, hn, _ = fc.neck_radius(1.0, 1.0, 0.1)
+    exact = 2 * (4 / 3 * math.pi - math.pi * hc ** 2 * (3 - hc) / 3) + math.pi * a * a * hn
+    v, se = fr.mc_volume(pk, n=400_000)
+    assert abs(v - exact) < 4 * se
+    # volume conservation: the union equals the two full spheres
+    assert exact == pytest.approx(8 / 3 * math.pi, rel=1e-9)
