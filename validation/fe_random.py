@@ -382,11 +382,13 @@ def fe_kappa_levels(pk, levels, order=2, verbose=False, **kw):
     """kappa_eff/kappa_s on the mesh levels (one geometry, remeshed): lists
     of 3x3 tensors and info dicts.  order=2: isoparametric P2 (gmsh's curved
     order-2 mesh); order=1: P1 on straight tetrahedra."""
-    t0 = time.time()
-    meshes = build_mesh(pk, m=[mesh_factor(L_) for L_ in levels], order=order, **kw)
-    tm = (time.time() - t0) / len(levels)
     Ks, infos = [], []
-    for level, (X, T, vol) in zip(levels, meshes):
+    for level in levels:
+        # the geometry is rebuilt per level: remeshing a periodic model after
+        # gmsh.model.mesh.clear() can lose the curve correspondences
+        t0 = time.time()
+        (X, T, vol), = build_mesh(pk, m=[mesh_factor(level)], order=order, **kw)
+        tm = time.time() - t0
         M = mesh_to_skfem(X, T)
         t1 = time.time()
         K, info = solve_kappa(M, pk.L, verbose, p2=(order == 2))
@@ -395,7 +397,7 @@ def fe_kappa_levels(pk, levels, order=2, verbose=False, **kw):
                     solid_volume_fraction=vol / pk.L ** 3)
         if verbose:
             print(f"  level {level}: tets {info['ntets']} dofs {info['ndofs']} "
-                  f"(geometry+mesh {tm:.1f}s per level) solve {info['t_solve']:.1f}s  "
+                  f"geometry+mesh {tm:.1f}s solve {info['t_solve']:.1f}s  "
                   f"diag {np.diag(K)}", flush=True)
         Ks.append(K)
         infos.append(info)
