@@ -382,17 +382,36 @@ def fe_kappa_levels(pk, levels, order=2, verbose=False, **kw):
     """kappa_eff/kappa_s on the mesh levels (one geometry, remeshed): lists
     of 3x3 tensors and info dicts.  order=2: isoparametric P2 (gmsh's curved
     order-2 mesh); order=1: P1 on straight tetrahedra."""
+    import copy
     Ks, infos = [], []
+    rng = np.random.default_rng(1000 + int(pk.meta.get("seed", 0)))
     for level in levels:
-        # the geometry is rebuilt per level: remeshing a periodic model after
-        # gmsh.model.mesh.clear() can lose the curve correspondences
+        # The geometry is rebuilt per level.  OCC booleans occasionally fail
+        # (caught by the Monte-Carlo volume check), and gmsh's periodic
+        # surface meshing occasionally mismatches the curves of a surface
+        # cut by two box faces ("curve .. has n vertices, whereas
+        # correspondant .. has m"); kappa_eff does not depend on a translation
+        # of the periodic packing, so that level is redone on a translated copy.
         t0 = time.time()
-        (X, T, vol), = build_mesh(pk, m=[mesh_factor(level)], order=order, **kw)
+        q = copy.deepcopy(pk)
+        for attempt in range(10):
+            try:
+                (X, T, vol), = build_mesh(q, m=[mesh_factor(level)], order=order, **kw)
+                break
+            except Exception as e:       # GeometryError or gmsh's meshing exception
+                if verbose:
+                    print(f"  level {level}: {str(e)[:120]}; translating the packing", flush=True)
+                q.x = np.mod(q.x + rp._best_translation(q, rng, tries=50), q.L)
+                _, s2 = rp._min_image(q.x, q.L, q.bonds[:, 0], q.bonds[:, 1])
+                q.shifts = s2.astype(int)
+        else:
+            raise RuntimeError(f"level {level}: geometry/mesh failed in every translation")
         tm = time.time() - t0
         M = mesh_to_skfem(X, T)
         t1 = time.time()
         K, info = solve_kappa(M, pk.L, verbose, p2=(order == 2))
         info.update(straightened=int(getattr(M, "n_straightened", 0)), level=level,
+                    translations=attempt,
                     mesh_factor=mesh_factor(level), t_mesh=tm, t_solve=time.time() - t1,
                     solid_volume_fraction=vol / pk.L ** 3)
         if verbose:
@@ -469,22 +488,7 @@ def run_case(name, levels=(0, 1, 2), verbose=True, order=2):
     n, eta, spread, seed = CASES[name]
     pk = rp.make_packing(n, eta, spread, seed)
     st = rp.stats(pk)
-    # OCC booleans occasionally fail on a configuration (caught by the
-    # Monte-Carlo volume check); kappa_eff does not depend on a translation
-    # of the periodic packing, so try another one
-    rng = np.random.default_rng(1000 + seed)
-    for attempt in range(6):
-        try:
-            Ks, infos = fe_kappa_levels(pk, levels, order=order, verbose=verbose)
-            break
-        except GeometryError as e:
-            if verbose:
-                print(f"  {e}; translating the packing", flush=True)
-            pk.x = np.mod(pk.x + rp._best_translation(pk, rng, tries=50), pk.L)
-            _, s2 = rp._min_image(pk.x, pk.L, pk.bonds[:, 0], pk.bonds[:, 1])
-            pk.shifts = s2.astype(int)
-    else:
-        raise RuntimeError(f"{name}: geometry failed in every translation")
+    Ks, infos = fe_kappa_levels(pk, levels, order=order, verbose=verbose)
     folder = os.path.join(DATA, "random", name)
     Kn_fit, res = network_kappa(pk, folder, name, "fe_fit")
     Kn_lin, _ = network_kappa(pk, os.path.join(folder, "linear"), name, "linear")
