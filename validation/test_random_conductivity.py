@@ -127,9 +127,10 @@ def test_fe_converges(smallest):
     for K in r["Ks"]:
         assert np.allclose(K, K.T, atol=1e-6 * np.trace(K))
     t = stored_table()[TEST_CASE]
-    for L_, f in zip(TEST_LEVELS, fe):
-        if str(L_) in t:
-            assert f == pytest.approx(float(t[str(L_)]["fe_mean"]), rel=1e-4), L_
+    # level 0 meshes the untranslated packing in both runs: the same mesh.
+    # (Level 1 of the table was redone on a translated copy after a gmsh
+    # periodic-meshing failure, so it is another mesh of the same size.)
+    assert fe[1] == pytest.approx(float(t["0"]["fe_mean"]), rel=1e-4)
     # the finest stored level is below every recomputed coarse level and the
     # converged value below that
     fx = float(t["extrap"]["fe_mean"])
