@@ -150,7 +150,7 @@ def test_network_within_two_percent_smallest(smallest):
     components within 2 % of the mean."""
     r, fe, net = smallest
     fx, t = stored_converged(TEST_CASE)
-    assert net == pytest.approx(float(t["extrap"]["net_fit_mean"]), rel=1e-9)
+    assert net == pytest.approx(float(t["extrap"]["net_fit_mean"]), rel=2e-6)   # 7 digits stored
     assert abs(net / fx - 1) < 0.02, net / fx - 1
     for k, c in enumerate(("xx", "yy", "zz")):
         assert abs(r["Kn_fit"][k, k] / float(t["extrap"][f"fe_{c}"]) - 1) < 0.02, c
@@ -168,7 +168,7 @@ def test_long_case_reproduces_table(name):
     for L_, f in zip(levels, fe):
         assert f == pytest.approx(float(t[str(L_)]["fe_mean"]), rel=2e-3)
     assert r["mean_x"] == pytest.approx(float(t["extrap"]["fe_mean"]), rel=2e-3)
-    assert net == pytest.approx(float(t["extrap"]["net_fit_mean"]), rel=1e-9)
+    assert net == pytest.approx(float(t["extrap"]["net_fit_mean"]), rel=2e-6)   # 7 digits stored
 
 
 # ------------------------------------------------ network twin, statistics
