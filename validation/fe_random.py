@@ -22,15 +22,15 @@ boundaries), T = G.x + theta with theta periodic by DOF identification
 the energy form, which for the diagonal is a Galerkin upper bound.  One
 factorisation / AMG hierarchy serves the three gradients.
 
-Mesh size: a callback, per neck  s = m (a/n_a + g dist(neck ring)), capped
-at m s_max; m is the mesh factor (levels m = 1, 1/2^(1/3), 1/2^(2/3), ...
-halve the element size every three levels: about twice the elements per level).
+Mesh size: a callback, per neck  s = m min(s_max, a/n_a + g dist(neck rim));
+m is the mesh factor, level L has m = 2^(1 - L/3) (the element size halves
+every three levels: about twice the elements per level).
 The converged value is the extrapolation f = f_inf + C h^p through the last
 three levels with h = N_dof^(-1/3) (unequal ratios: p solved for).
 
 Usage:
   python validation/fe_random.py --n 16 --eta 0.12 --levels 0 1 2
-  python validation/fe_random.py --table        # all cases, writes validation/data/random_conductivity.csv
+  python validation/fe_random.py --table --levels 0 1 2 3 4   # all cases -> validation/data/random_conductivity.csv
 """
 from __future__ import annotations
 
@@ -129,7 +129,7 @@ def build_mesh(pk: rp.Packing, m=1.0, n_a: float = 5.0, grow: float = 0.5,
     import gmsh
     L = pk.L
     nk = necks(pk)
-    gmsh.initialize(["-noenv"] if False else [])
+    gmsh.initialize()
     try:
         gmsh.option.setNumber("General.Terminal", 1 if verbose else 0)
         gmsh.option.setNumber("General.NumThreads", threads)
@@ -157,7 +157,6 @@ def build_mesh(pk: rp.Packing, m=1.0, n_a: float = 5.0, grow: float = 0.5,
         # periodic faces: match the surfaces of face k = 0 with those of k = L
         eps = 1e-7 * L
         for k in range(3):
-            lo = [eps if q != k else eps for q in range(3)]
             bb_lo = [-eps, -eps, -eps, L + eps, L + eps, L + eps]
             bb_lo[3 + k] = eps
             bb_hi = [-eps, -eps, -eps, L + eps, L + eps, L + eps]
@@ -195,7 +194,7 @@ def build_mesh(pk: rp.Packing, m=1.0, n_a: float = 5.0, grow: float = 0.5,
             p = np.array([x, y, z])
             dv = p - C
             dv -= L * np.round(dv / L)
-            ax = dv @ N.T if False else np.einsum("ij,ij->i", dv, N)
+            ax = np.einsum("ij,ij->i", dv, N)
             rad = np.sqrt(np.maximum(np.einsum("ij,ij->i", dv, dv) - ax * ax, 0.0))
             dist = np.hypot(rad - A, np.maximum(np.abs(ax) - 0.5 * H, 0.0))
             return float(m * min(s_max, np.min(A / n_a + grow * dist)))
