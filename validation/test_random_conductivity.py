@@ -1,0 +1,231 @@
+"""sinterdem's pipe network against the 3-D periodic FE of random sintered
+packings (issue 23 item 4; docs/validation-conductance.md "Random periodic
+packings").  Run with validation/run_tests.sh.
+
+Default: the smallest case (16 equal spheres, h/r ~ 0.02, TEST_CASE) on
+levels -1, 0, 1 -- three geometries and meshes, three P2 solves and the
+binary; the whole file takes about 90 s on 2 busy cores.  SINTERDEM_FE_LONG=1
+adds every case of fe_random.CASES on the table's levels 0-4 (6-8 minutes per
+case) and checks that they reproduce validation/data/random_conductivity.csv
+(written by `python validation/fe_random.py --table --levels 0 1 2 3 4`).
+The network passes the 2 % criterion only at the smallest necks; the larger
+ones fail it (docs/validation-conductance.md "Random periodic packings"), so
+the long mode checks the table's reproduction, not the criterion."""
+import csv
+import math
+import os
+
+import numpy as np
+import pytest
+
+import fe_random as fr
+import random_packing as rp
+
+LONG = os.environ.get("SINTERDEM_FE_LONG", "") not in ("", "0")
+TEST_CASE = "n16-h002"
+TEST_LEVELS = (-1, 0, 1)
+
+
+def needs_binary():
+    if not os.path.isfile(fr.sinterdem_bin()):
+        pytest.skip(f"sinterdem binary not found at {fr.sinterdem_bin()} (cargo build --release "
+                    "--features h5, or set SINTERDEM_BIN)")
+
+
+def stored_table():
+    with open(fr.TABLE) as fh:
+        rows = list(csv.DictReader(ln for ln in fh if not ln.startswith("#")))
+    out = {}
+    for r in rows:
+        out.setdefault(r["case"], {})[r["level"]] = r
+    return out
+
+
+def test_table_has_every_case_with_extrapolation():
+    t = stored_table()
+    assert set(t) == set(fr.CASES)
+    for name, rows in t.items():
+        ex = rows["extrap"]
+        p = float(ex["ndofs"])               # observed order of the mean
+        assert 0.3 < p < 8.0, (name, p)
+        lv = sorted(int(k) for k in rows if k != "extrap")
+        fe = [float(rows[str(k)]["fe_mean"]) for k in lv]
+        assert all(b < a for a, b in zip(fe, fe[1:])), (name, fe)   # decreasing in h
+        assert float(ex["fe_mean"]) < fe[-1]
+
+
+# ------------------------------------------------------------- packings
+@pytest.mark.parametrize("name", ["n16-h002", "n16s-h012"])
+def test_packing_generator(name):
+    n, eta, spread, seed = fr.CASES[name]
+    pk = rp.make_packing(n, eta, spread, seed)
+    pk2 = rp.make_packing(n, eta, spread, seed)
+    assert np.array_equal(pk.x, pk2.x) and np.array_equal(pk.r, pk2.r)     # seeded
+    st = rp.stats(pk)
+    assert abs(st["mean_h_over_r"] / eta - 1) < 0.15
+    assert st["min_h_over_r"] > 0.2 * eta
+    assert st["coordination_min"] >= 1
+    # every other pair is clearly apart (no hair-thin gaps)
+    i, j = np.triu_indices(n, 1)
+    dv, _ = rp._min_image(pk.x, pk.L, i, j)
+    d = np.linalg.norm(dv, axis=1)
+    bonded = set(map(tuple, pk.bonds.tolist()))
+    free = np.array([(a, b) not in bonded for a, b in zip(i, j)])
+    assert np.all(d[free] > (pk.r[i] + pk.r[j])[free] + 0.04)
+    assert pk.L >= 4 * pk.r.max()               # sinterdem's periodic box condition
+    if spread:
+        assert pk.r.max() / pk.r.min() > 1.15
+
+
+def test_network_sees_the_same_contacts(tmp_path):
+    needs_binary()
+    pk = rp.make_packing(*fr.CASES["n16s-h006"])
+    K, res = fr.network_kappa(pk, str(tmp_path), "t")
+    assert res["periodic_contacts"] == len(pk.bonds)
+    assert np.allclose(K, K.T, atol=1e-12)
+
+
+def test_periodic_identification_pairs_faces():
+    """A unit cube's P2 DOFs: the identification leaves exactly the DOFs of
+    the half-open cube [0, 1)^3."""
+    from skfem import MeshTet1, Basis, ElementTetP2
+    M = MeshTet1.init_tensor(*(np.linspace(0, 1, 4),) * 3)
+    b = Basis(M, ElementTetP2())
+    rep = fr.periodic_map(b.doflocs, 1.0)
+    x = b.doflocs.T
+    inner = np.all(x < 1 - 1e-9, axis=1)
+    assert len(np.unique(rep)) == int(inner.sum())
+    assert np.all(inner[np.unique(rep)])
+
+
+def test_solid_cube_gives_identity():
+    """The full periodic cube (no pores) must give kappa_eff = kappa_s I."""
+    from skfem import MeshTet1
+    M = MeshTet1.init_tensor(*(np.linspace(0, 2.0, 4),) * 3)
+    K, _ = fr.solve_kappa(M, 2.0)
+    assert np.allclose(K, np.eye(3), atol=1e-9)
+
+
+# ------------------------------------------------- FE against the network
+def compare(name, levels):
+    needs_binary()
+    r = fr.run_case(name, levels, verbose=False)
+    fe_mean = [np.trace(K) / 3 for K in r["Ks"]]
+    net = np.trace(r["Kn_fit"]) / 3
+    return r, fe_mean, net
+
+
+@pytest.fixture(scope="module")
+def smallest():
+    return compare(TEST_CASE, TEST_LEVELS)
+
+
+def test_fe_converges(smallest):
+    """The recomputed coarse levels: the energy (a Galerkin upper bound) falls
+    with h at a positive observed order, the tensor is symmetric, and the
+    levels the table shares reproduce it (the meshes are deterministic)."""
+    r, fe, _ = smallest
+    assert fe[0] > fe[1] > fe[2], fe
+    assert r["p"] > 0.3, r["p"]
+    for K in r["Ks"]:
+        assert np.allclose(K, K.T, atol=1e-6 * np.trace(K))
+    t = stored_table()[TEST_CASE]
+    # level 0 meshes the untranslated packing in both runs: the same mesh.
+    # (Level 1 of the table was redone on a translated copy after a gmsh
+    # periodic-meshing failure, so it is another mesh of the same size.)
+    assert fe[1] == pytest.approx(float(t["0"]["fe_mean"]), rel=1e-4)
+    # the finest stored level is below every recomputed coarse level and the
+    # converged value below that
+    fx = float(t["extrap"]["fe_mean"])
+    lv = sorted(int(k) for k in t if k != "extrap")
+    assert fx < float(t[str(lv[-1])]["fe_mean"]) < fe[-1]
+
+
+def stored_converged(name):
+    t = stored_table()[name]
+    return float(t["extrap"]["fe_mean"]), t
+
+
+def test_network_within_two_percent_smallest(smallest):
+    """The network (fe_fit law, recomputed by the binary) against the
+    converged FE of the table (levels 0-4, extrapolated): within 2 % on the
+    mean of the diagonal and on each diagonal component, and the off-diagonal
+    components within 2 % of the mean."""
+    r, fe, net = smallest
+    fx, t = stored_converged(TEST_CASE)
+    assert net == pytest.approx(float(t["extrap"]["net_fit_mean"]), rel=2e-6)   # 7 digits stored
+    assert abs(net / fx - 1) < 0.02, net / fx - 1
+    for k, c in enumerate(("xx", "yy", "zz")):
+        assert abs(r["Kn_fit"][k, k] / float(t["extrap"][f"fe_{c}"]) - 1) < 0.02, c
+    finest = max(int(k) for k in t if k != "extrap")
+    assert abs(r["Kn_fit"][0, 1] - float(t[str(finest)]["fe_xy"])) < 0.02 * fx
+
+
+# ------------------------------------------------------------ long mode
+@pytest.mark.skipif(not LONG, reason="set SINTERDEM_FE_LONG=1 for every case (~5 min each)")
+@pytest.mark.parametrize("name", sorted(fr.CASES))
+def test_long_case_reproduces_table(name):
+    t = stored_table()[name]
+    levels = tuple(sorted(int(k) for k in t if k != "extrap"))
+    r, fe, net = compare(name, levels)
+    for L_, f in zip(levels, fe):
+        assert f == pytest.approx(float(t[str(L_)]["fe_mean"]), rel=2e-3)
+    assert r["mean_x"] == pytest.approx(float(t["extrap"]["fe_mean"]), rel=2e-3)
+    assert net == pytest.approx(float(t["extrap"]["net_fit_mean"]), rel=2e-6)   # 7 digits stored
+
+
+# ------------------------------------------------ network twin, statistics
+def test_python_network_twin_matches_binary(tmp_path):
+    """random_packing.network_kappa_py (used to try pipe-law variants) is the
+    binary's periodic homogenisation to round-off (fe_fit law)."""
+    needs_binary()
+    from test_conductance import rust_fit_coefficients
+    import fe_conductance as fc
+    coef = rust_fit_coefficients()
+    pk = rp.make_packing(*fr.CASES["n16s-h012"])
+    Kb, _ = fr.network_kappa(pk, str(tmp_path), "t")
+    Kp = rp.network_kappa_py(pk, lambda a, r, e, s: fc.fe_fit_eval(a / r, coef) * math.pi * a)
+    assert np.allclose(Kp, Kb, rtol=1e-9, atol=1e-12)
+
+
+def test_monte_carlo_volume_matches_occ():
+    """The check that catches failed OCC booleans: the Monte-Carlo volume of
+    the union agrees with the exact volume of one isolated pair."""
+    pk = rp.Packing(x=np.array([[3.0, 3.0, 3.0], [4.9, 3.0, 3.0]]), r=np.array([1.0, 1.0]),
+                    L=8.0, bonds=np.array([[0, 1]]), shifts=np.zeros((1, 3), int), meta={})
+    import fe_conductance as fc
+    a, hc, _, hn, _ = fc.neck_radius(1.0, 1.0, 0.1)
+    exact = 2 * (4 / 3 * math.pi - math.pi * hc ** 2 * (3 - hc) / 3) + math.pi * a * a * hn
+    v, se = fr.mc_volume(pk, n=400_000)
+    assert abs(v - exact) < 4 * se
+    # volume conservation: the union equals the two full spheres
+    assert exact == pytest.approx(8 / 3 * math.pi, rel=1e-9)
+
+
+# ------------------------------------------------- trial crowding correction
+def test_crowding_correction_trial():
+    """docs "A correction (trial)": refit k, q on the equal-sphere packings
+    against the stored converged FE and check the size-spread packings (not
+    fitted): uncorrected the network is > 4 % off at h/r >= 0.06, corrected
+    within 2 % on the mean of the diagonal and 3 % per axis."""
+    import crowding_correction as cc
+    from scipy.optimize import minimize
+    fe = cc.load()
+    pks = {n: rp.make_packing(*fr.CASES[n]) for n in fe}
+    train = [n for n in fe if not n.startswith("n16s")]
+    check = [n for n in fe if n.startswith("n16s")]
+
+    def dev(n, k, q):
+        return np.diag(cc.kappa(pks[n], k, q)) / fe[n] - 1
+    res = minimize(lambda p: float(sum(np.sum(dev(n, *p) ** 2) for n in train)), [3.0, 1.5],
+                   method="Nelder-Mead", options=dict(xatol=1e-3, fatol=1e-9))
+    k, q = res.x
+    assert 2.0 < k < 4.0 and 1.0 < q < 2.0, (k, q)
+    for n in check:
+        d0 = np.trace(cc.kappa(pks[n])) / fe[n].sum() - 1
+        d1 = dev(n, k, q)
+        m1 = np.trace(cc.kappa(pks[n], k, q)) / fe[n].sum() - 1
+        if fr.CASES[n][1] >= 0.06:
+            assert d0 > 0.04, (n, d0)
+        assert abs(m1) < 0.02, (n, m1)
+        assert np.all(np.abs(d1) < 0.03), (n, d1)
