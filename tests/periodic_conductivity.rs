@@ -356,3 +356,16 @@ fn compact_runs_refuse_a_periodic_box() {
     };
     assert_eq!(common::key_of(&e), "particles.periodic_box");
 }
+
+#[test]
+fn the_contact_count_of_a_periodic_run_includes_the_contacts_across_the_faces() {
+    let case = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("cases/conductivity/periodic-random.toml");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_sinterdem")).arg("conductivity").arg(&case).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let (all, walled) = (v["contacts"].as_u64().unwrap(), v["walled_contacts"].as_u64().unwrap());
+    assert_eq!(all, v["periodic_contacts"].as_u64().unwrap());
+    // 500 spheres of coordination about 6 in a box about 7 diameters wide: a few hundred contacts
+    // cross the faces
+    assert!(all > walled + 100 && 2 * all > 5 * 500 / 2, "{all} periodic, {walled} walled");
+}
