@@ -54,7 +54,8 @@ impl Profile {
     }
 
     /// From `(time s, temperature K)` rows with increasing times; two rows with the same time
-    /// make a jump (the first row's value at that time, the second's after it).
+    /// make a jump (the first row's value at that time, the second's after it), except at the
+    /// first row (a jump there would be a different start value: give that one).
     pub fn from_table(rows: &[[f64; 2]]) -> Result<Self, ConfigError> {
         if rows.is_empty() {
             return Err(ConfigError::invalid("profile.table: needs at least one [time, temperature] row"));
@@ -66,10 +67,10 @@ impl Profile {
                 return Err(ConfigError::OutOfRange { key: format!("profile.table[{k}].time"), value: r[0], range: "[0, inf)".into(), unit: "s".into() });
             }
             if let Some(&last) = times.last()
-                && (r[0] < last || r[0] == last && k >= 2 && times[k - 2] == last)
+                && (r[0] < last || r[0] == last && (k < 2 || times[k - 2] == last))
             {
                 return Err(ConfigError::invalid(format!(
-                    "profile.table[{k}]: time {} s is not after the previous row's {} s (two rows with the same time make a jump; three may not)",
+                    "profile.table[{k}]: time {} s is not after the previous row's {} s (two rows with the same time make a jump, but not at the first row; three may not)",
                     r[0], last
                 )));
             }
@@ -265,6 +266,11 @@ impl Profile {
         let k = self.times.partition_point(|&x| x < t);
         let mut times = self.times[..k].to_vec();
         let mut temps = self.temps[..k].to_vec();
+        if k == 0 {
+            // no row before t: the history was its first value until then (a table's first row)
+            times.push(0.0);
+            temps.push(self.temps[0]);
+        }
         times.extend([t, t]);
         temps.extend([self.temperature(t), temperature]);
         Ok(Profile { times, temps })

@@ -21,11 +21,12 @@ import os
 import sys
 import tempfile
 from pathlib import Path
-from typing import Any, Callable, Dict, List, Mapping, Optional, Union
+from typing import TYPE_CHECKING, Any, Callable, Dict, List, Mapping, Optional, Union
 
-import numpy as np
+if TYPE_CHECKING:  # numpy is imported where it is used: the command line does not need it
+    import numpy as np
 
-from . import _native, _snapshots
+from . import _native
 from ._errors import ConfigError, Error, IoError, ModelError, SolveError
 
 __all__ = [
@@ -178,11 +179,17 @@ class RunResult:
         return self._series
 
     @property
-    def times(self) -> np.ndarray:
+    def times(self) -> "np.ndarray":
         """Times [s] of the snapshots (``particles.pvd``; empty for kinds without snapshots)."""
+        import numpy as np
+
+        from . import _snapshots
+
         return np.array([t for t, _ in _snapshots.pvd_entries(self.out / "particles.pvd")], dtype=float)
 
-    def _snapshot(self, name: str, i: int) -> Dict[str, np.ndarray]:
+    def _snapshot(self, name: str, i: int) -> Dict[str, "np.ndarray"]:
+        from . import _snapshots
+
         entries = _snapshots.pvd_entries(self.out / f"{name}.pvd")
         if not entries:
             raise IoError(f"{self.out}: no {name}.pvd: this {self.kind} run wrote no snapshots (output.snapshots = 0, or a kind without VTU output)")
@@ -191,13 +198,15 @@ class RunResult:
         except IndexError:
             raise IndexError(f"snapshot {i}: the run wrote {len(entries)} (res.times)") from None
 
-    def particles(self, i: int = -1) -> Dict[str, np.ndarray]:
+    def particles(self, i: int = -1) -> Dict[str, "np.ndarray"]:
         """The particles of snapshot ``i`` (default: the last), read from ``particles_NNNNNN.vtu``.
 
         Keys as ``Simulation.particles``: ``ids`` (N,) int, ``positions`` (N, 3) m, ``radii``
         (N,) m, ``temperatures`` (N,) K, ``displacements`` (N, 3) m (zeros for heat runs), and
         every other point array of the file under its own name (``coordination``, ``velocity_m_per_s``, …).
         """
+        import numpy as np
+
         a = self._snapshot("particles", i)
         n = len(a["Points"])
         d = {
@@ -212,13 +221,15 @@ class RunResult:
                 d[k] = v
         return d
 
-    def contacts(self, i: int = -1) -> Dict[str, np.ndarray]:
+    def contacts(self, i: int = -1) -> Dict[str, "np.ndarray"]:
         """The contacts of snapshot ``i`` (default: the last), read from ``contacts_NNNNNN.vtu``.
 
         Keys as ``Simulation.contacts``: ``pairs`` (M, 2) int, ``neck_radii`` (M,) m, ``forces``
         (M,) N (the applied load's normal force; zeros for heat runs), and every other cell
         array under its own name (``contact_shrinkage``, ``conductance_W_per_K``, …).
         """
+        import numpy as np
+
         a = self._snapshot("contacts", i)
         pa, pb = a["particle_a"], a["particle_b"]
         m = len(pa)
@@ -401,13 +412,13 @@ class Simulation:
         return self._final[3] if self._final else self._core.relative_density
 
     @property
-    def particles(self) -> Dict[str, np.ndarray]:
+    def particles(self) -> Dict[str, "np.ndarray"]:
         """The particles now: ``ids`` (N,) int64, ``positions`` (N, 3) m, ``radii`` (N,) m,
         ``temperatures`` (N,) K, ``displacements`` (N, 3) m (a copy)."""
         return self._core.particles()
 
     @property
-    def contacts(self) -> Dict[str, np.ndarray]:
+    def contacts(self) -> Dict[str, "np.ndarray"]:
         """The contacts now: ``pairs`` (M, 2) int64, ``neck_radii`` (M,) m, ``forces`` (M,) N (a copy)."""
         return self._core.contacts()
 

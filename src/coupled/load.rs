@@ -51,10 +51,10 @@ impl StressProfile {
         for (k, r) in rows.iter().enumerate() {
             time.check(&format!("load.stress_table[{k}] time"), r[0])?;
             if let Some(&last) = times.last()
-                && (r[0] < last || r[0] == last && k >= 2 && times[k - 2] == last)
+                && (r[0] < last || r[0] == last && (k < 2 || times[k - 2] == last))
             {
                 return Err(ConfigError::invalid(format!(
-                    "load.stress_table[{k}]: time {} s is not after the previous row's {} s (two rows with the same time make a jump; three may not)",
+                    "load.stress_table[{k}]: time {} s is not after the previous row's {} s (two rows with the same time make a jump, but not at the first row; three may not)",
                     r[0], last
                 )));
             }
@@ -99,6 +99,11 @@ impl StressProfile {
         let k = self.times.partition_point(|&x| x < t);
         let mut times = self.times[..k].to_vec();
         let mut values = self.values[..k].to_vec();
+        if k == 0 {
+            // no row before t: the history was its first value until then (a table's first row)
+            times.push(0.0);
+            values.push(self.values[0]);
+        }
         times.extend([t, t]);
         values.extend([self.at(t), stress]);
         Ok(StressProfile { times, values })
