@@ -305,20 +305,7 @@ fn class11_compact_checkpoints_that_validated_but_gave_nan_are_refused() {
         ("/heat_in", serde_json::json!(1e308), "checkpoint.heat_in"),
         ("/heat_stored", serde_json::json!(-1e308), "checkpoint.heat_stored"),
     ];
-    for (pointer, v, needle) in edits {
-        let dir = d.join(format!("edit{}", pointer.replace('/', "-")));
-        copy_dir(&run, &dir);
-        let mut ck = good.clone();
-        *ck.pointer_mut(pointer).unwrap_or_else(|| panic!("{pointer} not in the checkpoint")) = v.clone();
-        std::fs::write(dir.join("checkpoint.json"), ck.to_string()).unwrap();
-        let o = bin().arg("resume").arg(&dir).arg("--quiet").output().unwrap();
-        let err = String::from_utf8_lossy(&o.stderr);
-        assert_eq!(o.status.code(), Some(1), "{pointer} = {v}: {err}");
-        assert!(err.contains(needle), "{pointer} = {v}: {err}");
-    }
-    // the untouched checkpoint resumes
-    let o = bin().arg("resume").arg(&run).arg("--quiet").output().unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    refused_edits(&d, &run, &good, edits);
 }
 
 #[test]
@@ -341,19 +328,7 @@ fn class11_heat_checkpoints_with_overflowing_accounts_or_unequal_histories_are_r
         ("/state/stored0", serde_json::json!(-1e300), "checkpoint.state.stored0"),
         ("/state/hist_t", serde_json::json!(vec![1.0; n_hist + 1]), "state.hist_t"),
     ];
-    for (pointer, v, needle) in edits {
-        let dir = d.join(format!("edit{}", pointer.replace('/', "-")));
-        copy_dir(&run, &dir);
-        let mut ck = good.clone();
-        *ck.pointer_mut(pointer).unwrap_or_else(|| panic!("{pointer} not in the checkpoint")) = v.clone();
-        std::fs::write(dir.join("checkpoint.json"), ck.to_string()).unwrap();
-        let o = bin().arg("resume").arg(&dir).arg("--quiet").output().unwrap();
-        let err = String::from_utf8_lossy(&o.stderr);
-        assert_eq!(o.status.code(), Some(1), "{pointer} = {v}: {err}");
-        assert!(err.contains(needle), "{pointer} = {v}: {err}");
-    }
-    let o = bin().arg("resume").arg(&run).arg("--quiet").output().unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    refused_edits(&d, &run, &good, edits);
 }
 
 #[test]
@@ -378,4 +353,23 @@ fn class12_a_resumed_compact_summary_equals_the_uninterrupted_one_mechanics_coun
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert_eq!(summary_without_times(&work), summary);
     assert_eq!(std::fs::read_to_string(work.join("series.csv")).unwrap(), std::fs::read_to_string(full.join("series.csv")).unwrap());
+}
+
+/// Resumes a copy of the run directory `run` once per edit of its checkpoint `good` (a JSON
+/// pointer, the new value, the text the error must contain): each is refused with exit 1 naming
+/// the entry; then the untouched checkpoint resumes.
+fn refused_edits(d: &Path, run: &Path, good: &serde_json::Value, edits: Vec<(&str, serde_json::Value, &str)>) {
+    for (pointer, v, needle) in edits {
+        let dir = d.join(format!("edit{}", pointer.replace('/', "-")));
+        copy_dir(run, &dir);
+        let mut ck = good.clone();
+        *ck.pointer_mut(pointer).unwrap_or_else(|| panic!("{pointer} not in the checkpoint")) = v.clone();
+        std::fs::write(dir.join("checkpoint.json"), ck.to_string()).unwrap();
+        let o = bin().arg("resume").arg(&dir).arg("--quiet").output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{pointer} = {v}: {err}");
+        assert!(err.contains(needle), "{pointer} = {v}: {err}");
+    }
+    let o = bin().arg("resume").arg(run).arg("--quiet").output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
