@@ -373,3 +373,24 @@ fn refused_edits(d: &Path, run: &Path, good: &serde_json::Value, edits: Vec<(&st
     let o = bin().arg("resume").arg(run).arg("--quiet").output().unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
+
+#[test]
+fn class06_calibration_sigmas_below_the_floor_are_refused_before_any_fit() {
+    let d = common::tmp_dir("sigma-floor");
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases/calibration");
+    let calib = std::fs::read_to_string(src.join("titanium-synthetic.toml"))
+        .unwrap()
+        .replace("\"../titanium-compact-e14b.toml\"", &format!("{:?}", src.join("../titanium-compact-e14b.toml")));
+    std::fs::write(d.join("calib.toml"), calib).unwrap();
+    let data = std::fs::read_to_string(src.join("titanium-synthetic.csv")).unwrap();
+    // the sigma of 5e-324 (inside the old (0, 1]) made chi^2 infinite and the SVD panic
+    let bad = data.replacen(",1.0000e-2,", ",5e-324,", 1);
+    assert_ne!(bad, data);
+    std::fs::write(d.join("titanium-synthetic.csv"), bad).unwrap();
+    let o = bin().arg("check").arg(d.join("calib.toml")).output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("neck_ratio_sigma") && err.contains("1e-9"), "{err}");
+    let o = bin().arg("calibrate").arg(d.join("calib.toml")).arg("--out").arg(d.join("fit")).output().unwrap();
+    assert_eq!(o.status.code(), Some(1), "{}", String::from_utf8_lossy(&o.stderr));
+}

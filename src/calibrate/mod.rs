@@ -60,9 +60,21 @@ pub static RANGES: &[Range] = &[
     ),
     p("data.diameter_m", 0.0, 2e-2, "m", "calibration data: mean particle diameter of an experiment"),
     c("data.neck_ratio", 0.0, 1.0, "1", "calibration data: measured neck ratio y1/R"),
-    p("data.neck_ratio_sigma", 0.0, 1.0, "1", "calibration data: one standard deviation of the neck ratio"),
+    c(
+        "data.neck_ratio_sigma",
+        1e-9,
+        1.0,
+        "1",
+        "calibration data: one standard deviation of the neck ratio (at least 1e-9, so that chi^2 and the 1/sigma-weighted Jacobian stay finite)",
+    ),
     c("data.shrinkage", -1.0, 1.0, "1", "calibration data: measured shrinkage dL/L0"),
-    p("data.shrinkage_sigma", 0.0, 1.0, "1", "calibration data: one standard deviation of the shrinkage"),
+    c(
+        "data.shrinkage_sigma",
+        1e-9,
+        1.0,
+        "1",
+        "calibration data: one standard deviation of the shrinkage (at least 1e-9, so that chi^2 and the 1/sigma-weighted Jacobian stay finite)",
+    ),
     c("data.time_s", 0.0, 1e9, "s", "calibration series: time since the start of the schedule"),
 ];
 
