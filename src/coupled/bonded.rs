@@ -96,23 +96,9 @@ impl MechanicsStage {
         external: Option<&[NodalLoad]>,
         radii: Option<&[f64]>,
     ) -> Result<(Vec<Vector3<f64>>, Vec<f64>), Error> {
-        let sys = self.sys.as_mut().ok_or_else(|| ModelError::new("mechanics: the bonded system was not built"))?;
-        if self.bonds != contacts.len() {
-            sys.set_topology(&contacts.pairs)?;
-            self.bonds = contacts.len();
-        }
-        let y4_y7: Vec<[f64; 2]> = contacts.state.iter().map(|c| [c.y_prev[3], c.y_prev[6]]).collect();
-        // the load (F5) with the link's own E, so that E cancels from the approach per bond
-        let load: Vec<f64> = contacts
-            .state
-            .iter()
-            .zip(approach)
-            .zip(&contacts.pairs)
-            .map(|((c, &a), &[i, j])| {
-                let r_m = radii.map_or(c.r_mean(), |r| 0.5 * (r[i as usize] + r[j as usize]));
-                d7::load_increment(a, 0.0, r_m, sys.link_elastic(i, j)[0])
-            })
-            .collect();
+        let sys = self.synced(contacts)?;
+        let y4_y7 = bar_lengths(contacts);
+        let load = load_increments(sys, contacts, approach, radii);
         let inp = StepInput { positions: &p.position, radii: radii.unwrap_or(&p.radius), y4_y7: &y4_y7, load: &load, external };
         let out = step_or_refactor(sys, &inp)?;
         for (r, d) in self.rotation.iter_mut().zip(&out.dtheta) {
@@ -132,12 +118,8 @@ impl MechanicsStage {
         contacts: &Contacts,
         loads: &[NodalLoad],
     ) -> Result<(Vec<f64>, Vec<Vector3<f64>>), Error> {
-        let sys = self.sys.as_mut().ok_or_else(|| ModelError::new("mechanics: the bonded system was not built"))?;
-        if self.bonds != contacts.len() {
-            sys.set_topology(&contacts.pairs)?;
-            self.bonds = contacts.len();
-        }
-        let y4_y7: Vec<[f64; 2]> = contacts.state.iter().map(|c| [c.y_prev[3], c.y_prev[6]]).collect();
+        let sys = self.synced(contacts)?;
+        let y4_y7 = bar_lengths(contacts);
         let zero = vec![0.0; contacts.len()];
         let out = step_or_refactor(sys, &StepInput { positions: &p.position, radii: &p.radius, y4_y7: &y4_y7, load: &zero, external: Some(loads) })?;
         let r_scale = p.radius.iter().sum::<f64>() / p.len().max(1) as f64;
@@ -177,19 +159,9 @@ impl MechanicsStage {
         cell: &nalgebra::Matrix3<f64>,
         controls: &[CellControl],
     ) -> Result<(Vec<Vector3<f64>>, Vec<f64>, CellStep), Error> {
-        let sys = self.sys.as_mut().ok_or_else(|| ModelError::new("mechanics: the bonded system was not built"))?;
-        if self.bonds != contacts.len() {
-            sys.set_topology(&contacts.pairs)?;
-            self.bonds = contacts.len();
-        }
-        let y4_y7: Vec<[f64; 2]> = contacts.state.iter().map(|c| [c.y_prev[3], c.y_prev[6]]).collect();
-        let load: Vec<f64> = contacts
-            .state
-            .iter()
-            .zip(approach)
-            .zip(&contacts.pairs)
-            .map(|((c, &a), &[i, j])| d7::load_increment(a, 0.0, c.r_mean(), sys.link_elastic(i, j)[0]))
-            .collect();
+        let sys = self.synced(contacts)?;
+        let y4_y7 = bar_lengths(contacts);
+        let load = load_increments(sys, contacts, approach, None);
         let inp = StepInput { positions: &p.position, radii: &p.radius, y4_y7: &y4_y7, load: &load, external: None };
         let ci = CellInput { cell, controls };
         let (out, cs) = match sys.step_periodic(&inp, &ci) {
@@ -223,6 +195,17 @@ impl MechanicsStage {
         Ok(cs.axial_force)
     }
 
+    /// The built bonded system with the bond set of `contacts` (re-topologised when contacts
+    /// appeared since the last solve).
+    fn synced(&mut self, contacts: &Contacts) -> Result<&mut BondedSystem, Error> {
+        let sys = self.sys.as_mut().ok_or_else(|| ModelError::new("mechanics: the bonded system was not built"))?;
+        if self.bonds != contacts.len() {
+            sys.set_topology(&contacts.pairs)?;
+            self.bonds = contacts.len();
+        }
+        Ok(sys)
+    }
+
     /// Adds a solve's counters and times to the stage's totals.
     fn count(&mut self, out_info: &crate::mechanics::MechInfo) {
         self.newton_iterations += out_info.newton_iterations as u64;
@@ -252,4 +235,25 @@ fn step_or_refactor(sys: &mut BondedSystem, inp: &StepInput) -> Result<crate::me
         }
         r => r,
     }
+}
+
+/// `[y4, y7]` per contact at its last accepted state [m] (the bar halves of the bonds, (F1)).
+fn bar_lengths(contacts: &Contacts) -> Vec<[f64; 2]> {
+    contacts.state.iter().map(|c| [c.y_prev[3], c.y_prev[6]]).collect()
+}
+
+/// The load increments (F5) [N] of the eigen-approaches `approach` [m], with each link's own E so
+/// that E cancels from the approach per bond; `radii`: the thermally expanded radii that set R_m
+/// (docs/coupled.md (X6)), None: the contacts' own initial radii.
+fn load_increments(sys: &BondedSystem, contacts: &Contacts, approach: &[f64], radii: Option<&[f64]>) -> Vec<f64> {
+    contacts
+        .state
+        .iter()
+        .zip(approach)
+        .zip(&contacts.pairs)
+        .map(|((c, &a), &[i, j])| {
+            let r_m = radii.map_or(c.r_mean(), |r| 0.5 * (r[i as usize] + r[j as usize]));
+            d7::load_increment(a, 0.0, r_m, sys.link_elastic(i, j)[0])
+        })
+        .collect()
 }
