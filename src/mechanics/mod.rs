@@ -114,8 +114,10 @@ pub struct BondedSystem {
     amg_fresh_iterations: usize,
     /// Per-particle (E [Pa], ν [1]) when particles differ in material; None: `params` for all.
     elastic: Option<Vec<[f64; 2]>>,
-    /// The last solutions (newest last) for the warm start (B12); emptied by [`Self::drop_factor`].
-    history: Vec<Vec<f64>>,
+    /// The last solutions (newest last) of each right-hand-side slot for the warm start (B12):
+    /// slot 0 the load, slots 1… a periodic cell's strain columns (B17); emptied by
+    /// [`Self::drop_factor`].
+    history: Vec<Vec<Vec<f64>>>,
     /// `report` is a periodic cell's analysis ([`periodic::analyse`]), not the constraints'.
     periodic_report: bool,
 }
@@ -316,7 +318,7 @@ impl BondedSystem {
     /// [`Self::step`] with the topology analysis `rep`.
     fn step_with(&mut self, rep: &TopologyReport, inp: &StepInput, mut info: MechInfo, t_start: Instant) -> Result<MechStep, Error> {
         let (geom, blocks, rhs, r_scale) = self.prepare(rep, inp, None, &mut info)?;
-        let x = self.solve_rhs(rep, inp.positions, r_scale, &blocks, &rhs, true, &mut info)?;
+        let x = self.solve_rhs(rep, inp.positions, r_scale, &blocks, &rhs, Some(0), &mut info)?;
         let du: Vec<Vector3<f64>> = x.chunks(6).map(|c| Vector3::new(c[0], c[1], c[2])).collect();
         let dtheta: Vec<Vector3<f64>> = x.chunks(6).map(|c| Vector3::new(c[3], c[4], c[5]) / r_scale).collect();
         let xi: Vec<f64> = self.pairs.iter().zip(&geom).map(|(&[a, b], g)| (du[a as usize] - du[b as usize]).dot(&g.e3)).collect();
@@ -328,9 +330,9 @@ impl BondedSystem {
     }
 
     /// Solves the assembled system `blocks` (topology `rep`) for the scaled right-hand side `rhs`
-    /// with the solver of the parameters (B10); `record`: the solution joins the warm-start
-    /// history (B12) and the warm start is used (the extra right-hand sides of a periodic cell's
-    /// condensation neither use nor join it). Returns the scaled solution on all 6n DOF.
+    /// with the solver of the parameters (B10); `slot`: the warm-start history (B12) this
+    /// right-hand side uses and joins (0: the load; 1…: a periodic cell's strain columns, which
+    /// change little from step to step); None: neither. Returns the scaled solution on all 6n DOF.
     #[allow(clippy::too_many_arguments)]
     fn solve_rhs(
         &mut self,
@@ -339,7 +341,7 @@ impl BondedSystem {
         r_scale: f64,
         blocks: &BlockMatrix,
         rhs: &[f64],
-        record: bool,
+        slot: Option<usize>,
         info: &mut MechInfo,
     ) -> Result<Vec<f64>, Error> {
         let b_norm = cg::dot(rhs, rhs).sqrt();
@@ -357,13 +359,17 @@ impl BondedSystem {
         // the warm start (B12) serves the CG-based solvers; a Cholesky step is a direct solve (with
         // a reused factor, it saved 17 % of the Newton iterations of the copper compact and cost as
         // much time as it saved, docs/mechanics.md)
-        let warm = record && self.params.warm_start && matches!(solver, LinearSolver::Amg | LinearSolver::Pcg);
+        let warm = slot.is_some() && self.params.warm_start && matches!(solver, LinearSolver::Amg | LinearSolver::Pcg);
+        let slot = slot.unwrap_or(0);
+        if warm && self.history.len() <= slot {
+            self.history.resize(slot + 1, Vec::new());
+        }
         // the residual b − K x₀ of the warm start, handed to the solver
         let mut r0 = None;
-        if b_norm > 0.0 && rep.n_eq > 0 && warm && !self.history.is_empty() {
+        if b_norm > 0.0 && rep.n_eq > 0 && warm && !self.history[slot].is_empty() {
             let t0 = Instant::now();
             let op = amg::FineOp { blocks, pairs: &self.pairs, inc: &self.inc, fixed: &rep.fixed };
-            let (rel, r) = warm_start(&op, &self.history, rhs, b_norm, &mut x);
+            let (rel, r) = warm_start(&op, &self.history[slot], rhs, b_norm, &mut x);
             info.warm_start = rel;
             r0 = r;
             info.solve_seconds += t0.elapsed().as_secs_f64();
@@ -376,10 +382,11 @@ impl BondedSystem {
             }
         }
         if warm && b_norm > 0.0 {
-            if self.history.len() == WARM_START_DEPTH {
-                self.history.remove(0);
+            let h = &mut self.history[slot];
+            if h.len() == WARM_START_DEPTH {
+                h.remove(0);
             }
-            self.history.push(x.clone());
+            h.push(x.clone());
         }
         Ok(x)
     }

@@ -363,10 +363,18 @@ impl BondedSystem {
         let (geom, blocks, rhs, r_scale) = self.prepare(rep, inp, Some(branch), &mut info)?;
         let cp = self.coupling(rep, inp, &geom, branch, r_scale, nc);
         // (B17): K_uu X0 = f_u and K_uu Y_m = K_ue[:, m]
-        let x0 = self.solve_rhs(rep, inp.positions, r_scale, &blocks, &rhs, true, &mut info)?;
+        // each right-hand side is its own solve with its own counters (the stale-hierarchy and
+        // Newton limits are per solve) and its own warm-start history (B12)
+        let mut sub = MechInfo::default();
+        let x0 = self.solve_rhs(rep, inp.positions, r_scale, &blocks, &rhs, Some(0), &mut sub);
+        info.absorb(sub);
+        let x0 = x0?;
         let mut y = Vec::with_capacity(nc);
-        for col in &cp.columns {
-            y.push(self.solve_rhs(rep, inp.positions, r_scale, &blocks, col, false, &mut info)?);
+        for (m, col) in cp.columns.iter().enumerate() {
+            let mut sub = MechInfo::default();
+            let ym = self.solve_rhs(rep, inp.positions, r_scale, &blocks, col, Some(1 + m), &mut sub);
+            info.absorb(sub);
+            y.push(ym?);
         }
         // (B18): the Schur complement S = K_ee − K_eu Y, right side g = f_e − K_eu X0
         let mut s = cp.k_ee.clone();

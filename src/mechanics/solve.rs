@@ -199,6 +199,31 @@ pub struct MechInfo {
     pub total_seconds: f64,
 }
 
+impl MechInfo {
+    /// Adds the counters and times of one right-hand side's solve `sub` to this step's (a
+    /// periodic cell solves several, docs/mechanics.md (B17)); the solver, the AMG report and the
+    /// warm-start residual are the first solve's when set, the residuals are concatenated.
+    pub fn absorb(&mut self, sub: MechInfo) {
+        if self.newton_iterations == 0 && self.residuals.is_empty() {
+            self.solver = sub.solver;
+            self.warm_start = sub.warm_start;
+        }
+        self.newton_iterations += sub.newton_iterations;
+        self.residuals.extend(sub.residuals);
+        self.pcg_iterations += sub.pcg_iterations;
+        self.factorizations += sub.factorizations;
+        self.amg_builds += sub.amg_builds;
+        if sub.amg.is_some() {
+            self.amg_levels = sub.amg_levels;
+            self.amg = sub.amg;
+        }
+        self.symbolic_seconds += sub.symbolic_seconds;
+        self.assemble_seconds += sub.assemble_seconds;
+        self.factor_seconds += sub.factor_seconds;
+        self.solve_seconds += sub.solve_seconds;
+    }
+}
+
 /// Checks a Newton residual history against `rtol`; the error carries the history.
 pub(crate) fn not_converged(info: &MechInfo, rtol: f64, what: &str) -> SolveError {
     SolveError {
