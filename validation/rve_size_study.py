@@ -1,0 +1,141 @@
+"""Size and seed study of the periodic representative volume (issue 23; docs/mechanics.md
+"Size and seed study").
+
+For every size N and seed s, with the same copper powder (50 um, 1 +- 0.1, uniform):
+1. the walled green body: `sinterdem generate` (gravity and tapping in a box with walls,
+   cases/green-copper.toml in a cube); its interior laminae give the interior solid fraction
+   phi_int (docs/packing.md (S7));
+2. the periodic green body at the same solid fraction phi_int (cases/packing/periodic-copper.toml);
+3. both sintered as cases/periodic-copper-rve.toml does (isothermal 1293 K, 1000 s, 7-DOF at
+   every contact, new contacts): the periodic cell free (zero mean stress), the walled body with
+   the compact's usual supports;
+4. compared: the cell's shrinkage and relative density against the walled body's interior, whose
+   strain is the least-squares affine map of its interior particles (centres at least 1.5 mean
+   diameters from the initial bounding box) from the first to the last snapshot,
+   x_end = F x_0 + c, shrinkage_k = 1 - F_kk, and whose density is phi_int / det F (particle
+   volume is conserved by the model); and the periodic conductivity tensor against the walled
+   faces method (both at the end, `output.conductivity_at`).
+
+Writes DIR/study.csv (one row per size, seed and body) and prints the table of means and spreads
+over seeds. Long: at 8000 particles a seed takes minutes. Run:
+    python validation/rve_size_study.py --out out/rve-size --sizes 500 2000 8000 --seeds 1 2 3
+"""
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def sh(args, log):
+    with open(log, "w") as f:
+        r = subprocess.run(args, stdout=f, stderr=subprocess.STDOUT)
+    if r.returncode != 0:
+        sys.exit(f"failed ({r.returncode}): {' '.join(map(str, args))}; see {log}")
+
+
+def interior_fraction(gen_dir):
+    import pandas as pd
+
+    lam = pd.read_csv(gen_dir / "laminae.csv")
+    return float(lam[lam["interior"].astype(str).str.lower().isin(["true", "1"])]["relative_density"].mean())
+
+
+def positions(packing_csv, h5):
+    """Initial centres (the packing file) and the last snapshot's, in the same particle order (by id)."""
+    import h5py
+    import pandas as pd
+
+    x0 = pd.read_csv(packing_csv)[["x_m", "y_m", "z_m"]].to_numpy()
+    with h5py.File(h5) as f:
+        g = f["particles"]["all"]
+        x1 = np.asarray(g["position"]["value"][-1])
+        ids = np.asarray(g["id"]) if isinstance(g["id"], h5py.Dataset) else np.asarray(g["id"]["value"][-1])
+    out = np.empty_like(x1)
+    out[ids.astype(int)] = x1
+    return x0, out
+
+
+def affine(x0, x1, d_mean):
+    lo, hi = x0.min(axis=0), x0.max(axis=0)
+    inside = np.all((x0 > lo + 1.5 * d_mean) & (x0 < hi - 1.5 * d_mean), axis=1)
+    a = np.hstack([x0[inside], np.ones((inside.sum(), 1))])
+    coef, *_ = np.linalg.lstsq(a, x1[inside], rcond=None)
+    return coef[:3].T, int(inside.sum())
+
+
+def kappa(summary):
+    c = summary.get("conductivity") or []
+    last = c[-1]
+    k = last.get("kappa_eff_W_per_mK")
+    k = np.asarray(k, dtype=float)
+    return np.diag(k) if k.ndim == 2 else k
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--out", required=True)
+    ap.add_argument("--sizes", type=int, nargs="+", default=[500, 2000, 8000])
+    ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
+    ap.add_argument("--end", type=float, default=1000.0)
+    ap.add_argument("--bin", default=str(ROOT / "target/release/sinterdem"))
+    a = ap.parse_args()
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    b = a.bin
+    rows = []
+    for n in a.sizes:
+        for s in a.seeds:
+            tag = f"n{n}-s{s}"
+            gw, gp = out / f"gen-walled-{tag}", out / f"gen-periodic-{tag}"
+            if not (gw / "summary.json").exists():
+                sh([b, "run", ROOT / "cases/green-copper.toml", "--out", gw, "--quiet", "--set", f"packing.particles={n}",
+                    "--set", f"packing.seed={s}", "--set", "packing.box=[1.0,1.0,1.0]"], out / f"{tag}-gw.log")
+            phi = interior_fraction(gw)
+            if not (gp / "summary.json").exists():
+                sh([b, "run", ROOT / "cases/packing/periodic-copper.toml", "--out", gp, "--quiet", "--set", f"packing.particles={n}",
+                    "--set", f"packing.seed={s}", "--set", f"packing.target_solid_fraction={phi:.6f}"], out / f"{tag}-gp.log")
+            box = json.load(open(gp / "summary.json"))["box_size_m"]
+            common = ["--set", f"time.end={a.end}", "--set", "output.snapshots=1", "--set", f"output.conductivity_at=[{a.end}]",
+                      "--set", "output.checkpoint_every=0"]
+            rp, rw = out / f"run-periodic-{tag}", out / f"run-walled-{tag}"
+            if not (rp / "summary.json").exists():
+                sh([b, "run", ROOT / "cases/periodic-copper-rve.toml", "--out", rp, "--quiet",
+                    "--set", f'particles={{source="file",file="{(gp / "packing.csv").resolve()}",periodic_box={box}}}', *common],
+                   out / f"{tag}-rp.log")
+            if not (rw / "summary.json").exists():
+                sh([b, "run", ROOT / "cases/periodic-copper-rve.toml", "--out", rw, "--quiet",
+                    "--set", f'particles={{source="file",file="{(gw / "packing.csv").resolve()}"}}', "--set", 'mechanics={boundary="walls"}',
+                    *common], out / f"{tag}-rw.log")
+            sp, sw = json.load(open(rp / "summary.json")), json.load(open(rw / "summary.json"))
+            kp, kw = kappa(sp), kappa(sw)
+            rows.append(dict(n=n, seed=s, body="periodic", phi0=phi, shrink_x=sp["shrinkage_x"], shrink_y=sp["shrinkage_y"],
+                             shrink_z=sp["shrinkage_z"], density=sp["relative_density"], kxx=kp[0], kyy=kp[1], kzz=kp[2], interior=n,
+                             wall_s=sum(sp["timing_seconds"].values())))
+            x0, x1 = positions(gw / "packing.csv", rw / "sinterdem.h5")
+            d_mean = 50e-6
+            f, inside = affine(x0, x1, d_mean)
+            rows.append(dict(n=n, seed=s, body="walled interior", phi0=phi, shrink_x=1 - f[0, 0], shrink_y=1 - f[1, 1],
+                             shrink_z=1 - f[2, 2], density=phi / np.linalg.det(f), kxx=kw[0], kyy=kw[1], kzz=kw[2],
+                             interior=inside, wall_s=sum(sw["timing_seconds"].values())))
+            print(tag, rows[-2], rows[-1], flush=True)
+    import pandas as pd
+
+    df = pd.DataFrame(rows)
+    df.to_csv(out / "study.csv", index=False)
+    df["shrink_mean"] = df[["shrink_x", "shrink_y", "shrink_z"]].mean(axis=1)
+    df["kappa_mean"] = df[["kxx", "kyy", "kzz"]].mean(axis=1)
+    g = df.groupby(["body", "n"])[["phi0", "shrink_mean", "density", "kappa_mean"]].agg(["mean", "std", "count"])
+    pd.set_option("display.width", 200)
+    print(g)
+    g.to_csv(out / "summary_by_size.csv")
+
+
+if __name__ == "__main__":
+    main()
