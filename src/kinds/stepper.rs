@@ -177,16 +177,16 @@ impl Stepper {
     /// Holds the furnace at `temperature` [K] from now on (module docs of [`super::state`]);
     /// explicit_sinter runs have no furnace to hold ([`ExplicitRun::set_furnace_temperature`]).
     pub fn set_furnace_temperature(&mut self, temperature: f64) -> Result<(), Error> {
-        if let Inner::Explicit(r) = &mut self.inner {
-            return r.set_furnace_temperature(temperature);
-        }
         let t = self.time();
-        self.log.line(&format!("t = {t} s: furnace held at {temperature} K from now on (set by the caller)"));
-        match &mut self.inner {
+        let held = match &mut self.inner {
             Inner::Heat(r) => r.set_furnace_temperature(temperature),
             Inner::Compact(r) => r.set_furnace_temperature(temperature),
-            Inner::Explicit(_) => unreachable!("answered above"),
+            Inner::Explicit(r) => return r.set_furnace_temperature(temperature),
+        };
+        if held.is_ok() {
+            self.log.line(&format!("t = {t} s: furnace held at {temperature} K from now on (set by the caller)"));
         }
+        held
     }
 
     /// Holds the applied stress at `stress` [Pa] from now on (compact runs with `[load]`).
