@@ -624,6 +624,26 @@ mod tests {
         assert!(sr.steps * 10 < sd.steps, "{sr:?} {sd:?}");
     }
 
+    /// `integrate_while` ends after the accepted step its callback refuses, at that step's state:
+    /// the same steps as the whole integration up to there, and y = e^(−t) there.
+    #[test]
+    fn integrate_while_stops_after_the_refused_step() {
+        let mut f = |_t: f64, y: &[f64; 2]| Ok([-y[0], -2.0 * y[1]]);
+        let (mut h, mut st, mut seen) = (0.0, OdeStats::default(), Vec::new());
+        let (y, reached) = integrate_while(&mut f, 0.0, 5.0, [1.0, 1.0], &mut h, &ctl(Method::Dopri5, 1e-8), &mut st, |t, y| {
+            seen.push((t, *y));
+            seen.len() < 3
+        })
+        .unwrap();
+        assert!(!reached && st.steps == 3 && seen.len() == 3);
+        let (t3, y3) = seen[2];
+        assert_eq!(y, y3);
+        assert!(t3 > 0.0 && t3 < 5.0 && (y3[0] - (-t3).exp()).abs() < 1e-7 && (y3[1] - (-2.0 * t3).exp()).abs() < 1e-7, "{t3} {y3:?}");
+        let (mut h2, mut st2, mut whole) = (0.0, OdeStats::default(), Vec::new());
+        integrate(&mut f, 0.0, 5.0, [1.0, 1.0], &mut h2, &ctl(Method::Dopri5, 1e-8), &mut st2, |t, y| whole.push((t, *y))).unwrap();
+        assert_eq!(&whole[..3], &seen[..]);
+    }
+
     #[test]
     fn failing_rhs_reports_model_error() {
         let mut st = OdeStats::default();
