@@ -21,7 +21,7 @@ import os
 import sys
 import tempfile
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, Dict, List, Mapping, Optional, Union
+from typing import TYPE_CHECKING, Any, Callable, Dict, List, Mapping, Optional, Tuple, Union
 
 if TYPE_CHECKING:  # numpy is imported where it is used: the command line does not need it
     import numpy as np
@@ -313,7 +313,7 @@ class _ProgressLine:
 
 
 class Simulation:
-    """A heat or compact run one step at a time (Yade's ``O.step()`` / ``PyRunner`` use).
+    """A heat, compact or explicit_sinter run one step at a time (Yade's ``O.step()`` / ``PyRunner`` use).
 
     ``sim = Simulation(case, out=None)`` prepares the case and writes the outputs due at t = 0
     (``out=None``: a temporary directory that lives with ``sim`` and its result). Then:
@@ -322,12 +322,19 @@ class Simulation:
       run goes on; ``sim.advance(to=t)`` steps until the time reaches ``t`` [s] (steps are never
       shortened for it, so a stepped run is the uninterrupted run, bit for bit);
     - ``sim.time`` [s], ``sim.steps``, ``sim.end`` [s], ``sim.done``, ``sim.relative_density``
-      (compact);
+      (compact; explicit_sinter: the solid fraction of the sample being advanced);
+      ``sim.stage`` (explicit_sinter: ``(stage, pressure [Pa], t_sinter [s] or None)``);
+    - explicit_sinter: one step is one explicit step of the sample the protocol is advancing (the
+      trunk, or the branch that cools and is compressed); ``sim.time`` is that sample's time, so
+      it goes back when a branch is finished and restarts at 0 for each pressure, and ``sim.end``
+      is the end of the longest branch (docs/python.md);
     - ``sim.particles`` / ``sim.contacts``: dicts of numpy arrays of the state now (copies, SI
       units; docs/python.md gives their cost);
     - ``sim.set_furnace_temperature(T)`` [K]: the furnace held at T from now on (the same as
       the furnace profile written as a table with a jump now);
-      ``sim.set_applied_stress(sigma)`` [Pa]: the same for a compact's ``[load]``;
+      ``sim.set_applied_stress(sigma)`` [Pa]: the same for a compact's ``[load]`` (an
+      explicit_sinter run has neither: its temperature history is its protocol and its wall
+      pressures are its list of experiments: :class:`ConfigError`);
     - ``sim.run(callback=f, every=n)``: steps to the end, calling ``f(sim)`` every ``n`` steps;
       ``f`` returning ``False`` stops the run (``stop_reason = "stopped by the callback"``);
     - ``sim.finish()``: writes ``summary.json`` and returns a :class:`RunResult` (a run not at
@@ -412,6 +419,13 @@ class Simulation:
         return self._final[3] if self._final else self._core.relative_density
 
     @property
+    def stage(self) -> Optional[Tuple[str, float, Optional[float]]]:
+        """explicit_sinter: where the protocol is, ``(stage, pressure [Pa], t_sinter [s] or None)``,
+        stage one of ``prepare``, ``heat``, ``sinter``, ``cool``, ``compress``, ``done``; ``None``
+        for heat and compact runs."""
+        return self._final[4] if self._final else self._core.stage
+
+    @property
     def particles(self) -> Dict[str, "np.ndarray"]:
         """The particles now: ``ids`` (N,) int64, ``positions`` (N, 3) m, ``radii`` (N,) m,
         ``temperatures`` (N,) K, ``displacements`` (N, 3) m (a copy)."""
@@ -433,7 +447,7 @@ class Simulation:
     def finish(self) -> "RunResult":
         """Writes ``summary.json`` (and the plots) and returns the :class:`RunResult`; later calls return the same result."""
         if self.result is None:
-            self._final = (self._core.time, self._core.step_count, self._core.end, self._core.relative_density)
+            self._final = (self._core.time, self._core.step_count, self._core.end, self._core.relative_density, self._core.stage)
             wall = self._core.finish()
             if self._line is not None:
                 self._line.close()

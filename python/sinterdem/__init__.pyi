@@ -2,7 +2,7 @@
 
 import os
 from pathlib import Path
-from typing import Any, Callable, Dict, List, Mapping, Optional, Union
+from typing import Any, Callable, Dict, List, Mapping, Optional, Tuple, Union
 
 import numpy as np
 
@@ -69,6 +69,8 @@ class Simulation:
     def done(self) -> bool: ...
     @property
     def relative_density(self) -> Optional[float]: ...
+    @property
+    def stage(self) -> Optional[Tuple[str, float, Optional[float]]]: ...
     @property
     def particles(self) -> Dict[str, np.ndarray]: ...
     @property

@@ -39,6 +39,7 @@ class SimulationCore:
     done: bool
     kind: str
     relative_density: Optional[float]
+    stage: Optional[Tuple[str, float, Optional[float]]]
     finished: bool
     def particles(self) -> Dict[str, Any]: ...
     def contacts(self) -> Dict[str, Any]: ...

@@ -213,8 +213,9 @@ impl CaseCore {
     /// `sinterdem run`: runs the case into `out` through `sinterdem::kinds::run` with the GIL
     /// released; returns (kind, wall seconds, interrupted). `poll(t, end)` (optional) is called
     /// with the GIL about every 50 ms (Jupyter's progress line); Ctrl-C (Python's SIGINT
-    /// handler) stops a heat or compact run after its current step with its outputs written,
-    /// and `interrupted` is True (the Python layer raises KeyboardInterrupt).
+    /// handler) stops the run after its current step with its outputs written (with `threads`
+    /// too: the run then computes on a pool thread while this one watches), and `interrupted`
+    /// is True (the Python layer raises KeyboardInterrupt).
     #[pyo3(signature = (out, progress=true, threads=None, poll=None))]
     fn run(&self, py: Python<'_>, out: PathBuf, progress: bool, threads: Option<usize>, poll: Option<Py<PyAny>>) -> PyResult<(String, f64, bool)> {
         let params = sinterdem::kinds::RunParams { base_dir: self.base_dir.clone(), progress, echo_log: false, plots: true, wall_limit: None };
@@ -225,7 +226,16 @@ impl CaseCore {
                 Some(n) if n > 0 => {
                     let pool =
                         rayon::ThreadPoolBuilder::new().num_threads(n).build().map_err(|e| Error::from(ConfigError::invalid(format!("threads = {n}: {e}"))))?;
-                    pool.install(|| sinterdem::kinds::run(value, sets, &out, &params))
+                    // the run goes to the pool; this thread (the one whose poll sees Python's
+                    // signal handlers) asks for a stop request every poll interval until it ends
+                    std::thread::scope(|scope| {
+                        let worker = scope.spawn(|| pool.install(|| sinterdem::kinds::run(value, sets, &out, &params)));
+                        while !worker.is_finished() {
+                            sinterdem::interrupt::requested();
+                            std::thread::sleep(std::time::Duration::from_secs_f64(0.2 * sinterdem::interrupt::POLL_INTERVAL));
+                        }
+                        worker.join().unwrap_or_else(|p| std::panic::resume_unwind(p))
+                    })
                 }
                 _ => sinterdem::kinds::run(value, sets, &out, &params),
             }
@@ -331,7 +341,8 @@ impl Watch {
     }
 }
 
-/// A heat or compact run one step at a time (`sinterdem.Simulation`): `sinterdem::kinds::Stepper`.
+/// A heat, compact or explicit_sinter run one step at a time (`sinterdem.Simulation`):
+/// `sinterdem::kinds::Stepper`.
 #[pyclass(module = "sinterdem._native", unsendable)]
 struct SimulationCore {
     stepper: Option<sinterdem::kinds::Stepper>,
@@ -439,6 +450,13 @@ impl SimulationCore {
     #[getter]
     fn relative_density(&mut self) -> PyResult<Option<f64>> {
         Ok(self.live()?.relative_density())
+    }
+
+    /// explicit_sinter: (stage, pressure [Pa], sintering time of the branch in progress [s] or
+    /// None); None for heat and compact runs.
+    #[getter]
+    fn stage(&mut self) -> PyResult<Option<(String, f64, Option<f64>)>> {
+        Ok(self.live()?.stage().map(|(s, p, ts)| (s.to_string(), p, ts)))
     }
 
     /// The particles now: ids (N,) int64, positions (N, 3) m, radii (N,) m, temperatures (N,) K,
@@ -560,9 +578,8 @@ fn dump_toml(py: Python<'_>, d: &Bound<'_, PyDict>) -> PyResult<String> {
     toml::to_string(&v).map_err(|e| to_py_err(py, ConfigError::invalid(format!("cannot be written as TOML: {e}")).into(), None, &[]))
 }
 
-/// For the `sinterdem` console command (a process of its own): SIGINT and SIGTERM stop a heat or
-/// compact run after its current step with its outputs written (exit code 130 / 143), as the Rust
-/// binary does. Not for an interactive interpreter: it replaces Python's SIGINT handler.
+/// For the `sinterdem` console command (a process of its own): SIGINT and SIGTERM stop a run after
+/// its current step with its outputs written (exit code 130 / 143), as the Rust binary does. Not for an interactive interpreter: it replaces Python's SIGINT handler.
 #[pyfunction]
 fn install_signal_handlers(py: Python<'_>) -> PyResult<()> {
     sinterdem::interrupt::install_handlers().map_err(|e| to_py_err(py, sinterdem::error::IoError::new("<signal handlers>", e.to_string()).into(), None, &[]))

@@ -162,7 +162,7 @@ def test_setters_without_a_furnace_or_load_raise_config_errors(tmp_path):
     with pytest.raises(sinterdem.ConfigError, match="furnace temperature"):
         sim.set_furnace_temperature(-5.0)
     sim.finish()
-    with pytest.raises(sinterdem.ConfigError, match="only heat and compact"):
+    with pytest.raises(sinterdem.ConfigError, match="only heat, compact and explicit_sinter"):
         sinterdem.Simulation(CASES / "pair-copper.toml")
 
 

@@ -179,13 +179,13 @@ impl RunLog {
 }
 
 /// Runs `case` with `overrides` into `out` and returns its summary. The output directory is
-/// created; `log.txt` in it receives the run's log. Heat and compact runs are a [`Stepper`]
-/// stepped to the end (so the stepping API gives the same files); a stop request
+/// created; `log.txt` in it receives the run's log. Heat, compact and explicit_sinter runs are a
+/// [`Stepper`] stepped to the end (so the stepping API gives the same files); a stop request
 /// ([`crate::interrupt`]) ends them early with `completed = false`.
 pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunParams) -> Result<RunSummary, Error> {
     let wall = Instant::now();
     let (value, kind, mut log) = open_run(case, overrides, out, params)?;
-    if matches!(kind, Kind::Heat | Kind::Compact) {
+    if matches!(kind, Kind::Heat | Kind::Compact | Kind::ExplicitSinter) {
         let mut s = Stepper::opened(value, kind, log, out, params, wall)?;
         while s.step()? {}
         return s.finish();
@@ -205,17 +205,14 @@ pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunPar
             ));
             serde_json::to_value(&s).map_err(|e| IoError::new(out.join("summary.json"), e))?
         }
-        Kind::ExplicitSinter => {
-            let s = crate::kinds::explicit_sinter::run_explicit_from(&value, out, &mut logf, None)?;
-            logf("done: explicit sintering protocol finished (summary.json)");
-            s
-        }
         Kind::Generate => {
             let s = crate::kinds::generate::generate_case(&value, out, params.progress)?;
             logf(&format!("done: {} particles, solid fraction {:.4}, coordination {:.3}", s.particles, s.solid_fraction, s.coordination_mean));
             serde_json::to_value(&s).map_err(|e| IoError::new(out.join("summary.json"), e))?
         }
-        Kind::Heat | Kind::Compact => return Err(ConfigError::invalid("internal: heat and compact runs are stepped").into()),
+        Kind::Heat | Kind::Compact | Kind::ExplicitSinter => {
+            return Err(ConfigError::invalid("internal: heat, compact and explicit_sinter runs are stepped").into());
+        }
     };
     Ok(RunSummary { kind, wall_seconds: wall.elapsed().as_secs_f64(), summary })
 }

@@ -4,7 +4,7 @@
 //! [`check_pair_case`]. Schema: `docs/diffusion7.md`.
 
 use crate::config::from_value;
-use crate::models::diffusion7::advance::{PairMaterials, SolverOptions, TemperaturePath, advance, calibrated_range_warning};
+use crate::models::diffusion7::advance::{PairMaterials, SolverOptions, TemperaturePath, advance_while, calibrated_range_warning};
 use crate::models::diffusion7::contact::{Contact7, sintering_force};
 use crate::models::diffusion7::kinetics::invariants;
 use crate::models::diffusion7::material::{Material, PathFactors};
@@ -340,6 +340,8 @@ pub struct PairRun {
     /// Wall time of the integration alone [s].
     pub wall_seconds: f64,
     pub warnings: Vec<String>,
+    /// The time the run was interrupted at ([`crate::interrupt`]) [s]; None: it reached its end.
+    pub interrupted_at: Option<f64>,
 }
 
 impl PairRun {
@@ -372,11 +374,13 @@ pub fn run_pair(spec: &PairSpec, record: bool, progress: bool) -> Result<PairRun
     let end = spec.end_time;
     let bar = crate::io::progress::Progress::new(end, progress);
     let start = std::time::Instant::now();
-    let res = advance(&mut contact, &mats, &path, 0.0, end, &spec.solver, &mut stats, |t, y, temp| {
+    let res = advance_while(&mut contact, &mats, &path, 0.0, end, &spec.solver, &mut stats, |t, y, temp| {
         count += 1;
         tlo = tlo.min(temp);
         thi = thi.max(temp);
-        if record && (count.is_multiple_of(every) || t >= end) {
+        // a stop request ends the run after this substep, whose state is then the series' last row
+        let go_on = t >= end || !crate::interrupt::requested();
+        if record && (count.is_multiple_of(every) || t >= end || !go_on) {
             times.push(t);
             states.push(*y);
             temps.push(temp);
@@ -384,10 +388,11 @@ pub fn run_pair(spec: &PairSpec, record: bool, progress: bool) -> Result<PairRun
         if count.is_multiple_of(64) || t >= end {
             bar.set(t, &format!("T = {temp:.1} K, y1/R = {:.5}", y[0] / spec.radius_a.min(spec.radius_b)));
         }
+        go_on
     });
     bar.finish();
     let wall_seconds = start.elapsed().as_secs_f64();
-    res?;
+    let interrupted_at = res?;
     let mut warnings = Vec::new();
     for m in [&spec.material_a, &spec.material_b] {
         if let Some(w) = calibrated_range_warning(m, tlo, thi)
@@ -396,7 +401,7 @@ pub fn run_pair(spec: &PairSpec, record: bool, progress: bool) -> Result<PairRun
             warnings.push(w);
         }
     }
-    Ok(PairRun { times, states, temperatures: temps, contact, volume0: v0, stats, wall_seconds, warnings })
+    Ok(PairRun { times, states, temperatures: temps, contact, volume0: v0, stats, wall_seconds, warnings, interrupted_at })
 }
 
 /// `summary.json` of a pair run.
@@ -420,6 +425,12 @@ pub struct PairSummary {
     pub method: String,
     pub rtol: f64,
     pub warnings: Vec<String>,
+    /// false when the run stopped before `end_time` (absent: it reached it).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub completed: Option<bool>,
+    /// Why it stopped early ("interrupted").
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stop_reason: Option<String>,
 }
 
 /// Validates a pair case without running it (`sinterdem check`).
@@ -457,7 +468,7 @@ pub fn summarize(spec: &PairSpec, run: &PairRun) -> PairSummary {
     let e = 0.5 * (spec.material_a.young_modulus + spec.material_b.young_modulus);
     PairSummary {
         title: spec.title.clone(),
-        final_time_s: spec.end_time,
+        final_time_s: run.interrupted_at.unwrap_or(spec.end_time),
         steps: run.stats.steps,
         rejected_steps: run.stats.rejected,
         rhs_evaluations: run.stats.rhs,
@@ -469,6 +480,8 @@ pub fn summarize(spec: &PairSpec, run: &PairRun) -> PairSummary {
         method: spec.solver.method.name().into(),
         rtol: spec.solver.rtol,
         warnings: run.warnings.clone(),
+        completed: run.interrupted_at.map(|_| false),
+        stop_reason: run.interrupted_at.map(|_| "interrupted".to_string()),
     }
 }
 

@@ -1,12 +1,14 @@
-//! The run API one step at a time (docs/python.md "Stepping"): [`Stepper`] is a heat or compact
-//! run that a caller advances step by step, reads between steps (time, particles, contacts) and
-//! changes between steps (furnace temperature, applied stress). [`super::run`] runs these two
-//! kinds as the same loop, so a run stepped to its end writes the same files, bit for bit.
+//! The run API one step at a time (docs/python.md "Stepping"): [`Stepper`] is a heat, compact or
+//! explicit_sinter run that a caller advances step by step, reads between steps (time, particles,
+//! contacts) and changes between steps (furnace temperature, applied stress: heat and compact).
+//! [`super::run`] runs these kinds as the same loop, so a run stepped to its end writes the same
+//! files, bit for bit.
 
 use super::state::{ContactState, ParticleState};
 use super::{Kind, RunLog, RunParams, RunSummary};
 use crate::error::{ConfigError, Error};
 use crate::kinds::compact::CompactRun;
+use crate::kinds::explicit_sinter::ExplicitRun;
 use crate::kinds::heat::HeatRun;
 use std::path::Path;
 use std::time::Instant;
@@ -15,9 +17,10 @@ use std::time::Instant;
 enum Inner {
     Heat(Box<HeatRun>),
     Compact(Box<CompactRun>),
+    Explicit(Box<ExplicitRun>),
 }
 
-/// A heat or compact run in progress, with its log (`DIR/log.txt`).
+/// A heat, compact or explicit_sinter run in progress, with its log (`DIR/log.txt`).
 pub struct Stepper {
     kind: Kind,
     inner: Inner,
@@ -27,7 +30,7 @@ pub struct Stepper {
 
 impl Stepper {
     /// Prepares `case` with `overrides` (as [`super::run`] does), opens the outputs in `out` and
-    /// writes those due at the start. Kinds other than heat and compact are a configuration error.
+    /// writes those due at the start. Pair and generate cases are a configuration error.
     pub fn start(case: &toml::Value, overrides: &[String], out: &Path, params: &RunParams) -> Result<Stepper, Error> {
         let wall = Instant::now();
         let (value, kind, log) = super::open_run(case, overrides, out, params)?;
@@ -56,9 +59,10 @@ impl Stepper {
                 sim.settings.wall_limit = params.wall_limit;
                 Inner::Compact(Box::new(CompactRun::start(sim, out, params.progress, None, log)?))
             }
+            Kind::ExplicitSinter => Inner::Explicit(Box::new(ExplicitRun::start(&value, out, log)?)),
             k => {
                 return Err(ConfigError::invalid(format!(
-                    "kind = \"{}\": only heat and compact runs can be stepped (Simulation); run it whole (sinterdem.run / sinterdem run)",
+                    "kind = \"{}\": only heat, compact and explicit_sinter runs can be stepped (Simulation); run it whole (sinterdem.run / sinterdem run)",
                     k.name()
                 ))
                 .into());
@@ -78,6 +82,7 @@ impl Stepper {
         match &mut self.inner {
             Inner::Heat(r) => r.step(&mut logf),
             Inner::Compact(r) => r.step(&mut logf),
+            Inner::Explicit(r) => r.step(&mut logf),
         }
     }
 
@@ -92,6 +97,7 @@ impl Stepper {
         match &mut self.inner {
             Inner::Heat(r) => r.advance(to, &mut logf),
             Inner::Compact(r) => r.advance(to, &mut logf),
+            Inner::Explicit(r) => r.advance(to, &mut logf),
         }
     }
 
@@ -100,6 +106,7 @@ impl Stepper {
         match &self.inner {
             Inner::Heat(r) => r.time(),
             Inner::Compact(r) => r.sim.t,
+            Inner::Explicit(r) => r.time(),
         }
     }
 
@@ -108,6 +115,7 @@ impl Stepper {
         match &self.inner {
             Inner::Heat(r) => r.steps() as u64,
             Inner::Compact(r) => r.sim.step,
+            Inner::Explicit(r) => r.steps(),
         }
     }
 
@@ -116,6 +124,7 @@ impl Stepper {
         match &self.inner {
             Inner::Heat(r) => r.end(),
             Inner::Compact(r) => r.sim.settings.end,
+            Inner::Explicit(r) => r.end(),
         }
     }
 
@@ -124,14 +133,26 @@ impl Stepper {
         match &self.inner {
             Inner::Heat(r) => r.done(),
             Inner::Compact(r) => r.done(),
+            Inner::Explicit(r) => r.done(),
         }
     }
 
-    /// Relative density of the compact now [1] (None for heat runs: the packing is static).
+    /// Relative density of the compact now [1] (None for heat runs: the packing is static;
+    /// explicit_sinter: the solid fraction ΣV_i/V_box of the sample being advanced).
     pub fn relative_density(&self) -> Option<f64> {
         match &self.inner {
             Inner::Heat(_) => None,
             Inner::Compact(r) => Some(r.sim.relative_density()),
+            Inner::Explicit(r) => r.density(),
+        }
+    }
+
+    /// Where an explicit_sinter protocol is: stage, confining pressure [Pa], sintering time of
+    /// the branch in progress [s] ([`ExplicitRun::stage`]); None for heat and compact runs.
+    pub fn stage(&self) -> Option<(&'static str, f64, Option<f64>)> {
+        match &self.inner {
+            Inner::Explicit(r) => Some(r.stage()),
+            _ => None,
         }
     }
 
@@ -140,6 +161,7 @@ impl Stepper {
         match &self.inner {
             Inner::Heat(r) => r.particles(),
             Inner::Compact(r) => r.particles(),
+            Inner::Explicit(r) => r.particles(),
         }
     }
 
@@ -148,17 +170,23 @@ impl Stepper {
         match &self.inner {
             Inner::Heat(r) => r.contacts(),
             Inner::Compact(r) => r.contacts(),
+            Inner::Explicit(r) => r.contacts(),
         }
     }
 
-    /// Holds the furnace at `temperature` [K] from now on (module docs of [`super::state`]).
+    /// Holds the furnace at `temperature` [K] from now on (module docs of [`super::state`]);
+    /// explicit_sinter runs have no furnace to hold ([`ExplicitRun::set_furnace_temperature`]).
     pub fn set_furnace_temperature(&mut self, temperature: f64) -> Result<(), Error> {
         let t = self.time();
-        self.log.line(&format!("t = {t} s: furnace held at {temperature} K from now on (set by the caller)"));
-        match &mut self.inner {
+        let held = match &mut self.inner {
             Inner::Heat(r) => r.set_furnace_temperature(temperature),
             Inner::Compact(r) => r.set_furnace_temperature(temperature),
+            Inner::Explicit(r) => return r.set_furnace_temperature(temperature),
+        };
+        if held.is_ok() {
+            self.log.line(&format!("t = {t} s: furnace held at {temperature} K from now on (set by the caller)"));
         }
+        held
     }
 
     /// Holds the applied stress at `stress` [Pa] from now on (compact runs with `[load]`).
@@ -166,6 +194,7 @@ impl Stepper {
         let t = self.time();
         match &mut self.inner {
             Inner::Heat(_) => Err(ConfigError::invalid("set_applied_stress: a heat run has no mechanics (compact runs with [load] only)").into()),
+            Inner::Explicit(r) => r.set_applied_stress(stress),
             Inner::Compact(r) => {
                 r.set_applied_stress(stress)?;
                 self.log.line(&format!("t = {t} s: applied stress held at {stress} Pa from now on (set by the caller)"));
@@ -181,6 +210,7 @@ impl Stepper {
         match &mut self.inner {
             Inner::Heat(r) => r.stop(reason, &mut logf),
             Inner::Compact(r) => r.stop(reason, &mut logf),
+            Inner::Explicit(r) => r.stop(reason, &mut logf),
         }
     }
 
@@ -192,6 +222,7 @@ impl Stepper {
         let summary = match inner {
             Inner::Heat(r) => r.finish(&mut logf)?,
             Inner::Compact(r) => r.finish(&mut logf)?,
+            Inner::Explicit(r) => r.finish(&mut logf)?,
         };
         Ok(RunSummary { kind, wall_seconds: wall.elapsed().as_secs_f64(), summary })
     }

@@ -255,6 +255,29 @@ where
     F: FnMut(f64, &[f64; N]) -> Result<[f64; N], ModelError>,
     G: FnMut(f64, &[f64; N]),
 {
+    let go_on = |t: f64, y: &[f64; N]| {
+        on_step(t, y);
+        true
+    };
+    integrate_while(f, t0, t1, y0, h, ctl, stats, go_on).map(|(y, _)| y)
+}
+
+/// [`integrate`] whose `on_step(t, y)` returns whether to go on: `false` ends the integration
+/// after that accepted step. Returns the state and whether `t1` was reached.
+pub fn integrate_while<const N: usize, F, G>(
+    f: &mut F,
+    t0: f64,
+    t1: f64,
+    y0: [f64; N],
+    h: &mut f64,
+    ctl: &Control<N>,
+    stats: &mut OdeStats,
+    mut on_step: G,
+) -> Result<([f64; N], bool), ModelError>
+where
+    F: FnMut(f64, &[f64; N]) -> Result<[f64; N], ModelError>,
+    G: FnMut(f64, &[f64; N]) -> bool,
+{
     if !(t1 >= t0) || !t0.is_finite() || !t1.is_finite() {
         return Err(ModelError::new(format!("integration interval [{t0}, {t1}] s is not valid")));
     }
@@ -262,7 +285,7 @@ where
         return Err(ModelError::new(format!("rtol = {} must lie in (0, 1)", ctl.rtol)));
     }
     if t1 == t0 {
-        return Ok(y0);
+        return Ok((y0, true));
     }
     let mut t = t0;
     let mut y = y0;
@@ -275,6 +298,7 @@ where
     let mut hh = h.min(ctl.h_max);
     let mut substeps: u64 = 0;
     let mut jac: Option<([[f64; N]; N], [f64; N])> = None;
+    let mut stop = false;
     while t < t1 {
         substeps += 1;
         if substeps > ctl.max_substeps {
@@ -319,7 +343,7 @@ where
                             k1 = k;
                             jac = None;
                             stats.steps += 1;
-                            on_step(t, &y);
+                            stop = !on_step(t, &y);
                             (true, accepted_factor(ctl.method, e))
                         }
                         Err(_) => (false, 0.25),
@@ -332,6 +356,10 @@ where
         };
         if accepted {
             hh = proposal_after_accept(step, fac, truncated, hh, ctl.h_max);
+            if stop {
+                *h = hh;
+                return Ok((y, t >= t1));
+            }
         } else {
             stats.rejected += 1;
             hh = step * fac;
@@ -349,7 +377,7 @@ where
         }
     }
     *h = hh;
-    Ok(y)
+    Ok((y, true))
 }
 
 type Trial<const N: usize> = Result<([f64; N], [f64; N], Option<[f64; N]>), ModelError>;
@@ -594,6 +622,26 @@ mod tests {
         let sr = run(Method::Rosenbrock4, &mut f);
         let sd = run(Method::Dopri5, &mut f);
         assert!(sr.steps * 10 < sd.steps, "{sr:?} {sd:?}");
+    }
+
+    /// `integrate_while` ends after the accepted step its callback refuses, at that step's state:
+    /// the same steps as the whole integration up to there, and y = e^(−t) there.
+    #[test]
+    fn integrate_while_stops_after_the_refused_step() {
+        let mut f = |_t: f64, y: &[f64; 2]| Ok([-y[0], -2.0 * y[1]]);
+        let (mut h, mut st, mut seen) = (0.0, OdeStats::default(), Vec::new());
+        let (y, reached) = integrate_while(&mut f, 0.0, 5.0, [1.0, 1.0], &mut h, &ctl(Method::Dopri5, 1e-8), &mut st, |t, y| {
+            seen.push((t, *y));
+            seen.len() < 3
+        })
+        .unwrap();
+        assert!(!reached && st.steps == 3 && seen.len() == 3);
+        let (t3, y3) = seen[2];
+        assert_eq!(y, y3);
+        assert!(t3 > 0.0 && t3 < 5.0 && (y3[0] - (-t3).exp()).abs() < 1e-7 && (y3[1] - (-2.0 * t3).exp()).abs() < 1e-7, "{t3} {y3:?}");
+        let (mut h2, mut st2, mut whole) = (0.0, OdeStats::default(), Vec::new());
+        integrate(&mut f, 0.0, 5.0, [1.0, 1.0], &mut h2, &ctl(Method::Dopri5, 1e-8), &mut st2, |t, y| whole.push((t, *y))).unwrap();
+        assert_eq!(&whole[..3], &seen[..]);
     }
 
     #[test]

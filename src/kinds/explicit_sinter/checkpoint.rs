@@ -11,7 +11,6 @@ use crate::error::{Error, IoError};
 use crate::explicit::sinter::SinterLaw;
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
-use std::path::Path;
 
 type V3 = Vector3<f64>;
 
@@ -134,8 +133,8 @@ pub(super) struct ExplicitCheckpoint<S> {
 }
 
 /// Checkpoint writing of a run: where, and the case text the checkpoint carries.
-pub struct CheckpointSink<'a> {
-    pub dir: &'a Path,
+pub struct CheckpointSink {
+    pub dir: std::path::PathBuf,
     /// The case as run (overrides applied), TOML.
     pub case_toml: String,
     /// Stop right after the checkpoint at or after this step (as if killed there; for tests).

@@ -3,8 +3,7 @@
 //! [`SinterLaw`] impl, and the protocol runs generic over it behind one [`Law`] object.
 
 use super::case::ExplicitSinterCase;
-use super::checkpoint::CheckpointSink;
-use super::machine::{Finished, run_law};
+use super::machine::{Protocol, start_law};
 use super::sample::Sample;
 use crate::config::ranges::Range;
 use crate::error::Error;
@@ -51,15 +50,9 @@ pub trait Law: Send + Sync + std::fmt::Debug {
     fn state(&self) -> StateColumn;
     /// The explicit step of a sample of `case` at `pressure` [s] (`sinterdem check`).
     fn step(&self, case: &ExplicitSinterCase, pressure: f64) -> Result<f64, Error>;
-    /// Runs (or continues, from `resume`: a checkpoint's text and path) the protocol of `case`;
-    /// `Ok(None)` when stopped by `sink.stop_after`.
-    fn run(
-        &self,
-        case: &ExplicitSinterCase,
-        sink: Option<&mut CheckpointSink>,
-        resume: Option<(&str, &Path)>,
-        log: &mut dyn FnMut(&str),
-    ) -> Result<Option<Finished>, Error>;
+    /// The protocol of `case` for this law, at its start or continued from `resume` (a
+    /// checkpoint's text and path).
+    fn protocol(&self, case: &ExplicitSinterCase, resume: Option<(&str, &Path)>, log: &mut dyn FnMut(&str)) -> Result<Box<dyn Protocol>, Error>;
     fn boxed(&self) -> Box<dyn Law>;
 }
 
@@ -73,14 +66,8 @@ impl<M: SinterLaw> Law for M {
     fn step(&self, case: &ExplicitSinterCase, pressure: f64) -> Result<f64, Error> {
         Ok(Sample::new(case, self.clone(), pressure)?.driver.settings.dt)
     }
-    fn run(
-        &self,
-        case: &ExplicitSinterCase,
-        sink: Option<&mut CheckpointSink>,
-        resume: Option<(&str, &Path)>,
-        log: &mut dyn FnMut(&str),
-    ) -> Result<Option<Finished>, Error> {
-        run_law(case, self.clone(), sink, resume, log)
+    fn protocol(&self, case: &ExplicitSinterCase, resume: Option<(&str, &Path)>, log: &mut dyn FnMut(&str)) -> Result<Box<dyn Protocol>, Error> {
+        start_law(case, self.clone(), resume, log)
     }
     fn boxed(&self) -> Box<dyn Law> {
         Box::new(self.clone())

@@ -1,6 +1,7 @@
 //! The protocol's state machine (module docs of [`super`]): prepare → heat → per sintering time
 //! sinter the trunk, then a branch that cools, relaxes and is compressed; one method per stage,
-//! each advancing until its end or the next checkpoint.
+//! each advancing until its end, the next checkpoint or the end of the caller's step budget
+//! ([`StepClock::budget`]: the stepping API takes one explicit step per call, [`super::ExplicitRun`]).
 
 use super::case::{CouplingMode, ExplicitSinterCase};
 use super::checkpoint::{CheckpointSink, ExplicitCheckpoint};
@@ -14,19 +15,37 @@ use crate::profile::Profile;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
-/// Counts the explicit steps of a whole protocol and says when a checkpoint is due.
-#[derive(Debug, Clone, Copy, Default)]
+/// Counts the explicit steps of a whole protocol and says when a checkpoint is due or the caller's
+/// step budget is spent.
+#[derive(Debug, Clone, Copy)]
 pub struct StepClock {
     /// Steps so far (all pressures and branches).
     pub steps: u64,
     /// Checkpoint interval [steps]; 0: never.
     pub every: u64,
+    /// The protocol pauses before a step once `steps` reaches this (u64::MAX: never).
+    pub budget: u64,
+    /// A checkpoint is due (set by the step that reached it, taken by the machine).
+    due: bool,
+}
+
+impl Default for StepClock {
+    fn default() -> Self {
+        StepClock { steps: 0, every: 0, budget: u64::MAX, due: false }
+    }
 }
 
 impl StepClock {
+    /// Counts a step; true when a checkpoint is due after it.
     pub(super) fn tick(&mut self) -> bool {
         self.steps += 1;
-        self.every > 0 && self.steps.is_multiple_of(self.every)
+        self.due = self.every > 0 && self.steps.is_multiple_of(self.every);
+        self.due
+    }
+
+    /// Whether the step budget is spent (the advance pauses before its next step).
+    pub(super) fn spent(&self) -> bool {
+        self.steps >= self.budget
     }
 }
 
@@ -51,6 +70,32 @@ pub enum Stage {
     Compress {
         k: usize,
     },
+}
+
+impl Stage {
+    /// The stage's name (`prepare`, `heat`, `sinter`, `cool`, `compress`; `start`: between two
+    /// samples).
+    pub fn name(self) -> &'static str {
+        match self {
+            Stage::Start => "start",
+            Stage::Prepare => "prepare",
+            Stage::Heat => "heat",
+            Stage::Sinter { .. } => "sinter",
+            Stage::Cool { .. } => "cool",
+            Stage::Compress { .. } => "compress",
+        }
+    }
+}
+
+/// How a call of [`Machine::run_to`] ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Pause {
+    /// The step budget is spent; the protocol goes on with the next call.
+    Budget,
+    /// Stopped right after a checkpoint by `CheckpointSink::stop_after` (as if killed; tests).
+    Killed,
+    /// The protocol is over.
+    Finished,
 }
 
 /// Values of the branch in progress taken at earlier stages.
@@ -85,6 +130,10 @@ pub(super) struct Machine<M: SinterLaw> {
     pub(super) dt_used: f64,
     pub(super) clock: StepClock,
     pub(super) wall_before: f64,
+    /// When this machine was built or restored (its share of the wall time).
+    pub(super) started: std::time::Instant,
+    /// The protocol is over and its warnings are collected.
+    closed: bool,
 }
 
 /// What a finished protocol hands to the run's result.
@@ -95,16 +144,34 @@ pub struct Finished {
     pub wall_before: f64,
 }
 
-/// The values of a case every stage reads (computed once per [`Machine::run`]).
-struct Plan {
+/// The values of a case every stage reads (computed once per run).
+pub struct Plan {
     /// Sorted sintering times [s].
-    times: Vec<f64>,
+    pub(super) times: Vec<f64>,
     /// History row interval [s].
     interval: f64,
     /// Start of sintering [s].
     t_s0: f64,
     /// The temperature history of the longest sintering time (the trunk's).
     profile_max: Profile,
+    /// The temperature history of each branch (per sorted sintering time).
+    profiles: Vec<Profile>,
+}
+
+impl Plan {
+    pub(super) fn new(case: &ExplicitSinterCase) -> Result<Plan, Error> {
+        let times = case.sinter_times();
+        let profiles = times.iter().map(|&ts| case.profile(ts)).collect::<Result<Vec<_>, _>>()?;
+        let profile_max = profiles.last().cloned().ok_or_else(|| ConfigError::invalid("protocol.t_sinter: expected at least one sintering time [s]"))?;
+        Ok(Plan { interval: case.output_interval(), t_s0: case.t_sinter_start(), times, profile_max, profiles })
+    }
+
+    /// The end of the longest branch's history [s] (its compression test included).
+    pub(super) fn end(&self, case: &ExplicitSinterCase) -> f64 {
+        let c = &case.compression;
+        let compress = if c.enabled { c.max_strain / c.strain_rate } else { 0.0 };
+        self.t_s0 + self.times.last().copied().unwrap_or(0.0) + case.protocol.t_cool + case.protocol.t_relax + compress
+    }
 }
 
 fn forces_of<M: SinterLaw>(s: &Sample<M>) -> Vec<f64> {
@@ -125,41 +192,66 @@ impl<M: SinterLaw> Machine<M> {
             branches: Vec::new(),
             warnings: Vec::new(),
             dt_used: 0.0,
-            clock: StepClock { steps: 0, every },
+            clock: StepClock { every, ..Default::default() },
             wall_before: 0.0,
+            started: std::time::Instant::now(),
+            closed: false,
         }
     }
 
-    /// Runs the protocol from the current stage to its end; `Ok(false)` when stopped after a
-    /// checkpoint by `sink.stop_after`.
-    fn run(&mut self, case: &ExplicitSinterCase, model: &str, mut sink: Option<&mut CheckpointSink>, log: &mut dyn FnMut(&str)) -> Result<bool, Error> {
-        let wall = std::time::Instant::now();
-        let times = case.sinter_times();
-        let interval = case.output_interval();
-        let t_s0 = case.t_sinter_start();
-        let profile_max = case.profile(*times.last().unwrap())?;
-        let plan = Plan { times, interval, t_s0, profile_max };
+    /// Runs the protocol from the current stage until the clock reaches `budget` steps (the stage
+    /// changes that take no step are made first: after a pause the next call's first act is a
+    /// step), the run is stopped after a checkpoint (`sink.stop_after`), or the protocol ends. A
+    /// pause does not change what follows: the steps are those of an uninterrupted run.
+    pub(super) fn run_to(
+        &mut self,
+        case: &ExplicitSinterCase,
+        plan: &Plan,
+        sink: Option<&CheckpointSink>,
+        log: &mut dyn FnMut(&str),
+        budget: u64,
+    ) -> Result<Pause, Error> {
+        self.clock.budget = budget;
         while self.pressure_index < case.walls.pressures.len() {
             let pressure = case.walls.pressures[self.pressure_index];
             let done = match self.stage {
                 Stage::Start => self.start(case, pressure, log)?,
-                Stage::Prepare => self.prepare(case, &plan)?,
-                Stage::Heat => self.heat(case, &plan, pressure, log)?,
-                Stage::Sinter { k } => self.sinter(case, &plan, k)?,
-                Stage::Cool { k } => self.cool(case, &plan, pressure, k, log)?,
-                Stage::Compress { k } => self.compress(case, &plan, pressure, k, log)?,
+                Stage::Prepare => self.prepare(case, plan)?,
+                Stage::Heat => self.heat(case, plan, pressure, log)?,
+                Stage::Sinter { k } => self.sinter(case, plan, k)?,
+                Stage::Cool { k } => self.cool(case, plan, pressure, k, log)?,
+                Stage::Compress { k } => self.compress(case, plan, pressure, k, log)?,
             };
-            if !done
-                && let Some(sink) = sink.as_deref_mut()
-                && self.write_checkpoint(sink, model, wall.elapsed().as_secs_f64())?
-            {
-                return Ok(false);
+            if done {
+                continue;
             }
+            if std::mem::take(&mut self.clock.due)
+                && let Some(sink) = sink
+                && self.write_checkpoint(sink, M::NAME, self.started.elapsed().as_secs_f64())?
+            {
+                return Ok(Pause::Killed);
+            }
+            if self.clock.spent() {
+                return Ok(Pause::Budget);
+            }
+        }
+        self.close();
+        Ok(Pause::Finished)
+    }
+
+    /// Collects the warnings (those of the samples in progress too, for a run stopped early) and
+    /// the wall time, once.
+    fn close(&mut self) {
+        if self.closed {
+            return;
+        }
+        for s in [&self.trunk, &self.branch].into_iter().flatten() {
+            self.warnings.extend(s.warnings.iter().cloned());
         }
         self.warnings.sort();
         self.warnings.dedup();
-        self.wall_before += wall.elapsed().as_secs_f64();
-        Ok(true)
+        self.wall_before += self.started.elapsed().as_secs_f64();
+        self.closed = true;
     }
 
     /// A new trunk sample for the pressure `pressure` [Pa].
@@ -207,7 +299,7 @@ impl<M: SinterLaw> Machine<M> {
             let mut b = s.clone();
             self.bnet = None;
             if case.coupling.mode == CouplingMode::Network && self.net.is_some() {
-                self.bnet = Some(b.build_network_keep(case, &case.profile(ts)?)?);
+                self.bnet = Some(b.build_network_keep(case, &plan.profiles[k])?);
             }
             self.branch = Some(b);
             self.stage = Stage::Cool { k };
@@ -218,10 +310,10 @@ impl<M: SinterLaw> Machine<M> {
     /// The branch `k` cools and relaxes; then its compression test starts (or it is finished).
     fn cool(&mut self, case: &ExplicitSinterCase, plan: &Plan, pressure: f64, k: usize, log: &mut dyn FnMut(&str)) -> Result<bool, Error> {
         let ts = plan.times[k];
-        let profile = case.profile(ts)?;
+        let profile = &plan.profiles[k];
         let t_end = plan.t_s0 + ts + case.protocol.t_cool + case.protocol.t_relax;
         let b = self.branch.as_mut().unwrap();
-        let done = b.advance(case, &profile, &mut self.bnet, t_end, plan.interval, false, None, &mut self.clock)?;
+        let done = b.advance(case, profile, &mut self.bnet, t_end, plan.interval, false, None, &mut self.clock)?;
         if done {
             let pa = &mut self.partial;
             pa.density_final = b.density();
@@ -247,13 +339,12 @@ impl<M: SinterLaw> Machine<M> {
 
     /// The compression test of the branch `k`; then the branch is finished.
     fn compress(&mut self, case: &ExplicitSinterCase, plan: &Plan, pressure: f64, k: usize, log: &mut dyn FnMut(&str)) -> Result<bool, Error> {
-        let ts = plan.times[k];
-        let profile = case.profile(ts)?;
+        let profile = &plan.profiles[k];
         let duration = case.compression.max_strain / case.compression.strain_rate;
         let d_int = case.compression.output_strain / case.compression.strain_rate;
         let (z0, v, t_start) = (self.partial.z0, self.partial.speed, self.partial.t_start);
         let b = self.branch.as_mut().unwrap();
-        let done = b.advance(case, &profile, &mut self.bnet, t_start + duration, d_int, false, Some((z0, v)), &mut self.clock)?;
+        let done = b.advance(case, profile, &mut self.bnet, t_start + duration, d_int, false, Some((z0, v)), &mut self.clock)?;
         if done {
             self.finish_branch(case, pressure, k, &plan.times, log);
         }
@@ -336,16 +427,79 @@ impl<M: SinterLaw> Machine<M> {
     }
 }
 
-/// Runs (or continues, from `resume`: the checkpoint's text and its path) the machine of one law.
-pub(super) fn run_law<M: SinterLaw>(
+/// The protocol of one law behind one object (the run object [`super::ExplicitRun`] holds it).
+pub trait Protocol {
+    /// [`Machine::run_to`].
+    fn run_to(&mut self, case: &ExplicitSinterCase, plan: &Plan, sink: Option<&CheckpointSink>, log: &mut dyn FnMut(&str), budget: u64)
+    -> Result<Pause, Error>;
+    /// Explicit steps so far (all samples).
+    fn steps(&self) -> u64;
+    /// Where the protocol is, and the index of its pressure.
+    fn stage(&self) -> (Stage, usize);
+    /// The sample being advanced: the branch, else the trunk (none between two pressures).
+    fn current(&self) -> Option<Current<'_>>;
+    /// The finished branches, the step, the warnings (the samples' in progress included) and the
+    /// wall time.
+    fn into_finished(self: Box<Self>) -> Finished;
+}
+
+/// A view of the sample being advanced.
+pub struct Current<'a> {
+    pub(super) particles: &'a crate::particles::Particles,
+    /// Time of the sample [s].
+    pub(super) time: f64,
+    /// Solid fraction ΣV_i/V_box [1].
+    pub(super) density: f64,
+    /// Particle–particle contacts and their normal force [N] (positive repulsive).
+    pub(super) contacts: Vec<((u32, u32), f64)>,
+    /// The sample's history rows so far (in the compression test: its compression rows).
+    pub(super) rows: &'a [Row],
+}
+
+impl<M: SinterLaw> Protocol for Machine<M> {
+    fn run_to(
+        &mut self,
+        case: &ExplicitSinterCase,
+        plan: &Plan,
+        sink: Option<&CheckpointSink>,
+        log: &mut dyn FnMut(&str),
+        budget: u64,
+    ) -> Result<Pause, Error> {
+        Machine::run_to(self, case, plan, sink, log, budget)
+    }
+    fn steps(&self) -> u64 {
+        self.clock.steps
+    }
+    fn stage(&self) -> (Stage, usize) {
+        (self.stage, self.pressure_index)
+    }
+    fn current(&self) -> Option<Current<'_>> {
+        let s = self.branch.as_ref().or(self.trunk.as_ref())?;
+        Some(Current {
+            particles: &s.particles,
+            time: s.driver.time,
+            density: s.density(),
+            contacts: s.driver.contact_states().into_iter().map(|(p, f, _)| (p, f)).collect(),
+            rows: &s.rows,
+        })
+    }
+    fn into_finished(mut self: Box<Self>) -> Finished {
+        self.close();
+        let m = *self;
+        Finished { branches: m.branches, dt_used: m.dt_used, warnings: m.warnings, wall_before: m.wall_before }
+    }
+}
+
+/// The protocol of `case` for one law, new or continued from `resume` (the checkpoint's text and
+/// its path).
+pub(super) fn start_law<M: SinterLaw>(
     case: &ExplicitSinterCase,
     law: M,
-    sink: Option<&mut CheckpointSink>,
     resume: Option<(&str, &Path)>,
     log: &mut dyn FnMut(&str),
-) -> Result<Option<Finished>, Error> {
+) -> Result<Box<dyn Protocol>, Error> {
     let every = case.output.checkpoint_every as u64;
-    let mut m = match resume {
+    let m = match resume {
         None => Machine::new(law, every),
         Some((text, path)) => {
             let ck: ExplicitCheckpoint<M::State> = serde_json::from_str(text).map_err(|e| IoError::new(path, e))?;
@@ -355,6 +509,5 @@ pub(super) fn run_law<M: SinterLaw>(
             m
         }
     };
-    let done = m.run(case, M::NAME, sink, log)?;
-    Ok(done.then_some(Finished { branches: m.branches, dt_used: m.dt_used, warnings: m.warnings, wall_before: m.wall_before }))
+    Ok(Box::new(m))
 }

@@ -36,6 +36,7 @@ pub mod laws;
 mod machine;
 mod output;
 mod sample;
+mod stepping;
 
 pub use crate::explicit::sinter::SinterLaw;
 pub use case::{
@@ -43,8 +44,9 @@ pub use case::{
 };
 pub use checkpoint::CheckpointSink;
 pub use machine::{Stage, StepClock};
-pub use output::{Branch, ExplicitSinterRun, Row, columns, summary_json, write_outputs};
+pub use output::{Branch, ExplicitSinterRun, Row, Stopped, columns, summary_json, write_outputs};
 pub use sample::Sample;
+pub use stepping::ExplicitRun;
 
 use crate::config::ranges::{Range, c, p};
 use crate::error::{ConfigError, Error, IoError};
@@ -104,35 +106,18 @@ pub fn check_explicit_case(case: &toml::Value) -> Result<(), Error> {
 /// Format tag of `explicit_sinter` checkpoints.
 pub const EXPLICIT_CHECKPOINT_FORMAT: &str = "sinterdem-explicit-checkpoint-1";
 
-/// Runs a parsed case (no files written); with `progress` the stage lines go to stderr.
+/// Runs a parsed case (no files written); with `progress` the stage lines go to stderr. The loop
+/// of [`ExplicitRun`].
 pub fn run_explicit(case: &ExplicitSinterCase, progress: bool) -> Result<ExplicitSinterRun, Error> {
     let mut log = |m: &str| {
         if progress {
             tracing::info!("{m}");
         }
     };
-    run_explicit_with(case, None, None, &mut log).map(|r| r.expect("no stop without a checkpoint sink"))
-}
-
-/// Runs a parsed case, writing checkpoints into `sink` when given and continuing from `resume`
-/// (a checkpoint's text and path) when given; `Ok(None)` when stopped by `sink.stop_after`.
-pub fn run_explicit_with(
-    case: &ExplicitSinterCase,
-    sink: Option<&mut CheckpointSink>,
-    resume: Option<(&str, &Path)>,
-    log: &mut dyn FnMut(&str),
-) -> Result<Option<ExplicitSinterRun>, Error> {
-    let n = case.sample.particles as usize;
-    let done = case.law.run(case, sink, resume, log)?;
-    Ok(done.map(|f| ExplicitSinterRun {
-        title: case.title.clone(),
-        model: case.law.name().into(),
-        particles: n,
-        dt: f.dt_used,
-        branches: f.branches,
-        warnings: f.warnings,
-        wall_seconds: f.wall_before,
-    }))
+    let mut r = ExplicitRun::new(case.clone(), None, None, None, &mut log)?;
+    while r.step(&mut log)? {}
+    let (run, _, _) = r.into_run(&mut log)?.expect("no stop without a checkpoint sink");
+    Ok(run)
 }
 
 /// Runs an `explicit_sinter` case and writes its outputs into `out_dir` (module docs); returns the
@@ -146,26 +131,13 @@ pub fn run_explicit_case(case: &toml::Value, out_dir: &Path, progress: bool) -> 
     run_explicit_from(case, out_dir, &mut log, None)
 }
 
-/// The run API's entry: runs `case` into `out_dir`, writing `out_dir/checkpoint.json` every
-/// `output.checkpoint_every` steps; `stop_after` ends the run right after the checkpoint at or
-/// after that step (as if killed there; for tests) with `Ok(Value::Null)`.
+/// Runs `case` into `out_dir` (the loop of [`ExplicitRun`]), writing `out_dir/checkpoint.json`
+/// every `output.checkpoint_every` steps; `stop_after` ends the run right after the checkpoint at
+/// or after that step (as if killed there; for tests) with `Ok(Value::Null)`.
 pub fn run_explicit_from(case: &toml::Value, out_dir: &Path, log: &mut dyn FnMut(&str), stop_after: Option<u64>) -> Result<serde_json::Value, Error> {
-    let c = parse_explicit_case(case)?;
-    crate::io::ensure_dir(out_dir)?;
-    let case_toml = toml::to_string(case).map_err(|e| ConfigError::invalid(format!("case cannot be re-serialised: {e}")))?;
-    let mut sink = CheckpointSink { dir: out_dir, case_toml, stop_after };
-    let sink = (c.output.checkpoint_every > 0.0).then_some(&mut sink);
-    match run_explicit_with(&c, sink, None, log)? {
-        None => Ok(serde_json::Value::Null),
-        Some(run) => finish(&c, &run, out_dir, log),
-    }
-}
-
-fn finish(c: &ExplicitSinterCase, run: &ExplicitSinterRun, out_dir: &Path, log: &mut dyn FnMut(&str)) -> Result<serde_json::Value, Error> {
-    for w in &run.warnings {
-        log(&format!("warning: {w}"));
-    }
-    write_outputs(c, run, out_dir)
+    let mut r = ExplicitRun::start_stopping(case, out_dir, stop_after, log)?;
+    while r.step(log)? {}
+    r.finish(log)
 }
 
 /// `sinterdem resume DIR` for an `explicit_sinter` run: rebuilds the case from the checkpoint's
@@ -190,8 +162,8 @@ pub fn resume(dir: &Path, log: &mut dyn FnMut(&str)) -> Result<serde_json::Value
     if head.model != c.law.name() {
         return Err(ConfigError::invalid(format!("{}: model \"{}\" does not match the case's model \"{}\"", path.display(), head.model, c.law.name())).into());
     }
-    let mut sink = CheckpointSink { dir, case_toml: head.case_toml, stop_after: None };
-    let sink = (c.output.checkpoint_every > 0.0).then_some(&mut sink);
-    let run = run_explicit_with(&c, sink, Some((&text, &path)), log)?.expect("no stop without stop_after");
-    finish(&c, &run, dir, log)
+    let sink = (c.output.checkpoint_every > 0.0).then(|| CheckpointSink { dir: dir.to_path_buf(), case_toml: head.case_toml, stop_after: None });
+    let mut r = ExplicitRun::new(c, sink, Some((&text, &path)), Some(dir.to_path_buf()), log)?;
+    while r.step(log)? {}
+    r.finish(log)
 }

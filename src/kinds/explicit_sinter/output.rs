@@ -87,6 +87,28 @@ pub struct ExplicitSinterRun {
     pub branches: Vec<Branch>,
     pub warnings: Vec<String>,
     pub wall_seconds: f64,
+    /// Where a run stopped before the end of its protocol (None: completed).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stopped: Option<Stopped>,
+}
+
+/// Where a run stopped before the end of its protocol (Ctrl-C, a caller's stop).
+#[derive(Debug, Clone, Serialize)]
+pub struct Stopped {
+    /// `stop_reason` ("interrupted", "stopped by the caller", …).
+    pub reason: String,
+    /// The stage it was in (`prepare`, `heat`, `sinter`, `cool`, `compress`).
+    pub stage: &'static str,
+    /// Confining pressure of the sample in progress [Pa].
+    pub pressure: f64,
+    /// Sintering time of the branch in progress [s] (None before sintering).
+    pub t_sinter: Option<f64>,
+    /// Time of the sample in progress [s].
+    pub time: f64,
+    /// Explicit steps taken (all samples).
+    pub steps: u64,
+    /// The sample in progress was in its compression test (its rows are compression rows).
+    pub in_compression: bool,
 }
 
 fn tag(b: &Branch) -> String {
@@ -210,7 +232,7 @@ pub fn summary_json(run: &ExplicitSinterRun) -> serde_json::Value {
             })
         })
         .collect();
-    json!({
+    let mut v = json!({
         "title": run.title,
         "model": run.model,
         "particles": run.particles,
@@ -218,5 +240,16 @@ pub fn summary_json(run: &ExplicitSinterRun) -> serde_json::Value {
         "wall_seconds": run.wall_seconds,
         "warnings": run.warnings,
         "branches": branches,
-    })
+    });
+    // a completed run's summary keeps its fields (and checksums): completed = true is implied
+    if let (Some(s), Some(o)) = (run.stopped.as_ref(), v.as_object_mut()) {
+        o.insert("completed".into(), json!(false));
+        o.insert("stop_reason".into(), json!(s.reason));
+        let mut at = json!({"stage": s.stage, "pressure_Pa": s.pressure, "time_s": s.time, "steps": s.steps});
+        if let (Some(ts), Some(a)) = (s.t_sinter, at.as_object_mut()) {
+            a.insert("t_sinter_s".into(), json!(ts));
+        }
+        o.insert("stopped_at".into(), at);
+    }
+    v
 }

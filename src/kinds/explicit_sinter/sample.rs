@@ -38,7 +38,7 @@ pub struct Sample<M: SinterLaw> {
     pub pressure: f64,
 }
 
-fn random_loose_sample(case: &ExplicitSinterCase) -> Result<(Particles, f64), Error> {
+pub(super) fn random_loose_sample(case: &ExplicitSinterCase) -> Result<(Particles, f64), Error> {
     let s = &case.sample;
     let n = s.particles as usize;
     let mut rng = Rng::new(s.seed as u64);
@@ -286,8 +286,9 @@ impl<M: SinterLaw> Sample<M> {
 
     /// Advances to time `until` [s] under `profile`, writing a history row every `interval`.
     /// `clock` counts the steps of the whole protocol; when it reaches a multiple of its
-    /// checkpoint interval the advance pauses and returns `Ok(false)` (call it again to go on:
-    /// the continuation is the same as if it had not paused); `Ok(true)` once `until` is reached.
+    /// checkpoint interval, or its step budget before a step, the advance pauses and returns
+    /// `Ok(false)` (call it again to go on: the continuation is the same as if it had not
+    /// paused); `Ok(true)` once `until` is reached.
     pub(super) fn advance(
         &mut self,
         case: &ExplicitSinterCase,
@@ -304,6 +305,9 @@ impl<M: SinterLaw> Sample<M> {
         let dt = self.driver.settings.dt;
         let mut next_row = self.rows.last().map(|r| r.time + interval).unwrap_or(0.0);
         while self.driver.time + 0.5 * dt < until {
+            if clock.spent() {
+                return Ok(false);
+            }
             let t = self.driver.time + dt;
             self.thermal(case, profile, net, t)?;
             update_areas(&mut self.driver.walls);

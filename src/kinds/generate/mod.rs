@@ -153,6 +153,22 @@ pub struct GenerateSummary {
     /// Periodic packings: homogeneity and compaction figures (docs/packing.md (G5)–(G8)).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub periodic: Option<PeriodicReport>,
+    /// false when a stop request ([`crate::interrupt`]) ended the protocol early: the packing is
+    /// written as it was (absent: the protocol ran to its end).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub completed: Option<bool>,
+    /// Why it stopped early ("interrupted").
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stop_reason: Option<String>,
+}
+
+/// `summary` marked as stopped early when a stop request ended the protocol.
+fn interrupted(mut summary: GenerateSummary) -> GenerateSummary {
+    if crate::interrupt::requested() {
+        summary.completed = Some(false);
+        summary.stop_reason = Some("interrupted".into());
+    }
+    summary
 }
 
 /// What a periodic packing reports beside the walled summary (docs/packing.md, "Periodic packings").
@@ -210,7 +226,7 @@ pub fn generate_case(case: &toml::Value, out_dir: &Path, progress: bool) -> Resu
     }
     crate::finite::ensure_finite_groups("packing generation", summary.steps, 0.0, "particle", "position", packing.positions.iter().map(|x| x.as_ref()))?;
     write_outputs(&c, &packing, &summary, out_dir)?;
-    if !summary.thresholds_met {
+    if !summary.thresholds_met && summary.completed.is_none() {
         return Err(SolveError::new(
             "packing relaxation",
             format!(

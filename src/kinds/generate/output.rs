@@ -151,6 +151,8 @@ pub(super) fn summarise(
         boundary: periodic.map(|_| "periodic".to_string()),
         box_size_m: periodic.map(|_| box_si),
         periodic: None,
+        completed: None,
+        stop_reason: None,
     }
 }
 

@@ -61,7 +61,10 @@ pub fn generate_periodic(case: &GenerateCase, progress: bool) -> Result<(Packing
     sim.parallel_threshold = 30_000;
     let mut extra = PeriodicReport::default();
     let (mu, steps_compact) = compact(&mut sim, &mut p, target, vp, proto, &mut extra, &pr)?;
-    let (met, steps_relax, mu) = relax(&mut sim, &mut p, mu, proto, &pr)?;
+    // a stop request (crate::interrupt): the packing as it is, in the box as it is
+    let stopped = crate::interrupt::requested();
+    let (met, steps_relax, mu) = if stopped { (false, 0, mu) } else { relax(&mut sim, &mut p, mu, proto, &pr)? };
+    let target = if crate::interrupt::requested() { sim.periodic_box().unwrap_or(target) } else { target };
     pr.say(format!(
         "relaxed after {steps_relax} steps (kinetic energy {:.3e}, largest overlap {:.2e} r, thresholds met: {met}; {} neighbour-list builds in all)",
         sim.energy.kinetic / n as f64,
@@ -96,7 +99,7 @@ pub fn generate_periodic(case: &GenerateCase, progress: bool) -> Result<(Packing
     );
     let gap = proto.contact_gap_rel * r_unit;
     summary.periodic = Some(periodic_report(&pos_si, &rad_si, V3::from(box_si), gap, summary.lamina_width, extra));
-    Ok((Packing { positions: pos_si, radii: rad_si, box_size: box_si }, summary))
+    Ok((Packing { positions: pos_si, radii: rad_si, box_size: box_si }, super::interrupted(summary)))
 }
 
 /// Random sequential insertion (G5, stage 1) of the spheres, in draw order, into the periodic box
@@ -175,6 +178,9 @@ fn compact(sim: &mut Sim, p: &mut Particles, target: V3, vp: f64, proto: &Protoc
     extra.first_jam_solid_fraction = 0.0;
     let phi = |lambda: f64| vp / (target * lambda).product();
     while lambda > 1.0 {
+        if crate::interrupt::requested() {
+            break;
+        }
         let pm = sim.virial_pressure(p);
         let servo = (1.0 - pm / p_c).clamp(0.0, 1.0);
         lambda = (lambda * (1.0 - proto.strain_rate * dt * servo)).max(1.0);
@@ -254,6 +260,9 @@ fn relax(sim: &mut Sim, p: &mut Particles, mut mu: f64, proto: &Protocol, pr: &P
     let (mut stuck, mut ov_at_check) = (0u32, f64::INFINITY);
     let met = loop {
         sim.run(p, 50)?;
+        if crate::interrupt::requested() {
+            break false;
+        }
         steps += 50;
         if mu > 0.0 {
             // rattlers keep their spin for ever (nothing damps it) and it does not shape the packing

@@ -96,10 +96,15 @@ pub fn generate(case: &GenerateCase, progress: bool) -> Result<(Packing, Generat
     let (mut sim, dt, g) = simulation(&case.protocol, &s, &cloud, &p, &pr)?;
     // 2. settle
     let (steps_settle, zmax) = settle(&mut sim, &mut p, &s, &cloud, dt, g, case.protocol.max_steps, &pr)?;
-    // 3. triaxial compaction
-    let c = compact(&mut sim, &mut p, &s, zmax, dt, &mut rng, &case.protocol, &pr)?;
+    // 3. triaxial compaction (a stop request, crate::interrupt: the packing as it is)
+    let stop = crate::interrupt::requested;
+    let c = if stop() {
+        Compacted { target: box_of(&sim.walls), mu: case.protocol.friction, steps: 0 }
+    } else {
+        compact(&mut sim, &mut p, &s, zmax, dt, &mut rng, &case.protocol, &pr)?
+    };
     // 4. unload and relax
-    let (met, steps_relax) = relax(&mut sim, &mut p, n, &c, &case.protocol, &pr)?;
+    let (met, steps_relax) = if stop() { (false, 0) } else { relax(&mut sim, &mut p, n, &c, &case.protocol, &pr)? };
     let steps_total = sim.counters.steps;
     pr.say(format!(
         "relaxed after {steps_relax} steps (kinetic energy {:.3e}, thresholds met: {met}; {} neighbour-list builds in all)",
@@ -131,7 +136,7 @@ pub fn generate(case: &GenerateCase, progress: bool) -> Result<(Packing, Generat
         met,
         None,
     );
-    Ok((Packing { positions: pos_si, radii: rad_si, box_size: box_si }, summary))
+    Ok((Packing { positions: pos_si, radii: rad_si, box_size: box_si }, super::interrupted(summary)))
 }
 
 /// The sizes in scaled units (module docs) and the target box.
@@ -264,6 +269,9 @@ fn settle(sim: &mut Sim, p: &mut Particles, s: &Scaled, cloud: &Cloud, dt: f64, 
     loop {
         sim.run(p, 100)?;
         steps_settle += 100;
+        if crate::interrupt::requested() {
+            break;
+        }
         if steps_settle > fall_steps && sim.energy.kinetic < ke_settle {
             break;
         }
@@ -306,6 +314,11 @@ fn compact(sim: &mut Sim, p: &mut Particles, s: &Scaled, zmax: f64, dt: f64, rng
         sim.walls[2 * a + 1].control = WallControl::Velocity;
     }
     while lambda < 1.0 {
+        if crate::interrupt::requested() {
+            // stopped: the walls stay where they are
+            target = box_of(&sim.walls);
+            break;
+        }
         let pm = (0..3).map(|a| sim.walls[2 * a + 1].pressure()).sum::<f64>() / 3.0;
         let servo = (1.0 - pm / p_c).clamp(0.0, 1.0);
         let dl = (servo * v_max * dt / path_len).min(1.0 - lambda);
@@ -431,6 +444,9 @@ fn relax(sim: &mut Sim, p: &mut Particles, n: usize, c: &Compacted, proto: &Prot
     let met = loop {
         sim.run(p, 50)?;
         steps_relax += 50;
+        if crate::interrupt::requested() {
+            break false;
+        }
         if mu > 0.0 {
             // a rattler (no contact: zero force, gravity is off) keeps any spin forever, and its
             // rotational energy would hold the kinetic energy above the threshold; the spin of a

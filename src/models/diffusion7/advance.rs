@@ -9,7 +9,7 @@ use super::contact::Contact7;
 use super::kinetics::rates_with;
 use super::material::{ContactParams, Material, PathFactors};
 use crate::error::ModelError;
-use crate::models::ode::{Control, Method, OdeStats, integrate};
+use crate::models::ode::{Control, Method, OdeStats, integrate_while};
 use crate::profile::Profile;
 use serde::{Deserialize, Serialize};
 
@@ -168,6 +168,29 @@ pub fn advance<G>(
 where
     G: FnMut(f64, &[f64; 7], f64),
 {
+    let go_on = |t: f64, y: &[f64; 7], temp: f64| {
+        on_step(t, y, temp);
+        true
+    };
+    advance_while(contact, mats, temp, t0, t1, opts, stats, go_on).map(|_| ())
+}
+
+/// [`advance`] whose `on_step(t, y, T)` returns whether to go on: `false` ends the advance after
+/// that accepted substep, with the contact at that state. Returns the global time it stopped at
+/// [s], None when it reached `t1`.
+pub fn advance_while<G>(
+    contact: &mut Contact7,
+    mats: &PairMaterials,
+    temp: &TemperaturePath,
+    t0: f64,
+    t1: f64,
+    opts: &SolverOptions,
+    stats: &mut OdeStats,
+    mut on_step: G,
+) -> Result<Option<f64>, ModelError>
+where
+    G: FnMut(f64, &[f64; 7], f64) -> bool,
+{
     let ctl = opts.control(contact.r_min());
     let tc = contact.t_created;
     let trans = mats.transitions();
@@ -193,28 +216,39 @@ where
                 super::contact::diagnose(&last.get())
             ))
         };
+        let stopped_at = std::cell::Cell::new(None);
         let mut cb = |tau: f64, yy: &[f64; 7]| {
             let t = tau + tc;
             last.set(*yy);
-            on_step(t, yy, temp.at(t));
+            let go = on_step(t, yy, temp.at(t));
+            if !go {
+                stopped_at.set(Some(t));
+            }
+            go
         };
-        y = if ta == tb {
+        let (ynew, _) = if ta == tb {
             let mut k = params.at(ta).map_err(ctx)?;
             k.normal_force = force;
             let mut f = |_tau: f64, yy: &[f64; 7]| rates_with(yy, &k);
-            integrate(&mut f, a - tc, b - tc, y, &mut h, &ctl, stats, &mut cb).map_err(ctx)?
+            integrate_while(&mut f, a - tc, b - tc, y, &mut h, &ctl, stats, &mut cb).map_err(ctx)?
         } else {
             let mut f = |tau: f64, yy: &[f64; 7]| {
                 let mut k = params.at(temp.at(tau + tc))?;
                 k.normal_force = force;
                 rates_with(yy, &k)
             };
-            integrate(&mut f, a - tc, b - tc, y, &mut h, &ctl, stats, &mut cb).map_err(ctx)?
+            integrate_while(&mut f, a - tc, b - tc, y, &mut h, &ctl, stats, &mut cb).map_err(ctx)?
         };
+        y = ynew;
+        if let Some(t) = stopped_at.get() {
+            contact.y = y;
+            contact.h_last = h;
+            return Ok(Some(t));
+        }
     }
     contact.y = y;
     contact.h_last = h;
-    Ok(())
+    Ok(None)
 }
 
 /// A warning if `[t_lo, t_hi]` [K] leaves the calibrated range of `m` (docs/diffusion7.md §10).
