@@ -762,3 +762,34 @@ impl Tap for Command {
         std::mem::replace(self, Command::new("true"))
     }
 }
+
+/// Defects the run-path fuzzer (`tests/fuzz_run.rs`) found: a heat run with more snapshot times
+/// than steps wrote the same state once per snapshot time (73 083 snapshots of a 60-step run took
+/// two minutes a step), and a per-contact tolerance of 4e-30 never finished a compact step.
+#[test]
+fn fuzz_found_heat_snapshots_are_one_per_step_and_rtol_has_a_floor() {
+    let d = common::tmp_dir("fuzz-found");
+    let text = "[time]\nend = 3.0\ndt = 1.0\n[output]\nsnapshots = 5000\nvtu = true\nhdf5 = false\n[[materials]]\nname = \"copper\"\npreset = \"copper\"\n\
+                [particles]\nsource = \"lattice\"\nlattice = \"fcc\"\ncells = [2, 2, 2]\nradius = 25e-6\noverlap = 0.05\ninitial_temperature = 293.15\n\
+                [thermal]\nmode = \"network\"\n[[thermal.fixed]]\nregion = { face = \"z-\" }\nprofile = { constant = 400.0 }\n";
+    std::fs::write(d.join("heat.toml"), text).unwrap();
+    let t0 = Instant::now();
+    let o = bin().arg("run").arg(d.join("heat.toml")).arg("--out").arg(d.join("out")).arg("--quiet").output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let vtus = std::fs::read_dir(d.join("out")).unwrap().flatten().filter(|e| e.file_name().to_string_lossy().starts_with("particles_")).count();
+    // 3 steps: the initial state and one snapshot per step (before: 5000 files of 4 states)
+    assert!((2..=4).contains(&vtus), "{vtus} particle snapshots for 3 steps");
+    assert!(t0.elapsed() < Duration::from_secs(30));
+    let case = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases/periodic-copper-rve.toml");
+    for cmd in ["check", "run"] {
+        let mut c = bin();
+        c.arg(cmd).arg(&case).arg("--set").arg("solver.rtol=4.2e-30");
+        if cmd == "run" {
+            c.arg("--out").arg(d.join("rve"));
+        }
+        let o = c.arg("--quiet").output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{cmd}: {err}");
+        assert!(err.contains("solver.rtol") && err.contains("1e-12"), "{cmd}: {err}");
+    }
+}

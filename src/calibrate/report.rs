@@ -403,6 +403,52 @@ mod tests {
     }
 
     #[test]
+    fn a_non_finite_jacobian_is_a_solve_error_with_the_residuals_not_a_panic() {
+        // issue 26, class 6: a sigma of 5e-324 made J infinite and nalgebra's SVD panicked
+        // ("Singular value was NaN")
+        let r = [1.0, f64::INFINITY, 2.0];
+        for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            let j = vec![vec![1.0, 0.0], vec![0.0, bad], vec![1.0, 1.0]];
+            let e = uncertainty(&j, 2, 1.0, &r).unwrap_err();
+            assert_eq!(e.stage, "covariance");
+            assert!(e.message.contains("row 1, parameter 1"), "{}", e.message);
+            assert_eq!(e.residuals.len(), 3);
+        }
+        let e = uncertainty(&[vec![1.0, 0.0], vec![0.0, 1.0]], 2, f64::INFINITY, &r).unwrap_err();
+        assert!(e.message.contains("not finite"), "{}", e.message);
+    }
+
+    #[test]
+    fn residuals_csv_writes_an_empty_field_for_a_value_a_failed_run_did_not_give() {
+        let dir = std::env::temp_dir().join(format!("sinterdem-residuals-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let e = Experiment {
+            id: "E1B".into(),
+            diameter: 1e-4,
+            schedule: String::new(),
+            profile: crate::profile::Profile::constant(1000.0).unwrap(),
+            end: super::super::data::Observation::default(),
+            series: Vec::new(),
+        };
+        let measured = super::super::data::Measured { value: 0.5, sigma: 0.01 };
+        let r = Residual {
+            experiment: 0,
+            time: 10.0,
+            end: true,
+            quantity: Quantity::NeckRatio,
+            measured,
+            fitted: f64::NAN,
+            residual: super::super::loss::FAILURE_RESIDUAL,
+        };
+        let path = dir.join("residuals.csv");
+        write_residuals(&path, std::slice::from_ref(&e), &[r]).unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert_eq!(text.lines().nth(1).unwrap(), "E1B,10.000000,1,neck_ratio,5.0000000000e-1,1.000000e-2,,1.000000e3");
+        assert!(!text.contains("NaN"));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
     fn material_toml_round_trips() {
         let ti = Material::titanium();
         let f = PathFactors { path_factor_gb: 0.3, ..PathFactors::default() };
