@@ -398,19 +398,22 @@ impl Plot {
     pub fn save_png(&self, path: &Path) -> Result<(), IoError> {
         let data = self.render();
         let (w, h) = self.size();
-        let file = std::fs::File::create(path).map_err(|e| IoError::new(path, e))?;
-        let mut enc = png::Encoder::new(std::io::BufWriter::new(file), w, h);
+        // encoded in memory, then written atomically (io::write_atomic_bytes): a full disk leaves
+        // no truncated PNG under its final name (issue 26, class 10)
+        let mut bytes = Vec::new();
+        let mut enc = png::Encoder::new(&mut bytes, w, h);
         enc.set_color(png::ColorType::Rgb);
         enc.set_depth(png::BitDepth::Eight);
         let mut wr = enc.write_header().map_err(|e| IoError::new(path, e))?;
         wr.write_image_data(&data).map_err(|e| IoError::new(path, e))?;
         wr.finish().map_err(|e| IoError::new(path, e))?;
+        crate::io::write_atomic_bytes(path, &bytes)?;
         self.save_svg(&path.with_extension("svg"))
     }
 
-    /// Writes the plot as SVG.
+    /// Writes the plot as SVG (atomically).
     pub fn save_svg(&self, path: &Path) -> Result<(), IoError> {
-        std::fs::write(path, self.render_svg()).map_err(|e| IoError::new(path, e))
+        crate::io::write_atomic(path, &self.render_svg())
     }
 }
 

@@ -43,7 +43,13 @@ pub static RANGES: &[Range] = &[
     c("optimiser.local_iterations", 0.0, 1e5, "1", "calibration: largest number of local iterations (trust region or Nelder-Mead)"),
     o("optimiser.tolerance", 0.0, 1.0, "1", "calibration: relative decrease of chi2 below which a local iteration counts as stalled"),
     c("optimiser.stall", 1.0, 1e3, "1", "calibration: stalled local iterations in a row that end the fit"),
-    p("optimiser.fd_step", 0.0, 0.1, "1", "calibration: finite-difference step of the Jacobian in unit coordinates of the parameter ranges"),
+    c(
+        "optimiser.fd_step",
+        1e-8,
+        0.1,
+        "1",
+        "calibration: finite-difference step of the Jacobian in unit coordinates of the parameter ranges; at least 1e-8, so that the step moves every parameter by more than round-off",
+    ),
     p(
         "optimiser.simplex_scale",
         0.0,
@@ -375,6 +381,22 @@ pub fn run(setup: Setup, out: &Path, log: &mut dyn FnMut(&str)) -> Result<report
     let res = loss::residuals(&pb.experiments, &preds);
     let r: Vec<f64> = res.iter().map(|x| x.residual).collect();
     let chi2 = loss::chi2(&r);
+    // a fit in which every run fails has no result: an error, not a report of penalties
+    if let Some(Err(first)) = preds.first().filter(|_| preds.iter().all(|p| p.is_err())) {
+        return Err(crate::error::ModelError::new(format!(
+            "every run of the calibration fails at the optimum ({} experiments); the first: {first}",
+            preds.len()
+        ))
+        .into());
+    }
+    if !chi2.is_finite() {
+        return Err(crate::error::SolveError {
+            stage: "calibration".into(),
+            message: format!("chi2 at the optimum is {chi2}: not finite"),
+            residuals: r.clone(),
+        }
+        .into());
+    }
     let n = pb.params.len();
     let dof = nvals as i64 - n as i64;
     let reduced = if dof > 0 { chi2 / dof as f64 } else { f64::NAN };
@@ -389,7 +411,7 @@ pub fn run(setup: Setup, out: &Path, log: &mut dyn FnMut(&str)) -> Result<report
         .collect();
     let jt: Vec<Vec<f64>> = ju.iter().map(|row| row.iter().zip(&spans).map(|(x, s)| x / s).collect()).collect();
     let scale = if reduced > 1.0 { reduced } else { 1.0 };
-    let unc = report::uncertainty(&jt, n, scale);
+    let unc = report::uncertainty(&jt, n, scale, &r)?;
     let mut warnings = Vec::new();
     if dof <= 0 {
         warnings.push(format!("{nvals} measured values for {n} parameters: no degrees of freedom, sigma is not meaningful"));

@@ -16,12 +16,11 @@ use super::data::Experiment;
 use super::forward::Prediction;
 use super::loss::{Quantity, Residual};
 use super::model::{BatchInfo, Problem};
-use crate::error::{Error, IoError, ModelError};
+use crate::error::{Error, IoError, ModelError, SolveError};
 use crate::models::diffusion7::{Material, PathFactors};
 use crate::plot::{Plot, Series};
 use nalgebra::DMatrix;
 use serde::Serialize;
-use std::io::Write;
 use std::path::Path;
 
 /// |r| above which two parameters are reported as correlated.
@@ -44,7 +43,23 @@ pub struct Uncertainty {
 /// The columns are first scaled to unit norm (D = diag(1/|J_i|)), so that a direction counts as
 /// undetermined by its relative singular value (< 1e-12 of the largest) and not by the units of θ:
 /// `C = D ((JD)ᵀ(JD))⁺ D · scale`.
-pub fn uncertainty(j: &[Vec<f64>], n: usize, scale: f64) -> Uncertainty {
+///
+/// A non-finite entry of `j` or a non-finite `scale` is a [`SolveError`] (stage "covariance") that
+/// carries the residuals `r`: the SVD is never asked to decompose NaN or inf (issue 26, class 6).
+pub fn uncertainty(j: &[Vec<f64>], n: usize, scale: f64, r: &[f64]) -> Result<Uncertainty, SolveError> {
+    if let Some((row, col)) = j.iter().enumerate().find_map(|(a, row)| row.iter().position(|x| !x.is_finite()).map(|b| (a, b))) {
+        return Err(SolveError {
+            stage: "covariance".into(),
+            message: format!(
+                "the Jacobian of the residuals is not finite (row {row}, parameter {col}: {}); the uncertainty cannot be computed (a data sigma too small, or a run that fails near the optimum)",
+                j[row][col]
+            ),
+            residuals: r.to_vec(),
+        });
+    }
+    if !scale.is_finite() {
+        return Err(SolveError { stage: "covariance".into(), message: format!("chi2 / dof = {scale:e} is not finite"), residuals: r.to_vec() });
+    }
     let m = j.len();
     let norms: Vec<f64> = (0..n).map(|b| j.iter().map(|r| r[b] * r[b]).sum::<f64>().sqrt()).collect();
     let d: Vec<f64> = norms.iter().map(|x| if *x > 0.0 && x.is_finite() { 1.0 / x } else { 0.0 }).collect();
@@ -75,7 +90,7 @@ pub fn uncertainty(j: &[Vec<f64>], n: usize, scale: f64) -> Uncertainty {
     let cov = DMatrix::from_fn(n, n, |a, b| pinv[(a, b)] * d[a] * d[b] * scale);
     let sigma: Vec<f64> = (0..n).map(|i| if undetermined[i] { f64::NAN } else { cov[(i, i)].max(0.0).sqrt() }).collect();
     let correlation = (0..n).map(|a| (0..n).map(|b| cov[(a, b)] / (sigma[a] * sigma[b])).collect()).collect();
-    Uncertainty { sigma_theta: sigma, correlation, singular }
+    Ok(Uncertainty { sigma_theta: sigma, correlation, singular })
 }
 
 /// One fitted parameter in `calibration.json`.
@@ -300,25 +315,23 @@ pub fn write_material(path: &Path, m: &Material, factors: Option<&PathFactors>, 
 
 /// Writes `residuals.csv`: `id,time_s,end,quantity,measured,sigma,fitted,residual`.
 pub fn write_residuals(path: &Path, experiments: &[Experiment], res: &[Residual]) -> Result<(), Error> {
-    let io = |e: std::io::Error| IoError::new(path, e);
-    let mut w = std::io::BufWriter::new(std::fs::File::create(path).map_err(io)?);
-    writeln!(w, "id,time_s,end,quantity,measured,sigma,fitted,residual").map_err(io)?;
+    // a value a failed run could not give is an empty field, never `NaN` (docs/calibration.md)
+    let num = |x: f64, prec: usize| if x.is_finite() { format!("{x:.prec$e}") } else { String::new() };
+    let mut text = String::from("id,time_s,end,quantity,measured,sigma,fitted,residual\n");
     for r in res {
-        writeln!(
-            w,
-            "{},{:.6},{},{},{:.10e},{:.6e},{:.10e},{:.6e}",
+        text.push_str(&format!(
+            "{},{:.6},{},{},{},{},{},{}\n",
             crate::io::csv_text(&experiments[r.experiment].id),
             r.time,
             r.end as u8,
             r.quantity.name(),
-            r.measured.value,
-            r.measured.sigma,
-            r.fitted,
-            r.residual
-        )
-        .map_err(io)?;
+            num(r.measured.value, 10),
+            num(r.measured.sigma, 6),
+            num(r.fitted, 10),
+            num(r.residual, 6)
+        ));
     }
-    w.flush().map_err(io)?;
+    crate::io::write_atomic(path, &text)?;
     Ok(())
 }
 
@@ -380,13 +393,59 @@ mod tests {
     fn covariance_of_a_linear_model_and_correlation_flag() {
         // r = J θ with J rows (1, 0), (0, 2), (1, 1): JᵀJ = [[2, 1], [1, 5]], inverse = [[5, -1], [-1, 2]]/9
         let j = vec![vec![1.0, 0.0], vec![0.0, 2.0], vec![1.0, 1.0]];
-        let u = uncertainty(&j, 2, 1.0);
+        let u = uncertainty(&j, 2, 1.0, &[]).unwrap();
         assert!((u.sigma_theta[0] - (5.0f64 / 9.0).sqrt()).abs() < 1e-12);
         assert!((u.sigma_theta[1] - (2.0f64 / 9.0).sqrt()).abs() < 1e-12);
         assert!((u.correlation[0][1] + 1.0 / 10f64.sqrt()).abs() < 1e-12);
         assert!(!u.singular);
-        let s = uncertainty(&[vec![1.0, 1.0], vec![2.0, 2.0]], 2, 1.0);
+        let s = uncertainty(&[vec![1.0, 1.0], vec![2.0, 2.0]], 2, 1.0, &[]).unwrap();
         assert!(s.singular && s.sigma_theta[0].is_nan());
+    }
+
+    #[test]
+    fn a_non_finite_jacobian_is_a_solve_error_with_the_residuals_not_a_panic() {
+        // issue 26, class 6: a sigma of 5e-324 made J infinite and nalgebra's SVD panicked
+        // ("Singular value was NaN")
+        let r = [1.0, f64::INFINITY, 2.0];
+        for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            let j = vec![vec![1.0, 0.0], vec![0.0, bad], vec![1.0, 1.0]];
+            let e = uncertainty(&j, 2, 1.0, &r).unwrap_err();
+            assert_eq!(e.stage, "covariance");
+            assert!(e.message.contains("row 1, parameter 1"), "{}", e.message);
+            assert_eq!(e.residuals.len(), 3);
+        }
+        let e = uncertainty(&[vec![1.0, 0.0], vec![0.0, 1.0]], 2, f64::INFINITY, &r).unwrap_err();
+        assert!(e.message.contains("not finite"), "{}", e.message);
+    }
+
+    #[test]
+    fn residuals_csv_writes_an_empty_field_for_a_value_a_failed_run_did_not_give() {
+        let dir = std::env::temp_dir().join(format!("sinterdem-residuals-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let e = Experiment {
+            id: "E1B".into(),
+            diameter: 1e-4,
+            schedule: String::new(),
+            profile: crate::profile::Profile::constant(1000.0).unwrap(),
+            end: super::super::data::Observation::default(),
+            series: Vec::new(),
+        };
+        let measured = super::super::data::Measured { value: 0.5, sigma: 0.01 };
+        let r = Residual {
+            experiment: 0,
+            time: 10.0,
+            end: true,
+            quantity: Quantity::NeckRatio,
+            measured,
+            fitted: f64::NAN,
+            residual: super::super::loss::FAILURE_RESIDUAL,
+        };
+        let path = dir.join("residuals.csv");
+        write_residuals(&path, std::slice::from_ref(&e), &[r]).unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert_eq!(text.lines().nth(1).unwrap(), "E1B,10.000000,1,neck_ratio,5.0000000000e-1,1.000000e-2,,1.000000e3");
+        assert!(!text.contains("NaN"));
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

@@ -116,6 +116,15 @@ fn expected_in_user_terms(e: &str) -> String {
     }
 }
 
+/// A number as serde prints it (fixed notation, up to ~330 digits for 5e-324 or 1.8e308) in
+/// scientific notation when it is tiny or huge (|x| < 1e-4 or ≥ 1e16), else unchanged.
+pub fn readable(s: &str) -> String {
+    match s.parse::<f64>() {
+        Ok(x) if x.is_finite() && x != 0.0 && (x.abs() < 1e-4 || x.abs() >= 1e16) => format!("{x:e}"),
+        _ => s.to_string(),
+    }
+}
+
 /// serde's `Unexpected` (`string "ten"`, `integer `3``, `floating point `8.5``, `boolean `true``,
 /// `sequence`, `map`) in a user's terms.
 fn got_in_user_terms(g: &str) -> String {
@@ -126,7 +135,7 @@ fn got_in_user_terms(g: &str) -> String {
     } else if let Some(s) = g.strip_prefix("integer ") {
         format!("the whole number {}", ticked(s))
     } else if let Some(s) = g.strip_prefix("floating point ") {
-        format!("the number {}", ticked(s))
+        format!("the number {}", readable(&ticked(s)))
     } else if let Some(s) = g.strip_prefix("boolean ") {
         ticked(s)
     } else {
@@ -264,6 +273,10 @@ mod tests {
         assert_eq!(e, "output.snapshots: expected a number, got the text \"ten\"");
         let e = from_serde("invalid type: floating point `8.5`, expected u32 in `particles.cells`", "").to_string();
         assert_eq!(e, "particles.cells: expected a whole number >= 0, got the number 8.5");
+        // tiny and huge numbers in scientific notation, not ~330 digits (issue 26, class 13)
+        assert_eq!(readable("-0.000000000000000000000000000000000000000000000000005"), "-5e-51");
+        assert_eq!(readable(&format!("{}", -f64::MAX)), "-1.7976931348623157e308");
+        assert_eq!(readable("0.5"), "0.5");
         let e = from_serde("invalid type: integer `3`, expected a string in `thermal.mode`", "").to_string();
         assert_eq!(e, "thermal.mode: expected text (in quotes), got the whole number 3");
         let e = from_serde("invalid type: integer `3`, expected a sequence in `walls.pressures`", "").to_string();

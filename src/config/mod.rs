@@ -54,7 +54,8 @@ pub fn position(text: &str, span: Option<std::ops::Range<usize>>) -> String {
 /// them). Its keys become the case's `[model]` keys (a calibration file's `[path_factors]`) unless
 /// the case sets that key itself: the case's own value wins, and `--set` after it. Two included
 /// files that set one key to different values are refused: a run has one set of path factors.
-/// Kinds without path factors (`generate`, `explicit_sinter`) ignore an included `[model]`.
+/// Kinds without path factors (`heat`, `generate`, `explicit_sinter`) ignore an included `[model]`
+/// (a heat case refused it as a compact-only section before: issue 26, class 13).
 pub fn expand_includes(root: &mut toml::Value, base: &Path) -> Result<(), ConfigError> {
     let Some(list) = root.get_mut("materials").and_then(|m| m.as_array_mut()) else { return Ok(()) };
     // (include key, file, its [model])
@@ -106,7 +107,7 @@ pub fn expand_includes(root: &mut toml::Value, base: &Path) -> Result<(), Config
     }
     let target = if is_calibration(root) {
         "path_factors"
-    } else if matches!(kind_name(root), "heat" | "compact" | "pair") {
+    } else if matches!(kind_name(root), "compact" | "pair") {
         "model"
     } else {
         return Ok(());

@@ -41,10 +41,19 @@ pub fn read_input(path: &Path) -> Result<String, IoError> {
 /// Writes `path` atomically: a temporary file beside it (named with the process id, so that
 /// processes sharing a directory do not collide), then a rename. A reader never sees half a file.
 pub fn write_atomic(path: &Path, text: &str) -> Result<(), IoError> {
+    write_atomic_bytes(path, text.as_bytes())
+}
+
+/// [`write_atomic`] for bytes (PNG images). A failed write (a full disk, EFBIG) removes the
+/// temporary file and leaves `path` as it was: never a truncated file under its final name.
+pub fn write_atomic_bytes(path: &Path, bytes: &[u8]) -> Result<(), IoError> {
     let mut name = path.file_name().map(|n| n.to_os_string()).unwrap_or_default();
     name.push(format!(".tmp{}", std::process::id()));
     let tmp = path.with_file_name(name);
-    std::fs::write(&tmp, text).map_err(|e| IoError::new(&tmp, e))?;
+    if let Err(e) = std::fs::write(&tmp, bytes) {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(IoError::new(&tmp, e));
+    }
     std::fs::rename(&tmp, path).map_err(|e| IoError::new(path, e))
 }
 

@@ -15,7 +15,7 @@ pub mod slurm;
 pub mod spec;
 pub mod store;
 
-use crate::error::{ConfigError, Error};
+use crate::error::{ConfigError, Error, IoError};
 use std::path::{Path, PathBuf};
 
 /// Which engine executes the runs.
@@ -138,6 +138,15 @@ pub fn run_study(path: &Path, opts: &StudyOptions, log: &mut dyn FnMut(&str)) ->
         ));
         for r in rows.iter().filter(|r| r.record.as_ref().is_some_and(|x| !x.ok())).take(5) {
             log(&format!("  run {} failed: {}", r.run.index, r.record.as_ref().and_then(|x| x.error.clone()).unwrap_or_default()));
+        }
+        // the local engine executed every pending run: a run without its record is a record that
+        // could not be written (a full disk, permissions), an error and not a study that ended well
+        if matches!(opts.engine, Engine::Local) && counts.missing > 0 {
+            return Err(IoError::new(
+                dir.join("runs"),
+                format!("{} of {} run records (runs/NNNN/result.json) could not be written; see executions.log", counts.missing, counts.runs),
+            )
+            .into());
         }
     }
     Ok(StudyInfo { dir, counts, executed, gathered: gather, wall_seconds: wall.elapsed().as_secs_f64() })

@@ -250,6 +250,7 @@ pub fn load(path: &Path) -> Result<Study, Error> {
     let sampled = matches!(design, DesignKind::Lhs { .. } | DesignKind::Sobol { .. });
     let parameters = f.parameters.iter().enumerate().map(|(i, pf)| parameter(i, pf, sampled, &kind)).collect::<Result<Vec<_>, _>>()?;
     check_design(design, &kind, &parameters)?;
+    check_size(design, &parameters, cases.len())?;
     let series = collect_series(&f.collect)?;
     for o in &f.overrides {
         if !o.contains('=') {
@@ -418,6 +419,58 @@ fn check_design(design: DesignKind, kind: &str, parameters: &[Parameter]) -> Res
     names.sort();
     if let Some(w) = names.windows(2).find(|w| w[0] == w[1]) {
         return Err(ConfigError::invalid(format!("parameter \"{}\" is given twice", w[0])));
+    }
+    // one key set by two parameters: only the last would be applied, study.csv would show both
+    let mut keys: Vec<&str> = parameters.iter().map(|p| p.key.as_str()).collect();
+    keys.sort();
+    if let Some(w) = keys.windows(2).find(|w| w[0] == w[1]) {
+        return Err(ConfigError::invalid(format!("key \"{}\" is set by two [[parameters]]: give it once (values of one parameter)", w[0])));
+    }
+    if let Some(p) = parameters.iter().find(|p| FIXED_COLUMNS.contains(&p.name.as_str())) {
+        return Err(ConfigError::invalid(format!(
+            "parameter name \"{}\" (key {}) is a fixed column of study.csv ({}): give it another name = \"…\"",
+            p.name,
+            p.key,
+            FIXED_COLUMNS.join(", ")
+        )));
+    }
+    // values that overflow: a linear range or bounds whose width is not finite (±1.7e308 gives
+    // inf at every interior point)
+    for (i, p) in parameters.iter().enumerate() {
+        if let Values::Range { lo, hi, log: false, .. } | Values::Bounds { lo, hi, log: false } = p.values
+            && !(hi - lo).is_finite()
+        {
+            return Err(ConfigError::invalid(format!(
+                "parameters.{i} (key {}): the width {hi:e} - {lo:e} of the range overflows (not finite): the values in between would be inf; use log = true or narrower bounds",
+                p.key
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// The columns of study.csv that a parameter name cannot take.
+pub const FIXED_COLUMNS: &[&str] = &["run", "case", "status", "error", "wall_seconds"];
+
+/// The largest design a study expands: runs (points × case files) and values (runs × parameters).
+pub const MAX_RUNS: f64 = 1e6;
+pub const MAX_VALUES: f64 = 1e8;
+
+/// The size of the design before it is expanded (issue 26, class 7: a 10⁶ × 10³ grid was expanded
+/// in memory until the allocator aborted): at most [`MAX_RUNS`] runs and [`MAX_VALUES`] values.
+fn check_size(design: DesignKind, parameters: &[Parameter], cases: usize) -> Result<(), ConfigError> {
+    let points: f64 = match design {
+        DesignKind::Grid => parameters.iter().map(|p| super::design::count(&p.values) as f64).product(),
+        DesignKind::Zip => parameters.first().map_or(1.0, |p| super::design::count(&p.values) as f64),
+        DesignKind::Lhs { samples, .. } | DesignKind::Sobol { samples, .. } => samples as f64,
+    };
+    let runs = points * cases.max(1) as f64;
+    let values = runs * parameters.len().max(1) as f64;
+    if runs > MAX_RUNS || values > MAX_VALUES {
+        return Err(ConfigError::invalid(format!(
+            "the design has {points:e} points × {cases} case file(s) = {runs:e} runs of {} parameter(s) ({values:e} values); a study holds at most {MAX_RUNS:e} runs and {MAX_VALUES:e} values (docs/studies.md): split it into several studies",
+            parameters.len()
+        )));
     }
     Ok(())
 }

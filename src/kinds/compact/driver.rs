@@ -342,6 +342,8 @@ fn finish(
         // a run that ends before its end time keeps its last state as a snapshot
         write_snapshot(sim, &mut outputs.snaps)?;
     }
+    // data files first (a failed write is the run's error), plots last (a failed plot a warning)
+    super::output::write_correction_csv(out, sim, "end")?;
     let summary = summary(sim, &outputs.due, stop_reason, outputs.wall_before + wall.elapsed().as_secs_f64());
     io::write_json(&out.join("summary.json"), &summary)?;
     // the series and summary also go into the HDF5 file (docs/outputs.md)

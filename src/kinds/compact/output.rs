@@ -124,18 +124,32 @@ pub fn periodic_conductivity(sim: &Simulation) -> Result<Option<nalgebra::Matrix
     Ok(Some(crate::heat::conductivity::periodic(p, &pipes, &branch, edges)?))
 }
 
-/// The y4/y7 corrections of the last step, ΔL̄/L0 per contact (Ivannikov et al. 2022 eq. 44,
-/// Fig. 20): `dl_bar_TAG.csv` (pair, L0, ΔL̄, ΔL̄/L0) and `dl_bar_histogram_TAG.png` (30 bins);
-/// returns the mean and standard deviation of ΔL̄/L0.
-pub fn write_correction_histogram(out: &Path, sim: &Simulation, tag: &str) -> Result<(f64, f64), IoError> {
-    use crate::plot::{Plot, Series as Line};
+/// The y4/y7 corrections of the last step as data: `dl_bar_TAG.csv` (pair, L0, ΔL̄, ΔL̄/L0),
+/// written atomically; returns ΔL̄/L0 per contact. A data file: its failure is the run's error
+/// (issue 26, class 10), unlike a plot's.
+pub fn write_correction_csv(out: &Path, sim: &Simulation, tag: &str) -> Result<Vec<f64>, IoError> {
     let dl: Vec<f64> = sim.contacts.dl_bar.iter().zip(&sim.contacts.state).map(|(d, c)| d / c.l0).collect();
     let csv_path = out.join(format!("dl_bar_{tag}.csv"));
     let mut text = String::from("particle_a,particle_b,l0_m,dl_bar_m,dl_bar_rel\n");
     for (k, (&[a, b], c)) in sim.contacts.pairs.iter().zip(&sim.contacts.state).enumerate() {
         text.push_str(&format!("{a},{b},{:e},{:e},{:e}\n", c.l0, sim.contacts.dl_bar[k], dl[k]));
     }
-    std::fs::write(&csv_path, text).map_err(|e| IoError::new(&csv_path, e))?;
+    crate::io::write_atomic(&csv_path, &text)?;
+    Ok(dl)
+}
+
+/// The y4/y7 corrections of the last step, ΔL̄/L0 per contact (Ivannikov et al. 2022 eq. 44,
+/// Fig. 20): `dl_bar_TAG.csv` ([`write_correction_csv`]) and `dl_bar_histogram_TAG.png` (30 bins);
+/// returns the mean and standard deviation of ΔL̄/L0.
+pub fn write_correction_histogram(out: &Path, sim: &Simulation, tag: &str) -> Result<(f64, f64), IoError> {
+    let dl = write_correction_csv(out, sim, tag)?;
+    plot_correction_histogram(out, sim, tag, &dl)
+}
+
+/// The histogram PNG of [`write_correction_histogram`] from ΔL̄/L0 per contact `dl`; returns their
+/// mean and standard deviation.
+fn plot_correction_histogram(out: &Path, sim: &Simulation, tag: &str, dl: &[f64]) -> Result<(f64, f64), IoError> {
+    use crate::plot::{Plot, Series as Line};
     let n = dl.len().max(1) as f64;
     let mean = dl.iter().sum::<f64>() / n;
     let std = (dl.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n).sqrt();
@@ -144,7 +158,7 @@ pub fn write_correction_histogram(out: &Path, sim: &Simulation, tag: &str) -> Re
         let bins = 30usize;
         let w = ((hi - lo) / bins as f64).max(f64::MIN_POSITIVE);
         let mut count = vec![0usize; bins];
-        for v in &dl {
+        for v in dl {
             count[(((v - lo) / w) as usize).min(bins - 1)] += 1;
         }
         let mut pts = Vec::new();
@@ -204,7 +218,9 @@ pub fn write_plots(out: &Path, sim: &Simulation) -> Result<(), IoError> {
         p.add(Line::new(name, col(key)));
     }
     p.save_png(&out.join("temperature.png"))?;
-    write_correction_histogram(out, sim, "end")?;
+    // dl_bar_end.csv itself is data, written before summary.json (driver::finish)
+    let dl: Vec<f64> = sim.contacts.dl_bar.iter().zip(&sim.contacts.state).map(|(d, c)| d / c.l0).collect();
+    plot_correction_histogram(out, sim, "end", &dl)?;
     let prof = sim.layer_profile(5);
     let mut p = Plot::new("densification through the height").labels("height z [m]", "mean contact shrinkage dL/L0 [1]");
     p.add(Line::new("contacts by layer", prof.iter().map(|l| (l.0, l.1)).collect()).with_markers());

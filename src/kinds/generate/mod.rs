@@ -99,8 +99,14 @@ pub static RANGES: &[Range] = &[
 ];
 
 /// `sinterdem check` for a generate case: parse and validate only.
+/// Besides the keys, it draws the sizes (seeded, as the run does) and checks the target box they
+/// give ([`protocol::target_box`]): the refusals that `generate` makes before it starts are made
+/// here, by the same code (issue 26, class 8).
 pub fn check_generate_case(case: &toml::Value) -> Result<(), Error> {
-    parse_generate_case(case).map(|_| ())
+    let c = parse_generate_case(case)?;
+    let (_, _, r_max, vp) = protocol::draw_radii(&c, &mut crate::packing::Rng::new(c.seed));
+    protocol::target_box(&c, vp, r_max)?;
+    Ok(())
 }
 
 /// What `generate` reports (also written as `summary.json`).

@@ -5,7 +5,7 @@
 //! the same scaled units as the walled protocol (module docs of [`super`]).
 
 use super::output::periodic_report;
-use super::protocol::{DRAIN_DAMPING, Progress, draw_radii, morton, out_of_steps};
+use super::protocol::{DRAIN_DAMPING, Progress, draw_radii, morton, out_of_steps, target_box};
 use super::{GenerateCase, GenerateSummary, Packing, PeriodicReport, Protocol, V3};
 use crate::error::{ConfigError, Error, SolveError};
 use crate::explicit::law::{Damping, LinearSpringDashpot};
@@ -28,23 +28,7 @@ pub fn generate_periodic(case: &GenerateCase, progress: bool) -> Result<(Packing
     let mut rng = Rng::new(case.seed);
     let (r_unit, radii, r_max, vp) = draw_radii(case, &mut rng);
     // the target box: the requested shape scaled to Σ V_i / φ (G6), exactly
-    let shape = V3::from(case.box_size);
-    let target = shape * (vp / (case.target_solid_fraction * shape.product())).cbrt();
-    if let Some(a) = (0..3).find(|&a| target[a] < 4.0 * r_max) {
-        return Err(ConfigError::inconsistent(
-            "packing.box",
-            format!(
-                "the periodic target box is {:.3} mean radii along {} (shape {:?} scaled to {} particles at solid fraction {}), below two largest diameters ({:.3} mean radii); add particles or make the shape less elongated",
-                target[a],
-                ["x", "y", "z"][a],
-                case.box_size,
-                n,
-                case.target_solid_fraction,
-                4.0 * r_max
-            ),
-        )
-        .into());
-    }
+    let target = V3::from(target_box(case, vp, r_max)?);
     // the cloud is never denser than the target (then the compaction is empty)
     let l0 = target * (case.target_solid_fraction / proto.cloud_solid_fraction).cbrt().max(1.0);
     let (mut p, order) = insert(&radii, l0, &mut rng)?;

@@ -162,24 +162,60 @@ pub(super) fn draw_radii(case: &GenerateCase, rng: &mut Rng) -> (f64, Vec<f64>, 
     (r_unit, radii, r_max, vp)
 }
 
-/// Draws the diameters and scales the requested box shape to the target volume.
-fn scaled_sizes(case: &GenerateCase, rng: &mut Rng) -> Result<Scaled, Error> {
-    let proto = &case.protocol;
-    let (r_unit, radii, r_max, vp) = draw_radii(case, rng);
-    // target box (scaled)
+/// The target box [scaled units]: the requested shape scaled to the target volume, the
+/// compaction's (walls: `Σ V_i / (φ (1 + 2 compaction_overlap))`) or exactly `Σ V_i / φ`
+/// (periodic, docs/packing.md (G6)); every edge must be finite and at least two largest
+/// diameters. `check` asks it too ([`super::check_generate_case`]), so that `check` refuses what
+/// `generate` refuses (issue 26, class 8).
+pub(super) fn target_box(case: &GenerateCase, vp: f64, r_max: f64) -> Result<[f64; 3], Error> {
     let shape = case.box_size;
+    let volume = shape[0] * shape[1] * shape[2];
+    if case.periodic {
+        let target = shape.map(|s| s * (vp / (case.target_solid_fraction * volume)).cbrt());
+        if let Some(a) = (0..3).find(|&a| !(target[a].is_finite() && target[a] >= 4.0 * r_max)) {
+            return Err(ConfigError::inconsistent(
+                "packing.box",
+                format!(
+                    "the periodic target box is {:.3e} mean radii along {} (shape {:?} scaled to {} particles at solid fraction {}), not a finite length of at least two largest diameters ({:.3} mean radii); add particles or make the shape less elongated",
+                    target[a],
+                    ["x", "y", "z"][a],
+                    case.box_size,
+                    case.particles,
+                    case.target_solid_fraction,
+                    4.0 * r_max
+                ),
+            )
+            .into());
+        }
+        return Ok(target);
+    }
     // compaction aims slightly above the target: unloading from the compaction pressure expands
     // the box by about the elastic strain; 2·compaction_overlap is the measured relative loss
-    let v_target = vp / (case.target_solid_fraction * (1.0 + 2.0 * proto.compaction_overlap));
-    let scale = (v_target / (shape[0] * shape[1] * shape[2])).cbrt();
+    let v_target = vp / (case.target_solid_fraction * (1.0 + 2.0 * case.protocol.compaction_overlap));
+    let scale = (v_target / volume).cbrt();
     let target = shape.map(|s| s * scale);
-    if target.iter().any(|&l| l < 4.0 * r_max) {
+    if target.iter().any(|&l| !(l.is_finite() && l >= 4.0 * r_max)) {
         return Err(ConfigError::inconsistent(
             "packing.box",
-            format!("the target box {:?} mean radii is narrower than two largest diameters ({:.3}); add particles or change the shape", target, 4.0 * r_max),
+            format!(
+                "the target box [{:.3e}, {:.3e}, {:.3e}] mean radii (shape {:?} scaled to {} particles) is not finite or narrower than two largest diameters ({:.3}); add particles or change the shape",
+                target[0],
+                target[1],
+                target[2],
+                case.box_size,
+                case.particles,
+                4.0 * r_max
+            ),
         )
         .into());
     }
+    Ok(target)
+}
+
+/// Draws the diameters and scales the requested box shape to the target volume.
+fn scaled_sizes(case: &GenerateCase, rng: &mut Rng) -> Result<Scaled, Error> {
+    let (r_unit, radii, r_max, vp) = draw_radii(case, rng);
+    let target = target_box(case, vp, r_max)?;
     Ok(Scaled { r_unit, radii, r_max, vp, target })
 }
 

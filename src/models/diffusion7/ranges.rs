@@ -26,7 +26,13 @@ pub static RANGES: &[Range] = &[
     p("model.path_factor_cap", 0.0, 100.0, "1", "lambda_p: cap path length lambda_p*s (M6)"),
     c("model.lattice_depth_factor", 0.0, 100.0, "1", "f_l: lattice depth l = f_l*s (M6)"),
     // integrator (T1)
-    o("solver.rtol", 0.0, 0.1, "1", "relative tolerance of the per-contact integrator (T1)"),
+    c(
+        "solver.rtol",
+        1e-12,
+        0.1,
+        "1",
+        "relative tolerance of the per-contact integrator (T1); at least 1e-12, which double precision can still meet (below it the substeps shrink without end)",
+    ),
     p("solver.norm_floor", 0.0, 1.0, "1", "norm floor relative to the smaller radius (T1)"),
     c("solver.max_substep", 1e-12, INF, "s", "largest substep of the per-contact integrator (at least 1 ps, so that every substep advances time)"),
     c("solver.min_step_rel", 0.0, 1e-3, "1", "ModelError if a proposed substep falls below this fraction of the contact age"),
