@@ -135,6 +135,9 @@ pub fn resolve(case: &toml::Value, overrides: &[String]) -> Result<toml::Value, 
         config::apply_override(&mut v, o)?;
     }
     config::apply_aliases(&mut v)?;
+    // values typical of the wrong unit (docs/case-file.md "Unit slips"); the warnings are logged
+    // by `open_run` and `check`
+    config::plausible::unit_slips(&v)?;
     Ok(v)
 }
 
@@ -267,8 +270,12 @@ pub(crate) fn open_run(case: &toml::Value, overrides: &[String], out: &Path, par
     if !overrides.is_empty() {
         log.line(&format!("overrides: {}", overrides.join(" ")));
     }
-    for w in compact_only_keys(&value) {
+    let (later, notes) = config::plausible::schedule_end_warnings(&value);
+    for w in compact_only_keys(&value).into_iter().chain(config::plausible::unit_slips(&value)?).chain(later) {
         log.line(&format!("warning: {w}"));
+    }
+    for n in notes {
+        log.line(&n);
     }
     validate_before_run(kind, &value)?;
     Ok((value, kind, log))
@@ -344,6 +351,13 @@ pub fn check(case: &toml::Value, overrides: &[String], base: &Path) -> Result<St
     let mut case = case.clone();
     config::expand_includes(&mut case, base)?;
     let value = resolve(&case, overrides)?;
+    let (later, notes) = config::plausible::schedule_end_warnings(&value);
+    for w in config::plausible::unit_slips(&value)?.into_iter().chain(later) {
+        tracing::warn!(target: "sinterdem::kinds", "{w}");
+    }
+    for n in notes {
+        tracing::info!(target: "sinterdem::kinds", "{n}");
+    }
     Ok(match Kind::of(&value)? {
         Kind::Heat => {
             let prep = crate::scene::prepare(value, base)?;
