@@ -121,20 +121,29 @@ fn unit_slips_are_refused_at_check_with_key_line_value_slip_and_range() {
     has(
         &check_err(&p, &[]),
         &[
-            &format!("q.toml:{}:1: materials.1.phases.0.q_surface: 220 J/mol (material \"steel\", phase \"fcc\") is implausibly small", line_of(&p, "q_surface", 1)),
+            &format!(
+                "q.toml:{}:1: materials.1.phases.0.q_surface: 220 J/mol (material \"steel\", phase \"fcc\") is implausibly small",
+                line_of(&p, "q_surface", 1)
+            ),
             "did you write kJ/mol? Q is in J/mol",
             "[1e4, 1e6] J/mol",
         ],
     );
     // Young's modulus in GPa, density in g/cm^3 (a heat case), from a file and from --set
     let p = steel(&d, "e.toml", "young_modulus = 193e9", 0, "young_modulus = 193");
-    has(&check_err(&p, &[]), &[&format!("e.toml:{}:1: materials.1.young_modulus: 193 Pa", line_of(&p, "young_modulus", 1)), "did you write GPa", "[1e9, 1e12] Pa"]);
+    has(
+        &check_err(&p, &[]),
+        &[&format!("e.toml:{}:1: materials.1.young_modulus: 193 Pa", line_of(&p, "young_modulus", 1)), "did you write GPa", "[1e9, 1e12] Pa"],
+    );
     has(
         &check_err(Path::new("cases/hot-plate.toml"), &["materials.0.density=7.99"]),
         &["materials.0.density: 7.99 kg/m^3", "did you write g/cm^3?", "7990", "(set by --set materials.0.density=7.99)"],
     );
     // a sintering temperature in °C, constant or inside a schedule
-    has(&check_err(&p, &["materials.1.young_modulus=193e9", "temperature.constant=20"]), &["temperature.constant: 20 K is implausibly low", "did you write °C?"]);
+    has(
+        &check_err(&p, &["materials.1.young_modulus=193e9", "temperature.constant=20"]),
+        &["temperature.constant: 20 K is implausibly low", "did you write °C?"],
+    );
     has(
         &check_err(Path::new("cases/furnace-compact.toml"), &["thermal.furnace.profile.schedule=\"start 20 K, heat 50 K/min to 1293 K\""]),
         &["thermal.furnace.profile.schedule: the profile reaches 20 K", "did you write °C?"],
@@ -153,7 +162,10 @@ fn errors_inside_materials_point_at_the_key_not_at_the_table_header() {
     let d = common::tmp_dir("material_lines");
     // a misspelt key in the second material's phase
     let p = steel(&d, "typo.toml", "q_gb = 167e3", 1, "q_gbb = 167e3");
-    has(&check_err(&p, &[]), &[&format!("typo.toml:{}:1: materials.phases.q_gbb: unknown key; did you mean `materials.phases.q_gb`?", line_of(&p, "q_gbb", 0))]);
+    has(
+        &check_err(&p, &[]),
+        &[&format!("typo.toml:{}:1: materials.phases.q_gbb: unknown key; did you mean `materials.phases.q_gb`?", line_of(&p, "q_gbb", 0))],
+    );
     // an out-of-range value, named by the material's and phase's names
     let p = steel(&d, "range.toml", "gamma_surface = 2.0", 1, "gamma_surface = 50.0");
     has(&check_err(&p, &[]), &[&format!("range.toml:{}:1: materials.steel.phases.fcc.gamma_surface = 50 is out of range", line_of(&p, "gamma_surface", 1))]);
@@ -203,7 +215,12 @@ fn an_end_time_before_the_profile_peak_warns_with_the_temperature_reached() {
     // past the peak: a note in log.txt, no warning
     let (console, log) = run("time.end=1000", "after");
     assert!(!console.contains("warning"), "{console}");
-    assert!(log.contains("pair.end_time = 1000 s ends before the heating profile temperature (which ends at 4200 s): the run stops at 1300.0 K, after the profile's peak"), "{log}");
+    assert!(
+        log.contains(
+            "pair.end_time = 1000 s ends before the heating profile temperature (which ends at 4200 s): the run stops at 1300.0 K, after the profile's peak"
+        ),
+        "{log}"
+    );
     // the whole schedule: nothing
     let (_, log) = run("time.end=4200", "whole");
     assert!(!log.contains("ends before"), "{log}");

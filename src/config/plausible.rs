@@ -60,7 +60,6 @@ pub fn check_steps(key: &str, end: f64, dt: f64) -> Result<(), ConfigError> {
     Ok(())
 }
 
-
 /// What a value typical of a wrong unit leads to: refused, or (where legitimate values exist) a
 /// warning.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -87,7 +86,16 @@ pub struct Slip {
     pub zero_ok: bool,
 }
 
-const fn slip(key: &'static str, below: f64, above: f64, unit: &'static str, plausible: &'static str, hint: &'static str, action: SlipAction, zero_ok: bool) -> Slip {
+const fn slip(
+    key: &'static str,
+    below: f64,
+    above: f64,
+    unit: &'static str,
+    plausible: &'static str,
+    hint: &'static str,
+    action: SlipAction,
+    zero_ok: bool,
+) -> Slip {
     Slip { key, below, above, unit, plausible, hint, action, zero_ok }
 }
 
@@ -114,7 +122,16 @@ pub static SLIPS: &[Slip] = &[
     slip("frenkel.activation_energy", 1e4, f64::INFINITY, "J/mol", Q_PLAUSIBLE, Q_HINT, SlipAction::Refuse, true),
     slip("frenkel.gb_activation_energy", 1e4, f64::INFINITY, "J/mol", Q_PLAUSIBLE, Q_HINT, SlipAction::Refuse, true),
     slip("materials.*.young_modulus", 1e6, f64::INFINITY, "Pa", E_PLAUSIBLE, E_HINT, SlipAction::Refuse, false),
-    slip("materials.*.young_modulus", 1e9, f64::INFINITY, "Pa", E_PLAUSIBLE, "softer than any metal or ceramic; right only for a polymer powder", SlipAction::Warn, false),
+    slip(
+        "materials.*.young_modulus",
+        1e9,
+        f64::INFINITY,
+        "Pa",
+        E_PLAUSIBLE,
+        "softer than any metal or ceramic; right only for a polymer powder",
+        SlipAction::Warn,
+        false,
+    ),
     slip("materials.*.density", 100.0, f64::INFINITY, "kg/m^3", RHO_PLAUSIBLE, RHO_HINT, SlipAction::Refuse, false),
     slip("sample.density", 100.0, f64::INFINITY, "kg/m^3", RHO_PLAUSIBLE, RHO_HINT, SlipAction::Refuse, false),
     slip("materials.*.heat_capacity", 20.0, f64::INFINITY, "J/(kg K)", C_PLAUSIBLE, C_HINT, SlipAction::Refuse, false),
@@ -260,7 +277,8 @@ fn profiles(prefix: &str, v: &toml::Value, out: &mut Vec<(String, crate::profile
         toml::Value::Array(a) => a.iter().enumerate().for_each(|(i, x)| profiles(&format!("{prefix}.{i}"), x, out)),
         toml::Value::Table(t) => {
             let name = prefix.rsplit('.').next().unwrap_or_default();
-            if (name == "profile" || prefix == "temperature") && (t.contains_key("schedule") || t.contains_key("table"))
+            if (name == "profile" || prefix == "temperature")
+                && (t.contains_key("schedule") || t.contains_key("table"))
                 && let Ok(spec) = v.clone().try_into::<crate::profile::ProfileSpec>()
                 && let Ok(p) = crate::profile::Profile::from_spec(&spec, prefix)
             {

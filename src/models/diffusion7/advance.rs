@@ -191,10 +191,8 @@ where
         let ctx = |e: ModelError| {
             if e.message.starts_with(COLLAPSED) {
                 let t = last_t.get();
-                return ModelError::new(explain_collapse(mats, t, temp.at(t), &last.get())).with_context(format!(
-                    "contact interval [{a:.6e}, {b:.6e}] s, T = {ta:.2} to {tb:.2} K; integrator: {}",
-                    e.message
-                ));
+                return ModelError::new(explain_collapse(mats, t, temp.at(t), &last.get()))
+                    .with_context(format!("contact interval [{a:.6e}, {b:.6e}] s, T = {ta:.2} to {tb:.2} K; integrator: {}", e.message));
             }
             e.with_context(format!(
                 "contact interval [{a:.6e}, {b:.6e}] s, T = {ta:.2} to {tb:.2} K; last accepted state: {}",
