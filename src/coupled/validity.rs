@@ -58,28 +58,42 @@ impl Simulation {
             for (below, t, lim) in [(true, lo, mat.calibrated_min_temperature), (false, hi, mat.calibrated_max_temperature)] {
                 let out = if below { t < lim } else { t > lim };
                 let tag = format!("material \"{}\": contact temperature {} the calibrated range", mat.name, if below { "below" } else { "above" });
-                // below the range, where every mechanism's D is under 1 % of its value at the
-                // range's lower end, the extrapolated diffusion adds less than 1 % of what a
-                // calibrated contact does in the same time: a note in log.txt, not a warning
-                // (a heat-up from room temperature, issue 25; docs/diffusion7.md §10)
-                if out && below && negligible_diffusion(mat, t) {
-                    if !self.notes.iter().any(|w| w.starts_with(&tag)) {
-                        let n = format!(
-                            "{tag} {:.1}–{:.1} K ({t:.1} K at {at}), where diffusion is negligible (every D below {} of its value at {:.1} K): not a warning",
-                            mat.calibrated_min_temperature, mat.calibrated_max_temperature, NEGLIGIBLE_DIFFUSION, mat.calibrated_min_temperature
-                        );
-                        log(&format!("{}{n}", crate::logging::DETAIL));
-                        self.notes.push(n);
-                    }
+                if !out {
                     continue;
                 }
-                if out && !self.warnings.iter().any(|w| w.starts_with(&tag)) {
-                    let w = format!(
-                        "{tag} {:.1}–{:.1} K ({t:.1} K first at {at}): its diffusion data are extrapolated",
-                        mat.calibrated_min_temperature, mat.calibrated_max_temperature
-                    );
-                    log(&format!("warning: {w}"));
-                    self.warnings.push(w);
+                let w = format!(
+                    "{tag} {:.1}–{:.1} K ({t:.1} K first at {at}): its diffusion data are extrapolated",
+                    mat.calibrated_min_temperature, mat.calibrated_max_temperature
+                );
+                // summary.json lists the first time a contact leaves the range, as ever
+                let first = !self.warnings.iter().any(|x| x.starts_with(&tag));
+                if first {
+                    self.warnings.push(w.clone());
+                }
+                // below the range, where every mechanism's D is under 1 % of its value at the
+                // range's lower end, the extrapolated diffusion adds less than 1 % of what a
+                // calibrated contact does in the same time: detail (log.txt, -v), not a warning
+                // (a heat-up from room temperature, issue 25; docs/diffusion7.md §10); the
+                // warning comes once the extrapolation matters
+                if below && negligible_diffusion(mat, t) {
+                    if first {
+                        log(&format!(
+                            "{}{w} (diffusion is negligible there: every D below {NEGLIGIBLE_DIFFUSION} of its value at {:.1} K; a warning follows if it stops being so)",
+                            crate::logging::DETAIL,
+                            mat.calibrated_min_temperature
+                        ));
+                    }
+                } else if !self.notes.contains(&tag) {
+                    let now = if first {
+                        w
+                    } else {
+                        format!(
+                            "{tag} {:.1}–{:.1} K ({t:.1} K at {at}): its diffusion data are extrapolated",
+                            mat.calibrated_min_temperature, mat.calibrated_max_temperature
+                        )
+                    };
+                    log(&format!("warning: {now}"));
+                    self.notes.push(tag);
                 }
             }
         }
