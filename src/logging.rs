@@ -20,6 +20,11 @@ use tracing::{Event, Level, Subscriber};
 use tracing_subscriber::layer::{Context, Layer};
 use tracing_subscriber::prelude::*;
 
+/// Prefix of a run log line that is detail (per-detection lines of a compact run, issue 25):
+/// `crate::kinds::RunLog` writes it to `log.txt` without the prefix and shows it on the console at
+/// `-v` only (a debug event).
+pub const DETAIL: &str = "detail: ";
+
 /// Target of the events that carry a run's log lines (already in `log.txt`).
 pub const RUN_TARGET: &str = "sinterdem::kinds";
 

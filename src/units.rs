@@ -32,3 +32,34 @@ mod tests {
         assert_eq!(arrhenius(2.0, 0.0, 300.0), 2.0);
     }
 }
+
+/// A time [s] as a user reads it in log lines, one format everywhere (issue 25): four significant
+/// digits, plain between 1e-3 s and 1e7 s (`4700 s`, `111.4 s`, `0.01234 s`), scientific outside
+/// (`2.605e-6 s`).
+pub fn fmt_seconds(t: f64) -> String {
+    if t == 0.0 || !t.is_finite() {
+        return format!("{t} s");
+    }
+    if (1e-3..1e7).contains(&t.abs()) {
+        let digits = (3 - t.abs().log10().floor() as i32).max(0) as usize;
+        let s = format!("{t:.digits$}");
+        let s = if s.contains('.') { s.trim_end_matches('0').trim_end_matches('.').to_string() } else { s };
+        format!("{s} s")
+    } else {
+        format!("{t:.3e} s")
+    }
+}
+
+#[cfg(test)]
+mod fmt_tests {
+    #[test]
+    fn seconds_read_with_four_significant_digits() {
+        use super::fmt_seconds;
+        assert_eq!(fmt_seconds(4700.0), "4700 s");
+        assert_eq!(fmt_seconds(111.397), "111.4 s");
+        assert_eq!(fmt_seconds(0.0123456), "0.01235 s");
+        assert_eq!(fmt_seconds(2.604938e-6), "2.605e-6 s");
+        assert_eq!(fmt_seconds(0.0), "0 s");
+        assert_eq!(fmt_seconds(5000.0), "5000 s");
+    }
+}

@@ -47,7 +47,20 @@ fn a_clean_quiet_run_prints_nothing_and_still_logs_to_its_file() {
     let d = common::tmp_dir("quiet");
     let runs: [(&str, &[&str]); 3] = [
         ("cases/pair-copper.toml", &["--set", "time.end=50"]),
-        ("cases/hot-plate.toml", &["--set", "time.end=20", "--set", "particles.cells=[3, 3, 4]", "--set", "output.snapshots=0"]),
+        // (a plate held at 1273 K: 20 s of the ramp would warn that the run ends below its peak)
+        (
+            "cases/hot-plate.toml",
+            &[
+                "--set",
+                "time.end=20",
+                "--set",
+                "particles.cells=[3, 3, 4]",
+                "--set",
+                "output.snapshots=0",
+                "--set",
+                "thermal.fixed.0.profile={ constant = 1273.0 }",
+            ],
+        ),
         ("cases/luding-sintering-time.toml", SMALL_EXPLICIT),
     ];
     for (k, (case, sets)) in runs.iter().enumerate() {
@@ -174,7 +187,87 @@ fn on_a_terminal_log_lines_stay_above_one_bar() {
     // the pane ends with the log's last lines, each whole on its own line
     let log = std::fs::read_to_string(d.join("out/log.txt")).unwrap();
     let pane: Vec<&str> = last.lines().map(str::trim_end).filter(|l| !l.is_empty()).collect();
-    let tail: Vec<&str> = log.lines().rev().take(5).collect::<Vec<_>>().into_iter().rev().collect();
+    // (log.txt also has the detail lines the console shows at -v only: per-detection contacts)
+    let tail: Vec<&str> = log.lines().filter(|l| !l.contains("new contacts")).rev().take(5).collect::<Vec<_>>().into_iter().rev().collect();
     assert_eq!(&pane[pane.len() - tail.len()..], &tail[..], "pane:\n{last}");
     println!("tmux: {screens_with_bar} screens with the bar; ETAs seen: {etas:?}");
+}
+
+/// The copper compact at the default level (issue 25): at most 25 lines — the run's phases, a
+/// status line each tenth of the end time, the analyses and the closing line — and not one line
+/// per contact detection, which `-v` shows and `log.txt` always has.
+#[test]
+fn the_copper_compact_reads_like_a_lab_instrument() {
+    let d = common::tmp_dir("instrument");
+    let o = run(&["run", "cases/copper-compact.toml", "--set", "output.snapshots=0", "--out", d.join("default").to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    let lines: Vec<&str> = err.lines().collect();
+    assert!(lines.len() <= 25, "{} lines:\n{err}", lines.len());
+    assert!(!err.contains("new contacts"), "{err}");
+    // nine status lines (t = 500 s … 4500 s of 5000 s), then the closing line
+    let status: Vec<&&str> = lines.iter().filter(|l| l.contains(" of 5000 s: step ")).collect();
+    assert_eq!(status.len(), 9, "{err}");
+    for s in &status {
+        for part in ["Δt = ", "T 1293.0–1293.0 K", "shrinkage ", "relative density 0.6", " contacts (+", "wall "] {
+            assert!(s.contains(part), "{part:?} in {s}");
+        }
+    }
+    assert!(lines.last().unwrap().starts_with("done: 1110 steps to t = 5000 s"), "{err}");
+    // one time format: no log line in scientific seconds such as "t = 1.000000e3 s"
+    assert!(!err.contains("e0 s") && !err.contains("e3 s"), "{err}");
+    // log.txt keeps every detection
+    let log = std::fs::read_to_string(d.join("default/log.txt")).unwrap();
+    let detections = log.lines().filter(|l| l.contains("new contacts")).count();
+    assert!(detections > 100, "{detections} detection lines in log.txt");
+    // -v shows them, -vv adds the solver's per-step detail, -q nothing (no warnings here)
+    let short = ["--set", "time.end=50", "--set", "output.snapshots=0", "--set", "output.conductivity_at=[]"];
+    let count = |flags: &[&str], name: &str, what: &str| {
+        let mut a: Vec<&str> = flags.to_vec();
+        let out = d.join(name);
+        a.extend(["run", "cases/copper-compact.toml", "--out", out.to_str().unwrap()]);
+        a.extend(short);
+        let o = run(&a);
+        String::from_utf8_lossy(&o.stderr).lines().filter(|l| l.contains(what)).count()
+    };
+    let v = count(&["-v"], "v", "new contacts");
+    assert!(v > 50, "{v} detection lines at -v");
+    assert_eq!(count(&[], "n", "new contacts"), 0);
+    let vv = count(&["-vv"], "vv", "subdivided fraction");
+    assert!(vv > 100, "{vv} per-step lines at -vv");
+    assert_eq!(count(&["-v"], "v2", "subdivided fraction"), 0);
+    let o = run(&["-q", "run", "cases/copper-compact.toml", "--out", d.join("q").to_str().unwrap(), short[0], short[1], short[2], short[3]]);
+    assert!(o.stderr.is_empty(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+/// A rerun into the same directory with fewer snapshots leaves only its own `particles_*.vtu`
+/// (ParaView's file-series pattern), and says so in its log (issue 25).
+#[test]
+fn a_rerun_with_fewer_snapshots_leaves_no_stale_snapshot() {
+    let d = common::tmp_dir("stale");
+    let out = d.join("out");
+    let go = |snaps: &str| {
+        run(&[
+            "-q",
+            "run",
+            "cases/hot-plate.toml",
+            "--out",
+            out.to_str().unwrap(),
+            "--set",
+            "time.end=20",
+            "--set",
+            "particles.cells=[3, 3, 4]",
+            "--set",
+            snaps,
+        ]);
+        let files = |prefix: &str| std::fs::read_dir(&out).unwrap().flatten().filter(|e| e.file_name().to_string_lossy().starts_with(prefix)).count();
+        let pvd = std::fs::read_to_string(out.join("particles.pvd")).unwrap();
+        (files("particles_"), files("contacts_"), pvd.matches("<DataSet").count())
+    };
+    let (p1, c1, n1) = go("output.snapshots=6");
+    assert_eq!((p1, c1), (n1, n1));
+    let (p2, c2, n2) = go("output.snapshots=2");
+    assert!(n2 < n1, "{n2} vs {n1}");
+    assert_eq!((p2, c2), (n2, n2), "particles_*.vtu / contacts_*.vtu against the {n2} snapshots of the run");
+    let log = std::fs::read_to_string(out.join("log.txt")).unwrap();
+    assert!(log.contains(&format!("removed {} snapshot files of an earlier run in this directory", 2 * n1 + 2)), "{log}");
 }

@@ -178,34 +178,52 @@ pub fn locate(e: Error, path: &Path, overrides: &[String]) -> Error {
     }
 }
 
-/// 1-based line and column of the key `dotted` (array elements by index) in the TOML `text`: of
-/// the key itself when present, else of the deepest enclosing table or element that exists.
+/// 1-based line and column of the key `dotted` in the TOML `text`: of the key itself when
+/// present, else of the deepest enclosing table or element that exists. An array element is named
+/// by its index (`materials.1.density`), by its `name` (`materials.steel.phases.fcc.q_gb`, the
+/// keys of the material checks), or not at all (`materials.phases.q_gbb`, serde's path of an
+/// unknown key): then the element holding the rest of the path is found.
 pub fn key_position(text: &str, dotted: &str) -> Option<(usize, usize)> {
-    use toml::de::{DeTable, DeValue};
+    use toml::de::DeTable;
     let root = DeTable::parse(text).ok()?;
-    let mut best: Option<std::ops::Range<usize>> = None;
-    let mut table = Some(root.get_ref());
-    let mut array: Option<&toml::de::DeArray> = None;
-    for seg in dotted.split('.').filter(|s| !s.is_empty()) {
-        let next = if let Some(t) = table.take() {
-            t.iter().find(|(k, _)| k.get_ref().as_ref() == seg).map(|(k, v)| (k.span(), v))
-        } else if let Some(a) = array.take() {
-            seg.parse::<usize>().ok().and_then(|i| a.get(i)).map(|v| (v.span(), v))
-        } else {
-            None
-        };
-        let Some((span, v)) = next else { break };
-        best = Some(span);
-        match v.get_ref() {
-            DeValue::Table(t) => table = Some(t),
-            DeValue::Array(a) => array = Some(a),
-            _ => {}
-        }
-    }
-    let span = best?;
-    let p = super::position(text, Some(span));
+    let segs: Vec<&str> = dotted.split('.').filter(|s| !s.is_empty()).collect();
+    let (_, span) = deepest_table(root.get_ref(), &segs);
+    let p = super::position(text, Some(span?));
     let mut it = p.trim_start_matches(':').split(':').map(|x| x.parse::<usize>().ok());
     Some((it.next()??, it.next()??))
+}
+
+type Span = std::ops::Range<usize>;
+
+/// (segments matched, span of the deepest match) of `segs` under table `t`.
+fn deepest_table(t: &toml::de::DeTable, segs: &[&str]) -> (usize, Option<Span>) {
+    let Some(seg) = segs.first() else { return (0, None) };
+    let Some((k, v)) = t.iter().find(|(k, _)| k.get_ref().as_ref() == *seg) else { return (0, None) };
+    let (n, span) = deepest_value(v.get_ref(), &segs[1..]);
+    (n + 1, span.or(Some(k.span())))
+}
+
+/// (segments matched, span of the deepest match) of `segs` under value `v`.
+fn deepest_value(v: &toml::de::DeValue, segs: &[&str]) -> (usize, Option<Span>) {
+    use toml::de::DeValue;
+    match v {
+        DeValue::Table(t) => deepest_table(t, segs),
+        DeValue::Array(a) => {
+            let Some(seg) = segs.first() else { return (0, None) };
+            let named = |e: &toml::de::DeValue| match e {
+                DeValue::Table(t) => t.iter().any(|(k, v)| k.get_ref().as_ref() == "name" && matches!(v.get_ref(), DeValue::String(s) if s.as_ref() == *seg)),
+                _ => false,
+            };
+            let by_index = seg.parse::<usize>().ok().and_then(|i| a.get(i));
+            if let Some(e) = by_index.or_else(|| a.iter().find(|e| named(e.get_ref()))) {
+                let (n, span) = deepest_value(e.get_ref(), &segs[1..]);
+                return (n + 1, span.or(Some(e.span())));
+            }
+            // no index: the element that holds most of the path
+            a.iter().map(|e| deepest_value(e.get_ref(), segs)).filter(|(n, _)| *n > 0).max_by_key(|(n, _)| *n).unwrap_or((0, None))
+        }
+        _ => (0, None),
+    }
 }
 
 /// The message of a TOML syntax error at `span` of `text`, with the key named for a duplicate key.
@@ -294,6 +312,14 @@ mod tests {
         assert_eq!(key_position(text, "time.dt"), Some((2, 2)), "a missing key: its table");
         assert_eq!(key_position(text, "m.1.rho"), Some((9, 1)));
         assert_eq!(key_position(text, "m[1].rho".replace('[', ".").replace(']', "").as_str()), Some((9, 1)));
+        // an element by its name, or without index (serde's path of an unknown key)
+        assert_eq!(key_position(text, "m.y.rho"), Some((9, 1)));
+        assert_eq!(key_position(text, "m.rho"), Some((9, 1)));
+        let text = "[[materials]]\nname = \"a\"\n[[materials.phases]]\nname = \"p\"\nq_gb = 1\n[[materials]]\nname = \"s\"\n[[materials.phases]]\nname = \"q\"\nd0 = 2\nq_gbb = 3\n";
+        assert_eq!(key_position(text, "materials.phases.q_gbb"), Some((11, 1)));
+        assert_eq!(key_position(text, "materials.s.phases.q.d0"), Some((10, 1)));
+        assert_eq!(key_position(text, "materials.1.phases.0.d0"), Some((10, 1)));
+        assert_eq!(key_position(text, "materials.a.phases.p.q_gb"), Some((5, 1)));
     }
 
     #[test]

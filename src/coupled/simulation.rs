@@ -63,6 +63,8 @@ pub struct Simulation {
     pub heat_stored: f64,
     pub heat_scale: f64,
     pub warnings: Vec<String>,
+    /// Notes logged once (a contact below the calibrated range where diffusion is negligible).
+    pub notes: Vec<String>,
     /// Corrections (C4) that had to be limited to keep a contact admissible.
     pub limited_corrections: u64,
     /// Log of what was skipped, said once.
@@ -142,6 +144,7 @@ impl Simulation {
             heat_stored: 0.0,
             heat_scale: 0.0,
             warnings: Vec::new(),
+            notes: Vec::new(),
             limited_corrections: 0,
             skipped: Vec::new(),
             source: (String::new(), std::path::PathBuf::new()),

@@ -46,11 +46,13 @@ pub struct Eta {
     dt_last: f64,
     wall_per_step: f64,
     steps: u64,
+    /// Exponential average of ln(Δt/Δt_previous): positive while the step grows.
+    growth: f64,
 }
 
 impl Eta {
     pub fn new(end: f64, wall_now: f64) -> Self {
-        Eta { end, start_wall: wall_now, start_t: None, last: None, dt_min: f64::INFINITY, dt_last: f64::NAN, wall_per_step: f64::NAN, steps: 0 }
+        Eta { end, start_wall: wall_now, start_t: None, last: None, dt_min: f64::INFINITY, dt_last: f64::NAN, wall_per_step: f64::NAN, steps: 0, growth: 0.0 }
     }
 
     /// Records that simulated time `t` [s] was reached at wall time `wall` [s].
@@ -63,6 +65,9 @@ impl Eta {
             Some((t0, w0)) if t > t0 => {
                 let (dt, dw) = (t - t0, (wall - w0).max(0.0));
                 self.steps += 1;
+                if self.dt_last.is_finite() && self.dt_last > 0.0 {
+                    self.growth = 0.8 * self.growth + 0.2 * (dt / self.dt_last).ln();
+                }
                 self.dt_last = dt;
                 self.dt_min = self.dt_min.min(dt);
                 self.wall_per_step = if self.wall_per_step.is_finite() { 0.8 * self.wall_per_step + 0.2 * dw } else { dw };
@@ -82,7 +87,10 @@ impl Eta {
         // steps left at the current Δt
         let by_steps = (self.end - t) / self.dt_last * self.wall_per_step;
         let mut est = by_steps;
-        if self.dt_last > 2.0 * self.dt_min {
+        // a step capped at dt_max (or at an output time) no longer grows: the steps left at the
+        // current Δt are then the estimate; the log-of-time estimate, used while Δt still grows,
+        // would read "0s" with most of a capped run left (issue 25)
+        if self.dt_last > 2.0 * self.dt_min && self.growth > 0.02 {
             // Δt grows: the logarithm of the simulated time advances evenly
             let t_ref = self.dt_min;
             let t0 = self.start_t.unwrap_or(0.0).max(0.0) + t_ref;
@@ -170,7 +178,7 @@ impl Progress {
                 eta.label()
             };
             b.set_position(((t / self.end).clamp(0.0, 1.0) * 1e6) as u64);
-            b.set_message(format!("t = {} / {} {extra} {label}", fmt_time(t), fmt_time(self.end)));
+            b.set_message(format!("t = {} {extra} {label}", fmt_progress(t, self.end)));
         }
     }
 
@@ -185,6 +193,20 @@ impl Progress {
 impl Drop for Progress {
     fn drop(&mut self) {
         self.finish();
+    }
+}
+
+/// The bar's time and end time in one unit (issue 25): seconds as in the log lines
+/// ([`crate::units::fmt_seconds`]), and both in minutes or hours when the end is 2 min or more:
+/// `111.4 s / 5000 s (1.86 / 83.33 min)`.
+pub fn fmt_progress(t: f64, end: f64) -> String {
+    let s = format!("{} / {}", crate::units::fmt_seconds(t), crate::units::fmt_seconds(end));
+    if end >= 7200.0 {
+        format!("{s} ({:.2} / {:.2} h)", t / 3600.0, end / 3600.0)
+    } else if end >= 120.0 {
+        format!("{s} ({:.2} / {:.2} min)", t / 60.0, end / 60.0)
+    } else {
+        s
     }
 }
 
@@ -241,6 +263,33 @@ mod tests {
         let truth = 0.1 * (n - n / 3) as f64;
         let r = e.remaining().unwrap();
         assert!(r > 0.3 * truth && r < 3.0 * truth, "ETA {r} s against {truth} s");
+    }
+
+    #[test]
+    fn eta_follows_the_steps_left_once_the_step_is_capped() {
+        // Δt grows by 1.5 from 1e-6 s to dt_max = 10 s, then stays there up to 5000 s (the
+        // copper compact's step control); each step 0.01 s of wall. At half the run the truth is
+        // the capped steps left times 0.01 s; the log-of-time estimate alone said about 0.2 s.
+        let (end, dt_max, wall_step) = (5000.0, 10.0, 0.01);
+        let mut e = Eta::new(end, 0.0);
+        let (mut t, mut dt, mut k) = (0.0f64, 1e-6, 0u32);
+        e.record(0.0, 0.0);
+        while t < 0.5 * end {
+            t += dt;
+            dt = (dt * 1.5).min(dt_max);
+            k += 1;
+            e.record(t, wall_step * k as f64);
+        }
+        let truth = (end - t) / dt_max * wall_step;
+        let r = e.remaining().unwrap();
+        assert!((r - truth).abs() < 0.05 * truth, "ETA {r} s against {truth} s");
+    }
+
+    #[test]
+    fn the_bar_reads_one_time_unit() {
+        assert_eq!(fmt_progress(111.397, 5000.0), "111.4 s / 5000 s (1.86 / 83.33 min)");
+        assert_eq!(fmt_progress(4700.0, 11580.0), "4700 s / 11580 s (1.31 / 3.22 h)");
+        assert_eq!(fmt_progress(1.5, 60.0), "1.5 s / 60 s");
     }
 
     #[test]

@@ -135,6 +135,9 @@ pub fn resolve(case: &toml::Value, overrides: &[String]) -> Result<toml::Value, 
         config::apply_override(&mut v, o)?;
     }
     config::apply_aliases(&mut v)?;
+    // values typical of the wrong unit (docs/case-file.md "Unit slips"); the warnings are logged
+    // by `open_run` and `check`
+    config::plausible::unit_slips(&v)?;
     Ok(v)
 }
 
@@ -163,13 +166,17 @@ impl RunLog {
         self.lock = Some(lock);
     }
 
-    /// Writes one line.
+    /// Writes one line; a line starting with [`crate::logging::DETAIL`] is detail (console at `-v`).
     pub fn line(&mut self, msg: &str) {
+        let detail = msg.strip_prefix(crate::logging::DETAIL);
+        let msg = detail.unwrap_or(msg);
         if let Some(f) = self.file.as_ref() {
             let mut g = f.lock().unwrap_or_else(|e| e.into_inner());
             let _ = writeln!(g, "{msg}");
         }
-        if self.echo {
+        if self.echo && detail.is_some() {
+            tracing::debug!(target: "sinterdem::kinds", "{msg}");
+        } else if self.echo {
             match msg.strip_prefix("warning: ") {
                 Some(w) => tracing::warn!(target: "sinterdem::kinds", "{w}"),
                 None => tracing::info!(target: "sinterdem::kinds", "{msg}"),
@@ -238,6 +245,32 @@ fn remove_stale_checkpoint(dir: &Path) -> Result<bool, IoError> {
     }
 }
 
+/// Whether `name` is a snapshot file of a run (`particles_NNNNNN.vtu`, `contacts_NNNNNN.vtu`, their
+/// `.pvd` indices): the file series ParaView groups by name, which a new run into the same
+/// directory must not mix with an earlier run's (issue 25).
+pub fn is_snapshot_file(name: &str) -> bool {
+    if matches!(name, "particles.pvd" | "contacts.pvd") {
+        return true;
+    }
+    ["particles_", "contacts_"]
+        .iter()
+        .any(|p| name.strip_prefix(p).and_then(|r| r.strip_suffix(".vtu")).is_some_and(|d| !d.is_empty() && d.bytes().all(|b| b.is_ascii_digit())))
+}
+
+/// Removes the snapshot files of an earlier run in `dir` ([`is_snapshot_file`]); returns how many.
+fn remove_stale_snapshots(dir: &Path) -> Result<usize, IoError> {
+    let Ok(entries) = std::fs::read_dir(dir) else { return Ok(0) };
+    let mut n = 0;
+    for e in entries.flatten() {
+        let name = e.file_name();
+        if e.file_type().is_ok_and(|t| t.is_file()) && name.to_str().is_some_and(is_snapshot_file) {
+            std::fs::remove_file(e.path()).map_err(|err| IoError::new(e.path(), err))?;
+            n += 1;
+        }
+    }
+    Ok(n)
+}
+
 /// The start of every run: includes expanded, overrides applied, the kind, the output directory
 /// and `log.txt` opened with the first lines (version, overrides, warnings about keys the kind
 /// ignores).
@@ -250,6 +283,8 @@ pub(crate) fn open_run(case: &toml::Value, overrides: &[String], out: &Path, par
     // a new run owns its directory: a checkpoint left by an earlier run would let `resume` mix the
     // two runs' outputs (docs/outputs.md "Guarantees")
     let stale_checkpoint = remove_stale_checkpoint(out)?;
+    // nor may its snapshot series mix with this run's (ParaView groups particles_*.vtu by name)
+    let stale_snapshots = remove_stale_snapshots(out)?;
     let mut log = RunLog::open(out, false, params.echo_log);
     log.line(&format!("sinterdem {}: {} case → {}", env!("CARGO_PKG_VERSION"), kind.name(), out.display()));
     if let Some(note) = lock.takeover_note() {
@@ -258,14 +293,24 @@ pub(crate) fn open_run(case: &toml::Value, overrides: &[String], out: &Path, par
     if stale_checkpoint {
         log.line("removed checkpoint.json of an earlier run in this directory (a new run cannot be resumed from it)");
     }
+    if stale_snapshots > 0 {
+        log.line(&format!(
+            "removed {stale_snapshots} snapshot file{} of an earlier run in this directory (particles_*.vtu, contacts_*.vtu, *.pvd), so that the file series holds this run's only",
+            if stale_snapshots == 1 { "" } else { "s" }
+        ));
+    }
     log.hold(lock);
     // the files the case names, fingerprinted for `resume` (docs/outputs.md "Guarantees")
     crate::io::inputs::record(out, &value, &params.base_dir)?;
     if !overrides.is_empty() {
         log.line(&format!("overrides: {}", overrides.join(" ")));
     }
-    for w in compact_only_keys(&value) {
+    let (later, notes) = config::plausible::schedule_end_warnings(&value);
+    for w in compact_only_keys(&value).into_iter().chain(config::plausible::unit_slips(&value)?).chain(later) {
         log.line(&format!("warning: {w}"));
+    }
+    for n in notes {
+        log.line(&n);
     }
     validate_before_run(kind, &value)?;
     Ok((value, kind, log))
@@ -341,6 +386,13 @@ pub fn check(case: &toml::Value, overrides: &[String], base: &Path) -> Result<St
     let mut case = case.clone();
     config::expand_includes(&mut case, base)?;
     let value = resolve(&case, overrides)?;
+    let (later, notes) = config::plausible::schedule_end_warnings(&value);
+    for w in config::plausible::unit_slips(&value)?.into_iter().chain(later) {
+        tracing::warn!(target: "sinterdem::kinds", "{w}");
+    }
+    for n in notes {
+        tracing::info!(target: "sinterdem::kinds", "{n}");
+    }
     Ok(match Kind::of(&value)? {
         Kind::Heat => {
             let prep = crate::scene::prepare(value, base)?;

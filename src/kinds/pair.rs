@@ -233,7 +233,11 @@ pub fn parse_pair_case(case: &toml::Value) -> Result<PairSpec, Error> {
     }
     let mut inline = Vec::new();
     for (i, v) in f.materials.into_iter().enumerate() {
-        let m = Material::from_value(v).map_err(|e| prefix(e, &format!("materials[{i}]")))?;
+        // range errors already name `materials.NAME.…` (located by the material's name)
+        let m = Material::from_value(v).map_err(|e| match e {
+            ConfigError::OutOfRange { ref key, .. } if key.starts_with("materials.") => e,
+            e => prefix(e, &format!("materials[{i}]")),
+        })?;
         inline.push(m);
     }
     let find = |name: &str| -> Result<Material, ConfigError> {

@@ -69,9 +69,11 @@ impl Simulation {
         if added > 0 && during_run {
             overlaps.sort_by(f64::total_cmp);
             let apart = overlaps.iter().filter(|&&h| h <= 0.0).count();
+            // detail (console at -v, always in log.txt): the status lines count new contacts
             log(&format!(
-                "t = {:.6e} s: {added} new contacts ({} in all); overlap at detection h/R_min median {:.3e}, max {:.3e}, {apart} within the gap tolerance without overlap",
-                self.t,
+                "{}t = {}: {added} new contacts ({} in all); overlap at detection h/R_min median {:.3e}, max {:.3e}, {apart} within the gap tolerance without overlap",
+                crate::logging::DETAIL,
+                crate::units::fmt_seconds(self.t),
                 self.contacts.len(),
                 overlaps[overlaps.len() / 2],
                 overlaps[overlaps.len() - 1]

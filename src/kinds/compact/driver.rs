@@ -60,7 +60,13 @@ pub struct CompactRun {
     /// Tests: stop as if killed right after the checkpoint at or after this step.
     stop_after_step: Option<u64>,
     killed: bool,
+    /// The next time a status line is due [s] and the contact count at the last one.
+    status_next: f64,
+    status_contacts: usize,
 }
+
+/// Status lines per run: one each tenth of the end time (LAMMPS `thermo` style, issue 25).
+pub const STATUS_LINES: f64 = 10.0;
 
 impl CompactRun {
     /// Opens the outputs of a fresh run (`state = None`) or of a checkpoint's output state and
@@ -85,7 +91,12 @@ impl CompactRun {
             last_dt: 0.0,
             stop_after_step: None,
             killed: false,
+            status_next: 0.0,
+            status_contacts: 0,
         };
+        let every = run.sim.settings.end / STATUS_LINES;
+        run.status_next = ((run.sim.t / every).floor() + 1.0) * every;
+        run.status_contacts = run.sim.contacts.len();
         run.write_due(log)?;
         run.done = run.sim.t >= run.sim.settings.end;
         Ok(run)
@@ -154,7 +165,27 @@ impl CompactRun {
             self.done = true;
             return Ok(false);
         }
-        self.bar.set(sim.t, &format!("step {}, Δt = {:.3e} s, contacts {}", sim.step, sim.dt, sim.contacts.len()));
+        self.bar.set(sim.t, &format!("step {}, Δt = {}, contacts {}", sim.step, crate::units::fmt_seconds(sim.dt), sim.contacts.len()));
+        tracing::trace!(
+            target: "sinterdem::coupled",
+            "step {}: t = {}, Δt = {}, {} contacts, subdivided fraction {:.3}; wall so far: detection {:.3} s, heat {:.3} s, diffusion {:.3} s, mechanics {:.3} s, correction {:.3} s",
+            sim.step,
+            crate::units::fmt_seconds(sim.t),
+            crate::units::fmt_seconds(dt_used),
+            sim.contacts.len(),
+            sim.subdivided_fraction(),
+            sim.timing.detection,
+            sim.timing.heat,
+            sim.timing.diffusion,
+            sim.timing.mechanics,
+            sim.timing.correction
+        );
+        if sim.t >= self.status_next && sim.t < end {
+            let every = end / STATUS_LINES;
+            self.status_next = ((sim.t / every).floor() + 1.0) * every;
+            log(&status_line(sim, dt_used, self.status_contacts, self.wall.elapsed().as_secs_f64()));
+            self.status_contacts = sim.contacts.len();
+        }
         self.write_due(log)?;
         self.done = self.sim.t >= end;
         Ok(!self.done)
@@ -195,6 +226,29 @@ impl CompactRun {
         self.bar.finish();
         finish(&self.sim, &self.out, self.outputs, self.stop_reason, self.failure, &self.wall, log)
     }
+}
+
+/// The periodic status line of a compact run (issue 25, LAMMPS `thermo` style): time and the
+/// end time, step, Δt, temperature range (conducting particles), mean linear
+/// shrinkage, relative density (eq. 49), contacts and those new since the last line, wall time.
+fn status_line(sim: &Simulation, dt: f64, contacts_before: usize, wall: f64) -> String {
+    let (_, lo, hi) = sim.temperature_stats(&sim.isolated_particles());
+    let sh = sim.shrinkage();
+    let n = sim.contacts.len();
+    format!(
+        "t = {} of {}: step {}, Δt = {}, T {:.1}–{:.1} K, shrinkage {:.3e}, relative density {:.4}, {} contacts ({:+}), wall {}",
+        crate::units::fmt_seconds(sim.t),
+        crate::units::fmt_seconds(sim.settings.end),
+        sim.step,
+        crate::units::fmt_seconds(dt),
+        lo,
+        hi,
+        (sh.x + sh.y + sh.z) / 3.0,
+        sim.relative_density(),
+        n,
+        n as i64 - contacts_before as i64,
+        io::progress::fmt_wall(wall)
+    )
 }
 
 /// The start of the log: the run's size and step control, the particles without a path to a heat

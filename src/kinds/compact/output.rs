@@ -46,7 +46,7 @@ impl Due {
                 self.cond_results.push(json!({"time_s": sim.t, "method": "periodic", "kappa_eff_W_per_mK": rows}));
             } else {
                 let k = compact_conductivity(sim)?;
-                log(&format!("t = {:.6e} s: effective conductivity diag = [{:.4e}, {:.4e}, {:.4e}] W/(m K)", sim.t, k[0], k[1], k[2]));
+                log(&format!("t = {}: effective conductivity diag = [{:.4e}, {:.4e}, {:.4e}] W/(m K)", crate::units::fmt_seconds(sim.t), k[0], k[1], k[2]));
                 self.cond_results.push(json!({"time_s": sim.t, "kappa_eff_W_per_mK": k}));
             }
             self.next_cond += 1;

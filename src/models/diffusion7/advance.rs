@@ -210,7 +210,13 @@ where
         let tmid = temp.at(0.5 * (a + b));
         let params = mats.params_at(tmid);
         let last = std::cell::Cell::new(y);
+        let last_t = std::cell::Cell::new(a);
         let ctx = |e: ModelError| {
+            if e.message.starts_with(COLLAPSED) {
+                let t = last_t.get();
+                return ModelError::new(explain_collapse(mats, t, temp.at(t), &last.get()))
+                    .with_context(format!("contact interval [{a:.6e}, {b:.6e}] s, T = {ta:.2} to {tb:.2} K; integrator: {}", e.message));
+            }
             e.with_context(format!(
                 "contact interval [{a:.6e}, {b:.6e}] s, T = {ta:.2} to {tb:.2} K; last accepted state: {}",
                 super::contact::diagnose(&last.get())
@@ -220,6 +226,7 @@ where
         let mut cb = |tau: f64, yy: &[f64; 7]| {
             let t = tau + tc;
             last.set(*yy);
+            last_t.set(t);
             let go = on_step(t, yy, temp.at(t));
             if !go {
                 stopped_at.set(Some(t));
@@ -249,6 +256,63 @@ where
     contact.y = y;
     contact.h_last = h;
     Ok(None)
+}
+
+/// The start of the integrator's message when its substep collapses (`crate::models::ode`).
+const COLLAPSED: &str = "step size collapsed";
+
+/// Fastest believable diffusion coefficient of a solid [m²/s]: surface diffusion near the melting
+/// point reaches about 1e-8 m²/s, diffusion in liquid metals about 1e-9 m²/s.
+pub const D_IMPLAUSIBLE: f64 = 1e-7;
+
+/// The cause of a collapsed substep in physical terms (issue 25): the contact's neck grew faster
+/// than the integrator can follow, and the diffusion data that make it so fast — the mechanism with
+/// an activation energy typical of kJ/mol or a coefficient above [`D_IMPLAUSIBLE`] first, else the
+/// fastest one (transport measure δ·D for surface and grain boundary, D·R_min for the lattice,
+/// docs/diffusion7.md (M4)), with D0, Q and D(T) (M9).
+pub fn explain_collapse(mats: &PairMaterials, t: f64, temp: f64, y: &[f64; 7]) -> String {
+    let r_min = y[1].min(y[4]);
+    // (suspicion, measure, text)
+    let mut cands: Vec<(bool, f64, String)> = Vec::new();
+    for m in [mats.a, mats.b] {
+        let ph = &m.phases[m.phase_at(temp)];
+        for (mech, key, d0, q, layer) in [
+            ("surface diffusion", "surface", ph.d0_surface, ph.q_surface, ph.delta_surface * ph.mobile_fraction_surface),
+            ("grain-boundary diffusion", "gb", ph.d0_gb, ph.q_gb, ph.delta_gb * ph.mobile_fraction_gb),
+            ("lattice diffusion", "lattice", ph.d0_lattice, ph.q_lattice, ph.mobile_fraction_lattice * r_min),
+        ] {
+            let d = super::material::Arrhenius { d0, q }.at(temp);
+            let hint = if q > 0.0 && q < 1e4 {
+                format!(" (q_{key} = {q} J/mol looks like kJ/mol: Q is in J/mol)")
+            } else if d > D_IMPLAUSIBLE {
+                format!(" (faster than diffusion in a liquid metal, about 1e-9 m²/s: d0_{key} or q_{key} is likely wrong)")
+            } else {
+                String::new()
+            };
+            let text = format!(
+                "{mech} of material \"{}\" (phase \"{}\"): D = {d:.3e} m²/s at {temp:.1} K from d0_{key} = {d0:e} m²/s, q_{key} = {q:e} J/mol{hint}",
+                m.name, ph.name
+            );
+            if !cands.iter().any(|c| c.2 == text) {
+                cands.push((!hint.is_empty(), layer * d, text));
+            }
+        }
+    }
+    cands.sort_by(|x, y| y.0.cmp(&x.0).then(y.1.total_cmp(&x.1)));
+    let names: Vec<&str> = {
+        let mut v = vec![mats.a.name.as_str()];
+        if mats.b.name != mats.a.name {
+            v.push(mats.b.name.as_str());
+        }
+        v
+    };
+    let top = cands.first().map(|c| c.2.clone()).unwrap_or_default();
+    format!(
+        "the contact's neck growth outran the integrator at t = {t:.4e} s (T = {temp:.1} K, neck y1/R_min = {:.3}): the diffusion is too fast for the geometry. The {} is {top}; check the diffusion data of material {}",
+        y[0] / r_min,
+        if cands.first().is_some_and(|c| c.0) { "suspect" } else { "fastest transport" },
+        names.iter().map(|n| format!("\"{n}\"")).collect::<Vec<_>>().join(" and ")
+    )
 }
 
 /// A warning if `[t_lo, t_hi]` [K] leaves the calibrated range of `m` (docs/diffusion7.md §10).
