@@ -39,7 +39,14 @@ fn sc_lattice_viscosities_are_the_pairs_applied_load_response() {
     let (v0, m) = pair_response(&sim);
     let d = sim.cell.as_ref().unwrap().lengths().x / 3.0;
     let (e_closed, k_closed) = (1.0 / (m * d), 1.0 / (3.0 * m * d));
-    eprintln!("SC: E_p {:e} vs {e_closed:e}, K {:e} vs {k_closed:e}, nu {:e}, sigma_s {:e} vs {:e}", p.uniaxial_viscosity, p.bulk_viscosity, p.poisson_ratio, p.sintering_stress, v0 / (m * d * d));
+    eprintln!(
+        "SC: E_p {:e} vs {e_closed:e}, K {:e} vs {k_closed:e}, nu {:e}, sigma_s {:e} vs {:e}",
+        p.uniaxial_viscosity,
+        p.bulk_viscosity,
+        p.poisson_ratio,
+        p.sintering_stress,
+        v0 / (m * d * d)
+    );
     // the branch measures over [t + τ/4, t + τ]: the contacts' mobility drifts by < 0.5 % in it
     assert!(common::rel(p.uniaxial_viscosity, e_closed) < 5e-3, "E_p {} vs {e_closed}", p.uniaxial_viscosity);
     assert!(common::rel(p.bulk_viscosity, k_closed) < 5e-3, "K {} vs {k_closed}", p.bulk_viscosity);
@@ -72,7 +79,8 @@ fn pair_response(sim: &Simulation) -> (f64, f64) {
 fn copper_rve_is_linear_and_its_sintering_stress_is_right() {
     let dir = common::tmp_dir("rve-copper");
     let case = sinterdem::config::load_case(&root().join("cases/rve-copper.toml"), &[]).unwrap();
-    let sets: Vec<String> = ["time.end=100.0", "rve.at=[30.0, 100.0]", "output.snapshots=0", "output.conductivity_at=[]"].iter().map(|s| s.to_string()).collect();
+    let sets: Vec<String> =
+        ["time.end=100.0", "rve.at=[30.0, 100.0]", "output.snapshots=0", "output.conductivity_at=[]"].iter().map(|s| s.to_string()).collect();
     let s = sinterdem::kinds::rve::run(&case, &sets, &dir, &params()).unwrap();
     assert_eq!(s.summary["kind"], "rve");
     let rows = s.summary["rve"]["rows"].as_array().unwrap();

@@ -98,11 +98,11 @@ pub fn fit_skorohod_olevsky(rows: &[FitRow], r0: f64) -> Result<LawFit, ConfigEr
     let (pk, pg) = (|r: &FitRow| 2.0 * eta0 * phi_psi(r.relative_density).1, |r: &FitRow| eta0 * phi_psi(r.relative_density).0);
     Ok(LawFit {
         law: "skorohod-olevsky",
-        eta0: eta0,
+        eta0,
         eta0_from_bulk: mean_se(&lk).0.exp(),
         eta0_from_shear: mean_se(&lg).0.exp(),
         eta0_rel_error: se_e,
-        alpha: alpha,
+        alpha,
         alpha_rel_error: se_a,
         r0_m: r0,
         rms_rel_residual_bulk: rms(rows.iter().map(|r| r.bulk_viscosity / pk(r) - 1.0)),
