@@ -51,6 +51,15 @@ enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// Constitutive data of a periodic compact (docs/rve.md): the free run, branch runs under
+    /// small stress perturbations at rve.at, then constitutive.csv, fit.json, plots, summary.json.
+    Rve {
+        #[command(flatten)]
+        case: CaseArgs,
+        /// Output directory (default: out/<case name>).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
     /// Continue an interrupted compact, heat or explicit_sinter run from DIR/checkpoint.json.
     Resume {
         /// The run's output directory.
@@ -370,6 +379,14 @@ fn real_main(cli: Cli) -> Result<(), Error> {
             let value = crate::config::load_case(&case.case, &[])?;
             let extra = checkpoint_every.map(|n| format!("output.checkpoint_every={n}")).into_iter().collect();
             run_case(&case, value, out.clone(), quiet, extra)
+        }),
+        Command::Rve { case, out } => located(&case, || {
+            let value = crate::config::load_case(&case.case, &[])?;
+            let stem = case.case.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| "case".into());
+            let out = out.clone().unwrap_or_else(|| PathBuf::from("out").join(stem));
+            let params = crate::kinds::RunParams { base_dir: base_dir(&case.case), progress: !quiet, echo_log: true, plots: true, wall_limit: None };
+            crate::kinds::rve::run(&value, &case.set, &out, &params)?;
+            Ok(())
         }),
         Command::Resume { dir } => {
             let params = crate::kinds::RunParams { progress: !quiet, echo_log: true, ..Default::default() };

@@ -164,7 +164,12 @@ fn every_bundled_case_runs_briefly_without_nan_inf_or_null() {
         let out = out_root.join(name.trim_end_matches(".toml"));
         let t0 = std::time::Instant::now();
         let mut cmd = Command::new(env!("CARGO_BIN_EXE_sinterdem"));
-        cmd.arg("run").arg(&case).arg("--out").arg(&out).arg("--quiet");
+        // a case with [rve] runs as `sinterdem rve` (docs/rve.md): one short branch point
+        let rve = v.get("rve").is_some();
+        cmd.arg(if rve { "rve" } else { "run" }).arg(&case).arg("--out").arg(&out).arg("--quiet");
+        if rve {
+            cmd.args(["--set", "rve.at=[2.0]", "--set", "rve.interval=0.2"]);
+        }
         for s in &sets {
             cmd.arg("--set").arg(s);
         }

@@ -13,6 +13,7 @@ pub fn tables() -> Vec<&'static [Range]> {
     t.extend(super::explicit_sinter::laws::LAWS.iter().map(|law| law.ranges));
     t.push(super::explicit_sinter::RANGES);
     t.push(crate::coupled::cell::RANGES);
+    t.push(super::rve::RANGES);
     t
 }
 

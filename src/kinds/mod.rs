@@ -13,6 +13,7 @@ pub mod generate;
 pub mod heat;
 pub mod keys;
 pub mod pair;
+pub mod rve;
 pub mod state;
 pub mod stepper;
 pub mod titanium;

@@ -156,6 +156,15 @@ impl Stepper {
         }
     }
 
+    /// The compact simulation in its current state (None for a heat run): what `sinterdem rve`
+    /// branches its perturbed runs from (docs/rve.md).
+    pub(crate) fn compact_simulation(&self) -> Option<&crate::coupled::Simulation> {
+        match &self.inner {
+            Inner::Heat(_) => None,
+            Inner::Compact(r) => Some(&r.sim),
+        }
+    }
+
     /// The particles now.
     pub fn particles(&self) -> ParticleState {
         match &self.inner {

@@ -38,6 +38,9 @@ pub struct Case {
     pub mechanics: Option<MechanicsSpec>,
     /// Applied load: hot pressing or isostatic pressure (`kind = "compact"`; docs/pressure.md).
     pub load: Option<LoadSpec>,
+    /// Constitutive data of a periodic compact (`sinterdem rve`, docs/rve.md): read by
+    /// `crate::kinds::rve` only; `sinterdem run` runs the free compact and ignores it.
+    pub rve: Option<toml::Value>,
 }
 
 /// An applied mechanical load on the compact (docs/pressure.md): a compressive stress following

@@ -1,0 +1,154 @@
+//! The files of `sinterdem rve` (docs/rve.md "Output"): `constitutive.csv`, `fit.json`,
+//! `constitutive.png` / `sintering_stress.png`, and the `rve` block of `summary.json`.
+
+use super::RveSettings;
+use super::branch::Point;
+use super::fit::{FitRow, LawFit, fit_skorohod_olevsky, phi_psi};
+use crate::error::IoError;
+use crate::plot::{Plot, Series};
+use serde_json::json;
+use std::path::Path;
+
+/// The columns of `constitutive.csv`, SI units in the names.
+pub const COLUMNS: &[&str] = &[
+    "time_s",
+    "temperature_K",
+    "relative_density",
+    "shrinkage",
+    "neck_ratio",
+    "volumetric_rate_free_per_s",
+    "perturbation_Pa",
+    "sintering_stress_Pa",
+    "sintering_stress_b23_Pa",
+    "bulk_viscosity_Pa_s",
+    "bulk_viscosity_half_Pa_s",
+    "uniaxial_viscosity_Pa_s",
+    "uniaxial_viscosity_x_Pa_s",
+    "uniaxial_viscosity_x_half_Pa_s",
+    "uniaxial_spread",
+    "poisson_ratio",
+    "poisson_ratio_isotropic",
+    "shear_viscosity_Pa_s",
+    "kappa_xx_W_per_mK",
+    "kappa_yy_W_per_mK",
+    "kappa_zz_W_per_mK",
+    "kappa_yz_W_per_mK",
+    "kappa_xz_W_per_mK",
+    "kappa_xy_W_per_mK",
+];
+
+fn values(p: &Point) -> Vec<f64> {
+    let mut v = vec![
+        p.time,
+        p.temperature,
+        p.relative_density,
+        p.shrinkage,
+        p.neck_ratio,
+        p.volumetric_rate_free,
+        p.perturbation,
+        p.sintering_stress,
+        p.sintering_stress_b23,
+        p.bulk_viscosity,
+        p.bulk_viscosity_half,
+        p.uniaxial_viscosity,
+        p.uniaxial_viscosity_x,
+        p.uniaxial_viscosity_x_half,
+        p.uniaxial_spread,
+        p.poisson_ratio,
+        p.poisson_ratio_isotropic,
+        p.shear_viscosity,
+    ];
+    v.extend_from_slice(&p.kappa);
+    v
+}
+
+/// The fit of (R9)–(R11) to the rows within 0.5 K of `temperature` (default: the last row's);
+/// an error (fewer than two rows, a non-positive value) is kept as its message.
+pub fn fit_rows(points: &[Point], r0: f64, temperature: Option<f64>) -> Result<LawFit, String> {
+    let t = temperature.or(points.last().map(|p| p.temperature)).unwrap_or(0.0);
+    let rows: Vec<FitRow> = points
+        .iter()
+        .filter(|p| (p.temperature - t).abs() <= 0.5)
+        .map(|p| FitRow {
+            relative_density: p.relative_density,
+            bulk_viscosity: p.bulk_viscosity,
+            shear_viscosity: p.shear_viscosity,
+            sintering_stress: p.sintering_stress,
+        })
+        .collect();
+    fit_skorohod_olevsky(&rows, r0).map_err(|e| format!("no fit at {t} K: {e}"))
+}
+
+/// Writes `constitutive.csv`, `fit.json` and (with `plots`) the two plots into `out`.
+pub fn write(out: &Path, points: &[Point], fit: &Result<LawFit, String>, plots: bool) -> Result<(), IoError> {
+    let mut text = COLUMNS.join(",") + "\n";
+    for p in points {
+        text += &values(p).iter().map(|v| format!("{v:e}")).collect::<Vec<_>>().join(",");
+        text.push('\n');
+    }
+    crate::io::write_atomic(&out.join("constitutive.csv"), &text)?;
+    crate::io::write_json(&out.join("fit.json"), &fit_json(fit))?;
+    if plots && !points.is_empty() {
+        let rho: Vec<f64> = points.iter().map(|p| p.relative_density).collect();
+        let line = |f: &dyn Fn(&Point) -> f64| points.iter().zip(&rho).map(|(p, &r)| (r, f(p))).collect::<Vec<_>>();
+        let mut plot = Plot::new("viscosities of the periodic cell (docs/rve.md (R3)-(R6))").labels("relative density [1]", "viscosity [Pa s]").log_y(true);
+        plot.add(Series::new("bulk K (R3)", line(&|p| p.bulk_viscosity)).points_only());
+        plot.add(Series::new("uniaxial E_p (R4)", line(&|p| p.uniaxial_viscosity)).points_only());
+        plot.add(Series::new("shear G (R6)", line(&|p| p.shear_viscosity)).points_only());
+        if let Ok(f) = fit {
+            let fine = law_grid(&rho);
+            plot.add(Series::new("Skorohod-Olevsky K = 2 eta0 psi", fine.iter().map(|&r| (r, 2.0 * f.eta0 * phi_psi(r).1)).collect()));
+            plot.add(Series::new("Skorohod-Olevsky G = eta0 phi", fine.iter().map(|&r| (r, f.eta0 * phi_psi(r).0)).collect()));
+        }
+        plot.save_png(&out.join("constitutive.png"))?;
+        let mut plot = Plot::new("sintering stress (tension positive)").labels("relative density [1]", "sintering stress [Pa]");
+        plot.add(Series::new("-K eps_v,free (R7)", line(&|p| p.sintering_stress)).points_only());
+        plot.add(Series::new("cell measure (B23)", line(&|p| p.sintering_stress_b23)).points_only());
+        if let Ok(f) = fit {
+            let fine = law_grid(&rho);
+            plot.add(Series::new("P_L = 3 alpha rho^2 / r0 (R11)", fine.iter().map(|&r| (r, 3.0 * f.alpha * r * r / f.r0_m)).collect()));
+        }
+        plot.save_png(&out.join("sintering_stress.png"))?;
+    }
+    Ok(())
+}
+
+fn law_grid(rho: &[f64]) -> Vec<f64> {
+    let (lo, hi) = rho.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &r| (a.min(r), b.max(r)));
+    let hi = if hi > lo { hi } else { lo + 1e-3 };
+    (0..=40).map(|k| lo + (hi - lo) * k as f64 / 40.0).collect()
+}
+
+fn fit_json(fit: &Result<LawFit, String>) -> serde_json::Value {
+    match fit {
+        Ok(f) => {
+            let mut v = serde_json::to_value(f).unwrap_or_else(|_| json!({}));
+            v["fitted"] = json!(true);
+            v["equations"] =
+                json!("docs/rve.md (R9)-(R11): phi = (1-theta)^2, psi = (2/3)(1-theta)^3/theta, K = 2 eta0 psi, G = eta0 phi, P_L = 3 alpha (1-theta)^2 / r0");
+            v
+        }
+        Err(e) => json!({"fitted": false, "law": "skorohod-olevsky", "reason": e}),
+    }
+}
+
+/// The `rve` block of `summary.json`: the settings, the rows, the linearity check and the fit.
+pub fn summary_block(rve: &RveSettings, points: &[Point], fit: &Result<LawFit, String>) -> serde_json::Value {
+    let rel = |a: f64, b: f64| (a / b - 1.0).abs();
+    let lin_k = points.iter().map(|p| rel(p.bulk_viscosity_half, p.bulk_viscosity)).fold(0.0, f64::max);
+    let lin_e = points.iter().map(|p| rel(p.uniaxial_viscosity_x_half, p.uniaxial_viscosity_x)).fold(0.0, f64::max);
+    let ratio: Vec<f64> = points.iter().map(|p| p.sintering_stress / p.sintering_stress_b23).collect();
+    json!({
+        "at_s": rve.at,
+        "interval_s": rve.interval,
+        "steps": rve.steps,
+        "perturbation": rve.perturbation,
+        "points": points.len(),
+        "rows": points,
+        "linearity_bulk_max_rel": lin_k,
+        "linearity_uniaxial_max_rel": lin_e,
+        "sintering_stress_over_b23": ratio,
+        "fit": fit_json(fit),
+        "files": ["constitutive.csv", "fit.json", "constitutive.png", "sintering_stress.png"],
+    })
+}
