@@ -111,10 +111,11 @@ fn lattice(kind: &str, cells: usize, r: f64, overlap: f64) -> (Vec<Vector3<f64>>
 fn lattices_written_as_files_reproduce_the_closed_forms() {
     let dir = common::tmp_dir("periodic-lattice-files");
     let r = 25e-6;
-    for (kind, factor, overlap) in [("sc", 1.0, 0.1), ("fcc", 2.0 * 2f64.sqrt(), 0.05)] {
+    // K with the lattice's crowding (docs/heat-model.md (H8c)): 1 (SC), 2 (FCC)
+    for (kind, factor, overlap, phi) in [("sc", 1.0, 0.1, 1.0), ("fcc", 2.0 * 2f64.sqrt(), 0.05, 2.0)] {
         let (mut pos, d, l) = lattice(kind, 4, r, overlap);
         let neck = sinterdem::neck::solve(r, r, 2.0 * r - d).unwrap();
-        let k = sinterdem::heat::Conductance::default().pipe(394.0, 394.0, r, r, neck.a).pair;
+        let k = sinterdem::heat::Conductance::default().pipe_crowded(394.0, 394.0, r, r, neck.a, [phi, phi]).pair;
         let exact = factor * k / d;
         for out_of_box in [false, true] {
             if out_of_box {
@@ -142,14 +143,22 @@ fn lattices_written_as_files_reproduce_the_closed_forms() {
 /// tensor (1/V) Σ K b bᵀ, and κ_eff ≤ it in every direction.
 fn voigt(pos: &[Vector3<f64>], rad: &[f64], l: f64) -> Matrix3<f64> {
     let bbox = Vector3::repeat(l);
-    let mut m = Matrix3::zeros();
     let wrap = |x: Vector3<f64>| x.map(|c| c.rem_euclid(l));
+    let (mut pairs, mut branch, mut necks) = (Vec::new(), Vec::new(), Vec::new());
     for p in touching_pairs_periodic(pos, rad, bbox, 0.0) {
         let (i, j) = (p.i as usize, p.j as usize);
         let b = wrap(pos[j]) + Vector3::new(p.shift[0] as f64, p.shift[1] as f64, p.shift[2] as f64) * l - wrap(pos[i]);
-        let neck = sinterdem::neck::solve(rad[i], rad[j], rad[i] + rad[j] - b.norm()).unwrap();
-        let k = sinterdem::heat::Conductance::default().pipe(394.0, 394.0, rad[i], rad[j], neck.a).pair;
-        m += k * b * b.transpose();
+        pairs.push([p.i, p.j]);
+        necks.push(sinterdem::neck::solve(rad[i], rad[j], rad[i] + rad[j] - b.norm()).unwrap().a);
+        branch.push(b);
+    }
+    // the pipes of the network, with each neck's crowding (docs/heat-model.md (H8a))
+    let law = sinterdem::heat::Conductance::default();
+    let phi = sinterdem::heat::pipes::crowding(&pairs, &branch, &necks, pos.len(), &law);
+    let mut m = Matrix3::zeros();
+    for (k, &[i, j]) in pairs.iter().enumerate() {
+        let kp = law.pipe_crowded(394.0, 394.0, rad[i as usize], rad[j as usize], necks[k], phi[k]).pair;
+        m += kp * branch[k] * branch[k].transpose();
     }
     m / (l * l * l)
 }
