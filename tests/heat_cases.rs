@@ -48,7 +48,8 @@ fn periodic_lattices_match_the_closed_forms() {
         let r = 1.0e-3;
         let d = (2.0 - overlap) * r;
         let neck = sinterdem::neck::solve(r, r, 2.0 * r - d).unwrap();
-        let k = sinterdem::heat::Conductance::default().pipe_crowded(394.0, 394.0, r, r, neck.a, [phi, phi]).pair;
+        let law = sinterdem::heat::Conductance { multi_neck: sinterdem::heat::MultiNeck::Fabric, ..Default::default() };
+        let k = law.pipe_crowded(394.0, 394.0, r, r, neck.a, [phi, phi]).pair;
         let exact = factor * k / d;
         let t = &out["kappa_eff_W_per_mK"];
         for a in 0..3 {

@@ -67,7 +67,7 @@ fn write_case(dir: &Path, name: &str, pos: &[Vector3<f64>], rad: &[f64], bbox: V
     }
     std::fs::write(dir.join(format!("{name}.csv")), csv).unwrap();
     let case = format!(
-        "[time]\nend = 1.0\ndt = 0.1\n[[materials]]\nname = \"copper\"\npreset = \"copper\"\n[particles]\nsource = \"file\"\nfile = \"{name}.csv\"\nperiodic_box = [{:e}, {:e}, {:e}]\n[conductivity]\nboundary = \"periodic\"\n",
+        "[time]\nend = 1.0\ndt = 0.1\n[[materials]]\nname = \"copper\"\npreset = \"copper\"\n[particles]\nsource = \"file\"\nfile = \"{name}.csv\"\nperiodic_box = [{:e}, {:e}, {:e}]\n[thermal]\nmulti_neck = \"fabric\"\n[conductivity]\nboundary = \"periodic\"\n",
         bbox.x, bbox.y, bbox.z
     );
     let path = dir.join(format!("{name}.toml"));
@@ -115,7 +115,8 @@ fn lattices_written_as_files_reproduce_the_closed_forms() {
     for (kind, factor, overlap, phi) in [("sc", 1.0, 0.1, 1.0), ("fcc", 2.0 * 2f64.sqrt(), 0.05, 2.0)] {
         let (mut pos, d, l) = lattice(kind, 4, r, overlap);
         let neck = sinterdem::neck::solve(r, r, 2.0 * r - d).unwrap();
-        let k = sinterdem::heat::Conductance::default().pipe_crowded(394.0, 394.0, r, r, neck.a, [phi, phi]).pair;
+        let law = sinterdem::heat::Conductance { multi_neck: sinterdem::heat::MultiNeck::Fabric, ..Default::default() };
+        let k = law.pipe_crowded(394.0, 394.0, r, r, neck.a, [phi, phi]).pair;
         let exact = factor * k / d;
         for out_of_box in [false, true] {
             if out_of_box {
@@ -153,7 +154,7 @@ fn voigt(pos: &[Vector3<f64>], rad: &[f64], l: f64) -> Matrix3<f64> {
         branch.push(b);
     }
     // the pipes of the network, with each neck's crowding (docs/heat-model.md (H8a))
-    let law = sinterdem::heat::Conductance::default();
+    let law = sinterdem::heat::Conductance { multi_neck: sinterdem::heat::MultiNeck::Fabric, ..Default::default() };
     let phi = sinterdem::heat::pipes::crowding(&pairs, &branch, &necks, pos.len(), &law);
     let mut m = Matrix3::zeros();
     for (k, &[i, j]) in pairs.iter().enumerate() {

@@ -67,28 +67,34 @@ def kappa(pk, beta=BETA, phi=None):
 
 
 def _extrap(path):
+    """case -> (converged diagonal, mean of the finest level's diagonal)."""
     with open(path) as fh:
         rows = list(csv.DictReader(ln for ln in fh if not ln.startswith("#")))
-    return {r["case"]: (np.array([float(r[f"fe_{c}"]) for c in ("xx", "yy", "zz")]), r)
+    finest = {}
+    for r in rows:
+        if r["level"] != "extrap":
+            finest[r["case"]] = float(r["fe_mean"])      # rows are in level order
+    return {r["case"]: (np.array([float(r[f"fe_{c}"]) for c in ("xx", "yy", "zz")]), finest[r["case"]])
             for r in rows if r["level"] == "extrap"}
 
 
 def cases():
     """name -> (packing, FE diagonal (converged), role, note)."""
     out = {}
-    for name, (fe, _) in _extrap(fr.TABLE).items():
+    for name, (fe, fin) in _extrap(fr.TABLE).items():
         out[name] = (rp.make_packing(*fr.CASES[name]), fe, "train" if name in TRAIN else "check",
-                     "table, levels 0-4")
+                     "table, levels 0-4", fin)
     for path in sorted(glob.glob(os.path.join(fr.DATA, "random_crowding*.csv"))):
-        for name, (fe, _) in _extrap(path).items():
+        for name, (fe, fin) in _extrap(path).items():
             out[name] = (rp.make_packing(*crowding_fe.NEW[name]), fe, "check",
-                         "new seed, levels " + ("1-3" if path.endswith("crowding.csv") else "0-2"))
+                         "new seed, levels " + ("1-3" if path.endswith("crowding.csv") else "0-2"), fin)
     if os.path.exists(cl.OUT):
         with open(cl.OUT) as fh:
             for r in csv.DictReader(ln for ln in fh if not ln.startswith("#")):
                 v = float(r["fe_mean"])
+                fin = float(r["fe_levels"].split()[-1])
                 out[r["case"]] = (cl.lattice(*cl.LATTICES[r["case"]]), np.array([v, v, v]),
-                                  "train" if r["case"] in TRAIN else "check", f"lattice, levels {r['levels']}")
+                                  "train" if r["case"] in TRAIN else "check", f"lattice, levels {r['levels']}", fin)
     return out
 
 
@@ -103,12 +109,14 @@ def fit(cs):
 
 
 def table(cs, beta=BETA):
+    """Per case: FE converged (mean of the per-axis extrapolations) and finest level, the
+    extrapolation's change of the finest level ('conv'), networks before/after, deviations."""
     rows = []
-    for n, (pk, fe, role, note) in cs.items():
+    for n, (pk, fe, role, note, fin) in cs.items():
         st = rp.stats(pk)
         k0, k1 = np.diag(kappa(pk, 0.0)), np.diag(kappa(pk, beta))
         rows.append(dict(case=n, role=role, note=note, h=st["mean_h_over_r"], z=st["coordination_mean"],
-                         fe=fe.mean(), before=k0.mean(), after=k1.mean(),
+                         fe=fe.mean(), finest=fin, conv=1 - fe.mean() / fin, before=k0.mean(), after=k1.mean(),
                          d0=k0.sum() / fe.sum() - 1, d1=k1.sum() / fe.sum() - 1, ax1=k1 / fe - 1))
     return rows
 
@@ -119,11 +127,12 @@ def main():
     if "--fit" in sys.argv:
         beta = fit(cs)
         print(f"beta fitted on {[n for n in cs if cs[n][2] == 'train']}: {beta:.4f}")
-    print("| case | role | mean h/r | coordination | FE converged | network before (none) | "
-          "network after (fabric) | before | after (mean; per axis) |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("| case | role | mean h/r | coordination | FE finest level | FE converged (change) | "
+          "network before (none) | network after (fabric) | before | after (mean; per axis) |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for r in table(cs, beta):
-        print(f"| {r['case']} | {r['role']} ({r['note']}) | {r['h']:.3f} | {r['z']:.2f} | {r['fe']:.5f} | "
+        print(f"| {r['case']} | {r['role']} ({r['note']}) | {r['h']:.3f} | {r['z']:.2f} | {r['finest']:.5f} | "
+              f"{r['fe']:.5f} ({-100 * r['conv']:+.1f} %) | "
               f"{r['before']:.5f} | {r['after']:.5f} | {100 * r['d0']:+.2f} % | {100 * r['d1']:+.2f} %; "
               f"{', '.join(f'{100 * v:+.1f}' for v in r['ax1'])} |")
 
