@@ -227,7 +227,7 @@ def write_case(pk: Packing, folder: str, name: str, rbar_m: float = 25e-6,
                conductance: str = "fe_fit", multi_neck: str | None = None) -> str:
     """Writes folder/packing.csv (metres) and folder/<name>.toml for
     `sinterdem conductivity` (periodic); `multi_neck` ("none" | "fabric")
-    sets thermal.multi_neck, None leaves sinterdem's default ("fabric").
+    sets thermal.multi_neck, None leaves sinterdem's default ("none" for now).
     Returns the toml path."""
     os.makedirs(folder, exist_ok=True)
     st = stats(pk)

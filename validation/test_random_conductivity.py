@@ -4,16 +4,16 @@ packings" and "Several necks per sphere").  Run with validation/run_tests.sh.
 
 Default: the smallest case (16 equal spheres, h/r ~ 0.02, TEST_CASE) on
 levels -1, 0, 1 -- three geometries and meshes, three P2 solves and the
-binary -- against its stored converged FE, with sinterdem's default
-multi-neck law (thermal.multi_neck = "fabric", docs/heat-model.md (H8a)-(H8c))
-within 2 %; the law's Python twin against the binary; the refit of its
+binary -- against its stored converged FE, with the multi-neck law
+(thermal.multi_neck = "fabric", docs/heat-model.md (H8a)-(H8c); not yet
+sinterdem's default) within 2 %; the law's Python twin against the binary; the refit of its
 constant beta and the 2 % check on every stored packing it was not fitted on
 (validation/crowding_correction.py).  About 2 minutes on 2 busy cores.
 SINTERDEM_FE_LONG=1 adds every case of fe_random.CASES on the table's levels
 0-4 (6-8 minutes per case): they must reproduce
 validation/data/random_conductivity.csv (written by `python
 validation/fe_random.py --table --levels 0 1 2 3 4`, network columns with
-multi_neck = "none") and the binary's default law must be within 2 % of each
+multi_neck = "none") and the multi-neck law must be within 2 % of each
 converged FE value."""
 import csv
 import math
@@ -120,7 +120,7 @@ def compare(name, levels):
 
 
 def assert_default_law_within_two_percent(r, t):
-    """The binary's default network (fe_fit, multi_neck = "fabric") against the
+    """The binary's network with the multi-neck law (fe_fit, multi_neck = "fabric") against the
     stored converged FE: the mean of the diagonal within 2 %, each diagonal
     component within 3 % (a 16-sphere cell is anisotropic by chance, and the
     network's axes scatter by 1-3 % about the FE's: docs table)."""
@@ -166,7 +166,7 @@ def test_network_within_two_percent_smallest(smallest):
     """The network recomputed by the binary against the converged FE of the
     table (levels 0-4, extrapolated).  Pair law (multi_neck = "none", the
     table's column): within 2 % on the mean and on each diagonal component.
-    Default law (multi_neck = "fabric"): within 2 % on the mean, 3 % per axis;
+    Multi-neck law (multi_neck = "fabric"): within 2 % on the mean, 3 % per axis;
     at h/r ~ 0.02 the crowding barely matters (within 0.1 % of the pair law's
     mean, docs table).  Off-diagonals within 2 % of the mean."""
     r, fe, net = smallest
@@ -208,7 +208,7 @@ def test_python_network_twin_matches_binary(tmp_path):
     Kb, _ = fr.network_kappa(pk, str(tmp_path), "t")
     Kp = rp.network_kappa_py(pk, lambda a, r, e, s: fc.fe_fit_eval(a / r, coef) * math.pi * a)
     assert np.allclose(Kp, Kb, rtol=1e-9, atol=1e-12)
-    # the multi-neck law (H8a)-(H8b): the twin of crowding_correction.py is the binary's default
+    # the multi-neck law (H8a)-(H8b): the twin of crowding_correction.py is the binary's "fabric"
     import crowding_correction as cc
     Kf, _ = fr.network_kappa(pk, str(tmp_path / "fabric"), "t", multi_neck="fabric")
     assert np.allclose(cc.kappa(pk), Kf, rtol=1e-9, atol=1e-12)

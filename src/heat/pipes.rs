@@ -102,7 +102,7 @@ mod tests {
         // each bond of a lattice particle with its image counts on both of its ends, so every
         // direction once (the ± pairs come from the pair's two ends)
         let (pairs, branch, neck) = star(dirs, 0.3e-3);
-        crowding(&pairs, &branch, &neck, 1, &Conductance { law: crate::heat::ConductanceLaw::FeFit, ..Default::default() })
+        crowding(&pairs, &branch, &neck, 1, &Conductance { law: crate::heat::ConductanceLaw::FeFit, multi_neck: MultiNeck::Fabric, ..Default::default() })
     }
 
     #[test]
@@ -126,7 +126,7 @@ mod tests {
         let pairs = vec![[0, 1], [1, 2]];
         let b = vec![Vector3::new(1.9e-3, 0.0, 0.0); 2];
         let neck = vec![0.3e-3; 2];
-        let law = Conductance { law: crate::heat::ConductanceLaw::FeFit, ..Default::default() };
+        let law = Conductance { law: crate::heat::ConductanceLaw::FeFit, multi_neck: MultiNeck::Fabric, ..Default::default() };
         assert_eq!(crowding(&pairs, &b, &neck, 3, &law), vec![[1.0, 1.0]; 2]);
         // a T junction: particle 1 gets a third neck along y; its x necks stay at 1 (n·n_y = 0),
         // its y neck (a = 0.5 mm, A = 1.1 mm) (0.5 + 0)/(2·0.5) = 1/2: heat turning the corner

@@ -428,8 +428,8 @@ pub struct ThermalSpec {
     pub conductance_factor: f64,
     /// Interface conductance in series [W/K] (default none).
     pub contact_conductance: Option<f64>,
-    /// Multi-neck correction of the half pipes: "fabric" (default, docs/heat-model.md
-    /// (H8a)–(H8c)) or "none" (every half pipe the pair's).
+    /// Multi-neck correction of the half pipes: "none" (default: every half pipe the pair's) or
+    /// "fabric" (docs/heat-model.md (H8a)–(H8c), validated within 2 % of 3-D FE).
     #[serde(default)]
     pub multi_neck: crate::heat::MultiNeck,
     /// Radiation Newton tolerance (default 1e-9).
