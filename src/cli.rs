@@ -465,7 +465,8 @@ fn real_main(cli: Cli) -> Result<(), Error> {
                 }
             }
             let n = crate::neck::solve(r1, r2, overlap)?;
-            let c = crate::heat::Conductance { law, factor, contact: contact_conductance };
+            // one pair: every neck alone on its particle, crowding 1 (docs/heat-model.md (H8a))
+            let c = crate::heat::Conductance { law, factor, contact: contact_conductance, ..Default::default() };
             let p = c.pipe(kappa, kappa2.unwrap_or(kappa), r1, r2, n.a);
             let v = serde_json::json!({
                 "a": n.a, "a_coble": n.a_coble, "h_ci": n.h_ci, "h_cj": n.h_cj, "h_n": n.h_n,

@@ -67,7 +67,7 @@ fn write_case(dir: &Path, name: &str, pos: &[Vector3<f64>], rad: &[f64], bbox: V
     }
     std::fs::write(dir.join(format!("{name}.csv")), csv).unwrap();
     let case = format!(
-        "[time]\nend = 1.0\ndt = 0.1\n[[materials]]\nname = \"copper\"\npreset = \"copper\"\n[particles]\nsource = \"file\"\nfile = \"{name}.csv\"\nperiodic_box = [{:e}, {:e}, {:e}]\n[conductivity]\nboundary = \"periodic\"\n",
+        "[time]\nend = 1.0\ndt = 0.1\n[[materials]]\nname = \"copper\"\npreset = \"copper\"\n[particles]\nsource = \"file\"\nfile = \"{name}.csv\"\nperiodic_box = [{:e}, {:e}, {:e}]\n[thermal]\nmulti_neck = \"fabric\"\n[conductivity]\nboundary = \"periodic\"\n",
         bbox.x, bbox.y, bbox.z
     );
     let path = dir.join(format!("{name}.toml"));
@@ -111,10 +111,12 @@ fn lattice(kind: &str, cells: usize, r: f64, overlap: f64) -> (Vec<Vector3<f64>>
 fn lattices_written_as_files_reproduce_the_closed_forms() {
     let dir = common::tmp_dir("periodic-lattice-files");
     let r = 25e-6;
-    for (kind, factor, overlap) in [("sc", 1.0, 0.1), ("fcc", 2.0 * 2f64.sqrt(), 0.05)] {
+    // K with the lattice's crowding (docs/heat-model.md (H8c)): 1 (SC), 2 (FCC)
+    for (kind, factor, overlap, phi) in [("sc", 1.0, 0.1, 1.0), ("fcc", 2.0 * 2f64.sqrt(), 0.05, 2.0)] {
         let (mut pos, d, l) = lattice(kind, 4, r, overlap);
         let neck = sinterdem::neck::solve(r, r, 2.0 * r - d).unwrap();
-        let k = sinterdem::heat::Conductance::default().pipe(394.0, 394.0, r, r, neck.a).pair;
+        let law = sinterdem::heat::Conductance { multi_neck: sinterdem::heat::MultiNeck::Fabric, ..Default::default() };
+        let k = law.pipe_crowded(394.0, 394.0, r, r, neck.a, [phi, phi]).pair;
         let exact = factor * k / d;
         for out_of_box in [false, true] {
             if out_of_box {
@@ -140,16 +142,23 @@ fn lattices_written_as_files_reproduce_the_closed_forms() {
 
 /// Upper bound of the minimum-energy principle: the uniform gradient (θ = 0) gives the Voigt
 /// tensor (1/V) Σ K b bᵀ, and κ_eff ≤ it in every direction.
-fn voigt(pos: &[Vector3<f64>], rad: &[f64], l: f64) -> Matrix3<f64> {
+fn voigt(pos: &[Vector3<f64>], rad: &[f64], l: f64, law: &sinterdem::heat::Conductance) -> Matrix3<f64> {
     let bbox = Vector3::repeat(l);
-    let mut m = Matrix3::zeros();
     let wrap = |x: Vector3<f64>| x.map(|c| c.rem_euclid(l));
+    let (mut pairs, mut branch, mut necks) = (Vec::new(), Vec::new(), Vec::new());
     for p in touching_pairs_periodic(pos, rad, bbox, 0.0) {
         let (i, j) = (p.i as usize, p.j as usize);
         let b = wrap(pos[j]) + Vector3::new(p.shift[0] as f64, p.shift[1] as f64, p.shift[2] as f64) * l - wrap(pos[i]);
-        let neck = sinterdem::neck::solve(rad[i], rad[j], rad[i] + rad[j] - b.norm()).unwrap();
-        let k = sinterdem::heat::Conductance::default().pipe(394.0, 394.0, rad[i], rad[j], neck.a).pair;
-        m += k * b * b.transpose();
+        pairs.push([p.i, p.j]);
+        necks.push(sinterdem::neck::solve(rad[i], rad[j], rad[i] + rad[j] - b.norm()).unwrap().a);
+        branch.push(b);
+    }
+    // the pipes of the network, with each neck's crowding (docs/heat-model.md (H8a))
+    let phi = sinterdem::heat::pipes::crowding(&pairs, &branch, &necks, pos.len(), law);
+    let mut m = Matrix3::zeros();
+    for (k, &[i, j]) in pairs.iter().enumerate() {
+        let kp = law.pipe_crowded(394.0, 394.0, rad[i as usize], rad[j as usize], necks[k], phi[k]).pair;
+        m += kp * branch[k] * branch[k].transpose();
     }
     m / (l * l * l)
 }
@@ -168,7 +177,9 @@ fn random_packing_tensor_is_symmetric_definite_invariant_and_covariant() {
     assert!((t - t.transpose()).abs().max() < 1e-10 * scale, "{t}");
     let eig = t.symmetric_eigen().eigenvalues;
     assert!(eig.min() > 0.0, "eigenvalues {eig}");
-    let gap = voigt(&pos, &rad, l) - 0.5 * (t + t.transpose());
+    // the written cases set multi_neck = "fabric"
+    let fabric = sinterdem::heat::Conductance { multi_neck: sinterdem::heat::MultiNeck::Fabric, ..Default::default() };
+    let gap = voigt(&pos, &rad, l, &fabric) - 0.5 * (t + t.transpose());
     let gap_eig = gap.symmetric_eigen().eigenvalues;
     assert!(gap_eig.min() > -1e-10 * scale, "κ_eff above the uniform-gradient bound: {gap_eig}");
     // an isotropic random packing: the diagonal within 25 % of its mean, off-diagonals small
@@ -341,7 +352,8 @@ fn bundled_periodic_case_is_symmetric_definite_and_bounded() {
     let rad: Vec<_> = rows.iter().map(|v| v[3]).collect();
     assert_eq!(out["particles"].as_u64().unwrap() as usize, pos.len());
     let l = 3.690793753101957e-4;
-    let gap = voigt(&pos, &rad, l) - t;
+    // the bundled case uses the default law
+    let gap = voigt(&pos, &rad, l, &sinterdem::heat::Conductance::default()) - t;
     assert!(gap.symmetric_eigen().eigenvalues.min() > -1e-10 * scale, "{gap}");
 }
 

@@ -456,8 +456,11 @@ def sinterdem_bin():
     return os.environ.get("SINTERDEM_BIN", os.path.join(ROOT, "target", "release", "sinterdem"))
 
 
-def network_kappa(pk, folder, name, conductance="fe_fit"):
-    toml = rp.write_case(pk, folder, name, conductance=conductance)
+def network_kappa(pk, folder, name, conductance="fe_fit", multi_neck="none"):
+    """The binary's periodic kappa_eff/kappa_s; multi_neck "none" (the pair's half
+    for every neck: the table's net_* columns) or "fabric" (docs/heat-model.md
+    (H8a)-(H8c), sinterdem's default)."""
+    toml = rp.write_case(pk, folder, name, conductance=conductance, multi_neck=multi_neck)
     out = subprocess.run([sinterdem_bin(), "-q", "conductivity", toml], capture_output=True,
                          text=True, timeout=300)
     if out.returncode != 0:
@@ -491,13 +494,14 @@ def run_case(name, levels=(0, 1, 2), verbose=True, order=2):
     folder = os.path.join(DATA, "random", name)
     Kn_fit, res = network_kappa(pk, folder, name, "fe_fit")
     Kn_lin, _ = network_kappa(pk, os.path.join(folder, "linear"), name, "linear")
+    Kn_fab, _ = network_kappa(pk, os.path.join(folder, "fabric"), name, "fe_fit", "fabric")
     if res["periodic_contacts"] != st["contacts"]:
         raise RuntimeError(f"network sees {res['periodic_contacts']} contacts, packing has {st['contacts']}")
     if verbose:
         print(f"{name}: {json.dumps(st)}", flush=True)
         print(f"  network fe_fit diag {np.diag(Kn_fit)}; linear diag {np.diag(Kn_lin)}", flush=True)
     hs = [info["ndofs"] ** (-1.0 / 3.0) for info in infos]
-    out = dict(name=name, stats=st, Kn_fit=Kn_fit, Kn_lin=Kn_lin, Ks=Ks, infos=infos)
+    out = dict(name=name, stats=st, Kn_fit=Kn_fit, Kn_lin=Kn_lin, Kn_fab=Kn_fab, Ks=Ks, infos=infos)
     if len(levels) >= 3:
         tr = [np.trace(K) / 3 for K in Ks[-3:]]
         mean_x, p = extrapolate(hs[-3:], tr)
@@ -549,7 +553,7 @@ def write_table(results, path=TABLE):
                  "energy form; level L: mesh factor 2^(1 - L/3)\n")
         fh.write("# row level=extrap: f_inf of f = f_inf + C h^p through the last three levels, "
                  "h = ndofs^(-1/3); its 'ndofs' column holds the observed order p of the mean\n")
-        fh.write("# net_fit_*: sinterdem conductivity with thermal.conductance = fe_fit; net_lin_mean: linear (1.064)\n")
+        fh.write("# net_fit_*: sinterdem conductivity with thermal.conductance = fe_fit, multi_neck = none; net_lin_mean: linear (1.064), none\n")
         fh.write(",".join(COLUMNS) + "\n")
         for r in results:
             for row in case_rows(r):

@@ -224,9 +224,11 @@ def stats(pk: Packing) -> dict:
 
 
 def write_case(pk: Packing, folder: str, name: str, rbar_m: float = 25e-6,
-               conductance: str = "fe_fit") -> str:
+               conductance: str = "fe_fit", multi_neck: str | None = None) -> str:
     """Writes folder/packing.csv (metres) and folder/<name>.toml for
-    `sinterdem conductivity` (periodic).  Returns the toml path."""
+    `sinterdem conductivity` (periodic); `multi_neck` ("none" | "fabric")
+    sets thermal.multi_neck, None leaves sinterdem's default ("none" for now).
+    Returns the toml path."""
     os.makedirs(folder, exist_ok=True)
     st = stats(pk)
     csv = os.path.join(folder, "packing.csv")
@@ -248,7 +250,10 @@ def write_case(pk: Packing, folder: str, name: str, rbar_m: float = 25e-6,
         fh.write('[[materials]]\nname = "copper"\npreset = "copper"\n\n')
         fh.write(f'[particles]\nsource = "file"\nfile = "packing.csv"\n'
                  f"periodic_box = [{Lm!r}, {Lm!r}, {Lm!r}]\n\n")
-        fh.write(f'[thermal]\nconductance = "{conductance}"\n\n')
+        fh.write(f'[thermal]\nconductance = "{conductance}"\n')
+        if multi_neck is not None:
+            fh.write(f'multi_neck = "{multi_neck}"\n')
+        fh.write("\n")
         fh.write('[conductivity]\nboundary = "periodic"\n')
     return toml
 

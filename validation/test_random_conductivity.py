@@ -1,16 +1,20 @@
 """sinterdem's pipe network against the 3-D periodic FE of random sintered
 packings (issue 23 item 4; docs/validation-conductance.md "Random periodic
-packings").  Run with validation/run_tests.sh.
+packings" and "Several necks per sphere").  Run with validation/run_tests.sh.
 
 Default: the smallest case (16 equal spheres, h/r ~ 0.02, TEST_CASE) on
 levels -1, 0, 1 -- three geometries and meshes, three P2 solves and the
-binary; the whole file takes about 90 s on 2 busy cores.  SINTERDEM_FE_LONG=1
-adds every case of fe_random.CASES on the table's levels 0-4 (6-8 minutes per
-case) and checks that they reproduce validation/data/random_conductivity.csv
-(written by `python validation/fe_random.py --table --levels 0 1 2 3 4`).
-The network passes the 2 % criterion only at the smallest necks; the larger
-ones fail it (docs/validation-conductance.md "Random periodic packings"), so
-the long mode checks the table's reproduction, not the criterion."""
+binary -- against its stored converged FE, with the multi-neck law
+(thermal.multi_neck = "fabric", docs/heat-model.md (H8a)-(H8c); not yet
+sinterdem's default) within 2 %; the law's Python twin against the binary; the refit of its
+constant beta and the 2 % check on every stored packing it was not fitted on
+(validation/crowding_correction.py).  About 2 minutes on 2 busy cores.
+SINTERDEM_FE_LONG=1 adds every case of fe_random.CASES on the table's levels
+0-4 (6-8 minutes per case): they must reproduce
+validation/data/random_conductivity.csv (written by `python
+validation/fe_random.py --table --levels 0 1 2 3 4`, network columns with
+multi_neck = "none") and the multi-neck law must be within 2 % of each
+converged FE value."""
 import csv
 import math
 import os
@@ -115,6 +119,18 @@ def compare(name, levels):
     return r, fe_mean, net
 
 
+def assert_default_law_within_two_percent(r, t):
+    """The binary's network with the multi-neck law (fe_fit, multi_neck = "fabric") against the
+    stored converged FE: the mean of the diagonal within 2 %, each diagonal
+    component within 3 % (a 16-sphere cell is anisotropic by chance, and the
+    network's axes scatter by 1-3 % about the FE's: docs table)."""
+    fx = float(t["extrap"]["fe_mean"])
+    fab = r["Kn_fab"]
+    assert abs(np.trace(fab) / 3 / fx - 1) < 0.02, np.trace(fab) / 3 / fx - 1
+    for k, c in enumerate(("xx", "yy", "zz")):
+        assert abs(fab[k, k] / float(t["extrap"][f"fe_{c}"]) - 1) < 0.03, c
+
+
 @pytest.fixture(scope="module")
 def smallest():
     return compare(TEST_CASE, TEST_LEVELS)
@@ -147,18 +163,23 @@ def stored_converged(name):
 
 
 def test_network_within_two_percent_smallest(smallest):
-    """The network (fe_fit law, recomputed by the binary) against the
-    converged FE of the table (levels 0-4, extrapolated): within 2 % on the
-    mean of the diagonal and on each diagonal component, and the off-diagonal
-    components within 2 % of the mean."""
+    """The network recomputed by the binary against the converged FE of the
+    table (levels 0-4, extrapolated).  Pair law (multi_neck = "none", the
+    table's column): within 2 % on the mean and on each diagonal component.
+    Multi-neck law (multi_neck = "fabric"): within 2 % on the mean, 3 % per axis;
+    at h/r ~ 0.02 the crowding barely matters (within 0.1 % of the pair law's
+    mean, docs table).  Off-diagonals within 2 % of the mean."""
     r, fe, net = smallest
     fx, t = stored_converged(TEST_CASE)
     assert net == pytest.approx(float(t["extrap"]["net_fit_mean"]), rel=2e-6)   # 7 digits stored
     assert abs(net / fx - 1) < 0.02, net / fx - 1
     for k, c in enumerate(("xx", "yy", "zz")):
         assert abs(r["Kn_fit"][k, k] / float(t["extrap"][f"fe_{c}"]) - 1) < 0.02, c
+    assert_default_law_within_two_percent(r, t)
+    assert abs(np.trace(r["Kn_fab"]) / np.trace(r["Kn_fit"]) - 1) < 0.002
     finest = max(int(k) for k in t if k != "extrap")
-    assert abs(r["Kn_fit"][0, 1] - float(t[str(finest)]["fe_xy"])) < 0.02 * fx
+    for K in (r["Kn_fit"], r["Kn_fab"]):
+        assert abs(K[0, 1] - float(t[str(finest)]["fe_xy"])) < 0.02 * fx
 
 
 # ------------------------------------------------------------ long mode
@@ -172,6 +193,7 @@ def test_long_case_reproduces_table(name):
         assert f == pytest.approx(float(t[str(L_)]["fe_mean"]), rel=2e-3)
     assert r["mean_x"] == pytest.approx(float(t["extrap"]["fe_mean"]), rel=2e-3)
     assert net == pytest.approx(float(t["extrap"]["net_fit_mean"]), rel=2e-6)   # 7 digits stored
+    assert_default_law_within_two_percent(r, t)
 
 
 # ------------------------------------------------ network twin, statistics
@@ -186,6 +208,11 @@ def test_python_network_twin_matches_binary(tmp_path):
     Kb, _ = fr.network_kappa(pk, str(tmp_path), "t")
     Kp = rp.network_kappa_py(pk, lambda a, r, e, s: fc.fe_fit_eval(a / r, coef) * math.pi * a)
     assert np.allclose(Kp, Kb, rtol=1e-9, atol=1e-12)
+    # the multi-neck law (H8a)-(H8b): the twin of crowding_correction.py is the binary's "fabric"
+    import crowding_correction as cc
+    Kf, _ = fr.network_kappa(pk, str(tmp_path / "fabric"), "t", multi_neck="fabric")
+    assert np.allclose(cc.kappa(pk), Kf, rtol=1e-9, atol=1e-12)
+    assert np.trace(Kf) < 0.95 * np.trace(Kb)        # h/r ~ 0.12: the crowding matters
 
 
 def test_monte_carlo_volume_matches_occ():
@@ -202,30 +229,38 @@ def test_monte_carlo_volume_matches_occ():
     assert exact == pytest.approx(8 / 3 * math.pi, rel=1e-9)
 
 
-# ------------------------------------------------- trial crowding correction
-def test_crowding_correction_trial():
-    """docs "A correction (trial)": refit k, q on the equal-sphere packings
-    against the stored converged FE and check the size-spread packings (not
-    fitted): uncorrected the network is > 4 % off at h/r >= 0.06, corrected
-    within 2 % on the mean of the diagonal and 3 % per axis."""
+# ------------------------------------------------- the multi-neck law
+def test_multi_neck_law_fit_and_check():
+    """docs "Several necks per sphere": refit the one constant beta of (H8b)
+    on the training packings (equal-sphere random, FCC cells) against the
+    stored converged FE: it must be the constant in src/heat/conductance.rs
+    (0.857, to 1 %); then every packing -- training and, above all, those not
+    fitted (size spread, new seeds, BCC and SC cells) -- within 2 % on the mean
+    of the diagonal and 3.5 % per axis, where the pair law was off by up to
+    +44 % (FCC) and +17.6 % (random, h/r ~ 0.12)."""
     import crowding_correction as cc
-    from scipy.optimize import minimize
-    fe = cc.load()
-    pks = {n: rp.make_packing(*fr.CASES[n]) for n in fe}
-    train = [n for n in fe if not n.startswith("n16s")]
-    check = [n for n in fe if n.startswith("n16s")]
+    cs = cc.cases()
+    assert sum(c[2] == "check" for c in cs.values()) >= 6, sorted(cs)
+    beta = cc.fit(cs)
+    assert beta == pytest.approx(cc.BETA, rel=0.01), beta
+    worst_before = 0.0
+    for r in cc.table(cs):
+        if r["conv"] < 0.02:
+            # a converged FE value (the extrapolation moves the finest level by < 2 %)
+            assert abs(r["d1"]) < 0.02, (r["case"], r["d1"])
+            assert np.all(np.abs(r["ax1"]) < 0.035), (r["case"], r["ax1"])
+        else:
+            # three coarse levels that do not yet converge (v-n16s-h002-s3: the level
+            # differences do not fall, p = 1.4): only the bracket is sure -- the energy form is
+            # a Galerkin upper bound, so the truth lies below the finest level
+            assert 0.98 * r["fe"] < r["after"] < 1.02 * r["finest"], r
+        worst_before = max(worst_before, r["d0"])
+    assert worst_before > 0.15
+    # the simple-cubic cell keeps the pair law exactly (crowding 1 on every neck)
+    sc = cl_lattice("sc", 0.12)
+    assert all(abs(v - 1.0) < 1e-12 for v in cc.crowding(sc).values())
 
-    def dev(n, k, q):
-        return np.diag(cc.kappa(pks[n], k, q)) / fe[n] - 1
-    res = minimize(lambda p: float(sum(np.sum(dev(n, *p) ** 2) for n in train)), [3.0, 1.5],
-                   method="Nelder-Mead", options=dict(xatol=1e-3, fatol=1e-9))
-    k, q = res.x
-    assert 2.0 < k < 4.0 and 1.0 < q < 2.0, (k, q)
-    for n in check:
-        d0 = np.trace(cc.kappa(pks[n])) / fe[n].sum() - 1
-        d1 = dev(n, k, q)
-        m1 = np.trace(cc.kappa(pks[n], k, q)) / fe[n].sum() - 1
-        if fr.CASES[n][1] >= 0.06:
-            assert d0 > 0.04, (n, d0)
-        assert abs(m1) < 0.02, (n, m1)
-        assert np.all(np.abs(d1) < 0.03), (n, d1)
+
+def cl_lattice(kind, h):
+    import crowding_lattice_fe as cl
+    return cl.lattice(kind, h)

@@ -15,6 +15,41 @@ pub enum ConductanceLaw {
     FeFit,
 }
 
+/// How a half pipe accounts for the other necks of its particle (key `thermal.multi_neck`,
+/// docs/heat-model.md (H8a)–(H8c)).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum MultiNeck {
+    /// Every half pipe is the pair's half, whatever the particle's other necks (the law before
+    /// issue 23; exact for a pair and a simple-cubic lattice, 11–18 % too conductive for random
+    /// packings at h/r ≈ 0.12, 44 % for FCC). Still the default: making `Fabric` the default
+    /// changes every bundled result, whose checksums are yet to be re-recorded (docs/decisions.md).
+    #[default]
+    None,
+    /// The pair's half resistance plus the body resistance the neck shares with the particle's
+    /// other necks, from the neck fabric of the particle (H8a)–(H8c); within 2 % of the 3-D FE.
+    Fabric,
+}
+
+/// β of the shared body resistance `(φ − 1)·β/(κπr)` (H8b), fitted on the three equal-sphere
+/// random packings and the FCC lattices at h/r = 0.06 and 0.12 of docs/validation-conductance.md
+/// ("Several necks per sphere"). The uniform-gradient body of a sphere would give 1.5.
+pub const MULTI_NECK_BETA: f64 = 0.857;
+
+/// The crowding φ of one neck of a particle (H8a):
+/// `φ = (nᵀ·M·n + max(0, 2a − A)) / (2a)`, n the neck axis (any length), a its radius [m],
+/// `M = Σ_l a_l n_l n_lᵀ` [m] the neck fabric and `A = Σ_l a_l` [m] the summed neck radii of the
+/// particle (every neck of it, this one included). One neck, two opposite equal necks and the
+/// six necks of a simple-cubic lattice give exactly 1 (the pair geometry); φ ≥ 1/2.
+pub fn crowding(fabric: &nalgebra::Matrix3<f64>, total: f64, axis: &nalgebra::Vector3<f64>, a: f64) -> f64 {
+    let n2 = axis.norm_squared();
+    if !(a > 0.0 && n2 > 0.0) {
+        return 1.0;
+    }
+    let q = axis.dot(&(fabric * axis)) / n2;
+    (q + (2.0 * a - total).max(0.0)) / (2.0 * a)
+}
+
 /// The conductance model of a scene.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Conductance {
@@ -23,11 +58,13 @@ pub struct Conductance {
     pub factor: f64,
     /// Optional interface conductance K_c in series [W/K] (eq. 8).
     pub contact: Option<f64>,
+    /// The multi-neck correction (H8a)–(H8c).
+    pub multi_neck: MultiNeck,
 }
 
 impl Default for Conductance {
     fn default() -> Self {
-        Conductance { law: ConductanceLaw::Linear, factor: 1.064, contact: None }
+        Conductance { law: ConductanceLaw::Linear, factor: 1.064, contact: None, multi_neck: MultiNeck::default() }
     }
 }
 
@@ -53,11 +90,30 @@ impl Conductance {
         f * kappa * std::f64::consts::PI * a
     }
 
+    /// The half conductance with the particle's crowding `phi` at this neck ((H8a), from
+    /// [`crowding`]) [W/K]: `1/K_i = 1/K_pair + (φ − 1)·β/(κπr)` (H8b). φ = 1, or
+    /// `multi_neck = "none"`, gives the pair's half exactly. The resistance is kept at least half
+    /// the pair's (never reached for a ≤ r: there 1/K_pair ≥ (2/3)/(κπr) and φ ≥ 1/2).
+    pub fn half_crowded(&self, kappa: f64, r: f64, a: f64, phi: f64) -> f64 {
+        let pair = self.half(kappa, r, a);
+        if self.multi_neck == MultiNeck::None || phi == 1.0 || !phi.is_finite() || !(pair > 0.0) {
+            return pair;
+        }
+        let res = 1.0 / pair + (phi - 1.0) * MULTI_NECK_BETA / (kappa * std::f64::consts::PI * r);
+        1.0 / res.max(0.5 / pair)
+    }
+
     /// Both halves and the series pipe for a neck of radius `a` [m] between particles of radii
     /// `r_i`, `r_j` [m] and conductivities `kappa_i`, `kappa_j` [W/(m·K)]. `a = 0` gives zero.
+    /// The pair law: no other necks (crowding 1 on both sides).
     pub fn pipe(&self, kappa_i: f64, kappa_j: f64, r_i: f64, r_j: f64, a: f64) -> PipeConductance {
-        let half_i = self.half(kappa_i, r_i, a);
-        let half_j = self.half(kappa_j, r_j, a);
+        self.pipe_crowded(kappa_i, kappa_j, r_i, r_j, a, [1.0, 1.0])
+    }
+
+    /// [`Conductance::pipe`] with the crowding of the neck on particle i and on particle j (H8a).
+    pub fn pipe_crowded(&self, kappa_i: f64, kappa_j: f64, r_i: f64, r_j: f64, a: f64, phi: [f64; 2]) -> PipeConductance {
+        let half_i = self.half_crowded(kappa_i, r_i, a, phi[0]);
+        let half_j = self.half_crowded(kappa_j, r_j, a, phi[1]);
         if !(half_i > 0.0 && half_j > 0.0) {
             return PipeConductance { half_i, half_j, pair: 0.0 };
         }
@@ -102,5 +158,50 @@ mod tests {
         assert!((p.half_j / (crate::heat::fe_fit::fe_fit_factor(0.1) * k) - 1.0).abs() < 1e-14);
         // small necks conduct more than the linear law says (Holm's limit 4/π per side)
         assert!(p.half_j > Conductance::default().half(394.0, 3e-3, 0.3e-3));
+    }
+
+    #[test]
+    fn crowded_half_adds_the_shared_body_resistance() {
+        // (H8b): 1/K = 1/K_pair + (φ − 1)·β/(κπr), for both laws
+        for law in [ConductanceLaw::Linear, ConductanceLaw::FeFit] {
+            let c = Conductance { law, multi_neck: MultiNeck::Fabric, ..Default::default() };
+            let (kappa, r, a) = (394.0, 25e-6, 10e-6);
+            let pair = c.half(kappa, r, a);
+            assert_eq!(c.half_crowded(kappa, r, a, 1.0), pair);
+            for phi in [0.5, 1.5] {
+                let want = 1.0 / (1.0 / pair + (phi - 1.0) * MULTI_NECK_BETA / (kappa * std::f64::consts::PI * r));
+                assert!((c.half_crowded(kappa, r, a, phi) / want - 1.0).abs() < 1e-14);
+            }
+            // FCC at x = 0.48 (φ = 2): the half conducts D/(D + β x) of the pair's
+            let x = 0.48;
+            let d = 1.0 / crate::heat::fe_fit::fe_fit_factor(x);
+            let cf = Conductance { law: ConductanceLaw::FeFit, multi_neck: MultiNeck::Fabric, ..Default::default() };
+            let ratio = cf.half_crowded(1.0, 1.0, x, 2.0) / cf.half(1.0, 1.0, x);
+            assert!((ratio - d / (d + MULTI_NECK_BETA * x)).abs() < 1e-14, "{ratio}");
+            assert!(ratio < 0.72 && ratio > 0.66, "{ratio}");
+            // the floor: never below half the pair's resistance
+            assert!((cf.half_crowded(1.0, 1.0, 1e-3, -1e6) / (2.0 * cf.half(1.0, 1.0, 1e-3)) - 1.0).abs() < 1e-14);
+            // "none": the pair's half whatever φ
+            let none = Conductance { multi_neck: MultiNeck::None, ..c };
+            assert_eq!(none.half_crowded(kappa, r, a, 3.0), pair);
+            // the pipe: both halves crowded, zero neck still zero
+            let p = c.pipe_crowded(kappa, kappa, r, r, a, [1.5, 2.0]);
+            assert!((1.0 / p.pair - 1.0 / c.half_crowded(kappa, r, a, 1.5) - 1.0 / c.half_crowded(kappa, r, a, 2.0)).abs() < 1e-12 / p.pair);
+            assert_eq!(c.pipe_crowded(kappa, kappa, r, r, 0.0, [2.0, 2.0]).pair, 0.0);
+            assert_eq!(c.pipe(kappa, kappa, r, r, a), c.pipe_crowded(kappa, kappa, r, r, a, [1.0, 1.0]));
+        }
+    }
+
+    #[test]
+    fn crowding_needs_a_neck_and_an_axis() {
+        let m = nalgebra::Matrix3::identity() * 4.0;
+        assert_eq!(crowding(&m, 12.0, &nalgebra::Vector3::new(0.0, 0.0, 2.0), 1.0), 2.0);
+        assert_eq!(crowding(&m, 12.0, &nalgebra::Vector3::zeros(), 1.0), 1.0);
+        assert_eq!(crowding(&m, 12.0, &nalgebra::Vector3::x(), 0.0), 1.0);
+        // a lone neck: M = a n nᵀ, A = a gives 1 exactly; with a neck at 90° beside it 1/2
+        let n = nalgebra::Vector3::new(0.6, 0.8, 0.0);
+        assert!((crowding(&(n * n.transpose() * 0.3), 0.3, &n, 0.3) - 1.0).abs() < 1e-15);
+        let m2 = n * n.transpose() * 0.3 + nalgebra::Vector3::z() * nalgebra::Vector3::z().transpose() * 0.3;
+        assert!((crowding(&m2, 0.6, &n, 0.3) - 0.5).abs() < 1e-15);
     }
 }

@@ -11,6 +11,6 @@ pub mod network;
 pub mod pipes;
 pub mod properties;
 
-pub use conductance::{Conductance, ConductanceLaw, PipeConductance};
+pub use conductance::{Conductance, ConductanceLaw, MultiNeck, PipeConductance};
 pub use network::{Furnace, HeatNetwork, HeatSources, HeatStepInfo, Scheme};
 pub use pipes::{Pipes, pipes, pipes_from_pairs};

@@ -2,10 +2,11 @@
 //! neck (crate::neck) and the pipe conductance of the chosen law (docs/heat-model.md (H6), (P4)).
 
 use crate::error::ModelError;
-use crate::heat::Conductance;
+use crate::heat::conductance;
+use crate::heat::{Conductance, MultiNeck};
 use crate::material::Material;
 use crate::particles::Particles;
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 
 /// The contact pipes of a static network: pairs, overlaps, necks and conductances.
 #[derive(Debug, Clone, Default)]
@@ -24,6 +25,37 @@ pub struct Pipes {
     pub extrapolated: usize,
 }
 
+/// The neck fabric of every particle, `M_i = Σ_l a_l n_l n_lᵀ` [m], and its summed neck radii
+/// `A_i = Σ_l a_l` [m], over its necks (docs/heat-model.md (H8a)): `pairs`, their branch vectors
+/// `d_ij = x_j − x_i` (any periodic image: only the axis enters, not its sign) and neck radii
+/// `neck` [m]; `n` particles.
+pub fn neck_fabric(pairs: &[[u32; 2]], branch: &[Vector3<f64>], neck: &[f64], n: usize) -> Vec<(Matrix3<f64>, f64)> {
+    let mut m = vec![(Matrix3::zeros(), 0.0); n];
+    for ((&[i, j], b), &a) in pairs.iter().zip(branch).zip(neck) {
+        let d2 = b.norm_squared();
+        if !(a > 0.0 && d2 > 0.0) {
+            continue;
+        }
+        let t = (b * b.transpose()) * (a / d2);
+        for k in [i as usize, j as usize] {
+            m[k].0 += t;
+            m[k].1 += a;
+        }
+    }
+    m
+}
+
+/// The crowding `[φ_i, φ_j]` of every pipe's neck on its two particles (docs/heat-model.md
+/// (H8a)); all 1 for `multi_neck = "none"`.
+pub fn crowding(pairs: &[[u32; 2]], branch: &[Vector3<f64>], neck: &[f64], n: usize, law: &Conductance) -> Vec<[f64; 2]> {
+    if law.multi_neck == MultiNeck::None {
+        return vec![[1.0, 1.0]; pairs.len()];
+    }
+    let m = neck_fabric(pairs, branch, neck, n);
+    let phi = |k: u32, b: &Vector3<f64>, a: f64| conductance::crowding(&m[k as usize].0, m[k as usize].1, b, a);
+    pairs.iter().zip(branch).zip(neck).map(|((&[i, j], b), &a)| [phi(i, b, a), phi(j, b, a)]).collect()
+}
+
 /// Pipes from explicit pairs with their branch vectors `d_ij = x_j − x_i` (periodic images allowed).
 pub fn pipes_from_pairs(pairs: Vec<[u32; 2]>, branch: &[Vector3<f64>], p: &Particles, materials: &[Material], law: &Conductance) -> Result<Pipes, ModelError> {
     let mut out = Pipes { pairs, ..Default::default() };
@@ -32,13 +64,17 @@ pub fn pipes_from_pairs(pairs: Vec<[u32; 2]>, branch: &[Vector3<f64>], p: &Parti
         let (ri, rj) = (p.radius[i], p.radius[j]);
         let h = ri + rj - branch[k].norm();
         let neck = crate::neck::solve(ri, rj, h).map_err(|e| e.with_context(format!("contact {k} between particles {i} and {j}")))?;
-        let (ki, kj) = (materials[p.material[i] as usize].conductivity, materials[p.material[j] as usize].conductivity);
-        let pipe = law.pipe(ki, kj, ri, rj, neck.a);
         if neck.a > 0.7 * ri.min(rj) {
             out.extrapolated += 1;
         }
         out.overlap.push(h);
         out.neck.push(neck.a);
+    }
+    let phi = crowding(&out.pairs, branch, &out.neck, p.len(), law);
+    for (k, &[i, j]) in out.pairs.iter().enumerate() {
+        let (i, j) = (i as usize, j as usize);
+        let (ki, kj) = (materials[p.material[i] as usize].conductivity, materials[p.material[j] as usize].conductivity);
+        let pipe = law.pipe_crowded(ki, kj, p.radius[i], p.radius[j], out.neck[k], phi[k]);
         out.conductance.push(pipe.pair);
         out.parts.push(pipe);
     }
@@ -50,4 +86,83 @@ pub fn pipes(p: &Particles, materials: &[Material], law: &Conductance) -> Result
     let pairs: Vec<[u32; 2]> = crate::contacts::detect::touching_pairs(&p.position, &p.radius, 0.0).into_iter().map(|(i, j)| [i, j]).collect();
     let branch: Vec<Vector3<f64>> = pairs.iter().map(|&[i, j]| p.position[j as usize] - p.position[i as usize]).collect();
     pipes_from_pairs(pairs, &branch, p, materials, law)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The periodic nearest-neighbour bonds of particle 0 of a Bravais lattice as pairs with
+    /// itself (its images), all with neck radius `a`.
+    fn star(dirs: &[Vector3<f64>], a: f64) -> (Vec<[u32; 2]>, Vec<Vector3<f64>>, Vec<f64>) {
+        (vec![[0, 0]; dirs.len()], dirs.to_vec(), vec![a; dirs.len()])
+    }
+
+    fn fabric_crowding(dirs: &[Vector3<f64>]) -> Vec<[f64; 2]> {
+        // each bond of a lattice particle with its image counts on both of its ends, so every
+        // direction once (the ± pairs come from the pair's two ends)
+        let (pairs, branch, neck) = star(dirs, 0.3e-3);
+        crowding(&pairs, &branch, &neck, 1, &Conductance { law: crate::heat::ConductanceLaw::FeFit, multi_neck: MultiNeck::Fabric, ..Default::default() })
+    }
+
+    #[test]
+    fn crowding_of_lattices_is_the_closed_form() {
+        // (H8c): SC 1, BCC 4/3, FCC 2 for every neck; the pair (one bond) 1
+        let v = Vector3::new;
+        let sc = [v(1.0, 0.0, 0.0), v(0.0, 1.0, 0.0), v(0.0, 0.0, 1.0)];
+        let bcc = [v(1.0, 1.0, 1.0), v(1.0, 1.0, -1.0), v(1.0, -1.0, 1.0), v(-1.0, 1.0, 1.0)];
+        let fcc = [v(1.0, 1.0, 0.0), v(1.0, -1.0, 0.0), v(1.0, 0.0, 1.0), v(1.0, 0.0, -1.0), v(0.0, 1.0, 1.0), v(0.0, 1.0, -1.0)];
+        for (dirs, want) in [(&sc[..], 1.0), (&bcc[..], 4.0 / 3.0), (&fcc[..], 2.0), (&sc[..1], 1.0)] {
+            for phi in fabric_crowding(dirs) {
+                assert!((phi[0] / want - 1.0).abs() < 1e-14 && (phi[1] / want - 1.0).abs() < 1e-14, "{phi:?} vs {want}");
+            }
+        }
+    }
+
+    #[test]
+    fn lone_neck_and_chain_keep_the_pair_law_and_none_switches_off() {
+        // a chain 0–1–2 along x: particle 1 has two opposite equal necks (φ = 1 exactly), the ends
+        // one neck each (nᵀMn = a, plus the pair's mirror 2a − A = a: 1 exactly)
+        let pairs = vec![[0, 1], [1, 2]];
+        let b = vec![Vector3::new(1.9e-3, 0.0, 0.0); 2];
+        let neck = vec![0.3e-3; 2];
+        let law = Conductance { law: crate::heat::ConductanceLaw::FeFit, multi_neck: MultiNeck::Fabric, ..Default::default() };
+        assert_eq!(crowding(&pairs, &b, &neck, 3, &law), vec![[1.0, 1.0]; 2]);
+        // a T junction: particle 1 gets a third neck along y; its x necks stay at 1 (n·n_y = 0),
+        // its y neck (a = 0.5 mm, A = 1.1 mm) (0.5 + 0)/(2·0.5) = 1/2: heat turning the corner
+        // has a shorter path than through the pair's hemisphere
+        let pairs = vec![[0, 1], [1, 2], [1, 3]];
+        let b = vec![Vector3::new(1.9e-3, 0.0, 0.0), Vector3::new(1.9e-3, 0.0, 0.0), Vector3::new(0.0, 1.9e-3, 0.0)];
+        let neck = vec![0.3e-3, 0.3e-3, 0.5e-3];
+        let phi = crowding(&pairs, &b, &neck, 4, &law);
+        assert!((phi[0][1] - 1.0).abs() < 1e-15 && (phi[1][0] - 1.0).abs() < 1e-15, "{phi:?}");
+        assert!((phi[2][0] - 0.5).abs() < 1e-15 && phi[2][1] == 1.0, "{phi:?}");
+        // three coplanar necks at 60° on particle 0, radii 1, 1, 3 (A = 5): neck 1
+        // (1 + 0.25 + 3·0.25)/2 = 1; neck 2 (0.25 + 1 + 3·0.25)/2 = 1; neck 3 (0.25 + 0.25 + 3 + (6 − 5))/6
+        let c = 0.5f64;
+        let pairs = vec![[0, 1], [0, 2], [0, 3]];
+        let b = vec![Vector3::new(1.0, 0.0, 0.0), Vector3::new(c, (1.0 - c * c).sqrt(), 0.0), Vector3::new(-c, (1.0 - c * c).sqrt(), 0.0)];
+        let neck = vec![1.0, 1.0, 3.0];
+        let phi = crowding(&pairs, &b, &neck, 4, &law);
+        for (k, want) in [1.0, 1.0, 0.75].into_iter().enumerate() {
+            assert!((phi[k][0] - want).abs() < 1e-14, "{phi:?}");
+            assert_eq!(phi[k][1], 1.0);
+        }
+        let none = Conductance { multi_neck: MultiNeck::None, ..law };
+        let fcc_like: Vec<Vector3<f64>> = (0..12).map(|k| Vector3::new((k as f64).cos(), (k as f64).sin(), 0.3 * k as f64)).collect();
+        let (pairs, branch, neck) = star(&fcc_like, 0.3);
+        assert!(crowding(&pairs, &branch, &neck, 1, &law).iter().all(|p| p[0] > 1.0));
+        assert_eq!(crowding(&pairs, &branch, &neck, 1, &none), vec![[1.0, 1.0]; 12]);
+    }
+
+    #[test]
+    fn fabric_is_the_sum_of_axis_dyads_weighted_by_neck() {
+        let pairs = vec![[0, 1], [0, 2]];
+        let b = vec![Vector3::new(0.0, 0.0, -2.0), Vector3::new(3.0, 4.0, 0.0)];
+        let m = neck_fabric(&pairs, &b, &[0.5, 2.0], 3);
+        let want0 = Matrix3::new(2.0 * 0.36, 2.0 * 0.48, 0.0, 2.0 * 0.48, 2.0 * 0.64, 0.0, 0.0, 0.0, 0.5);
+        assert!((m[0].0 - want0).norm() < 1e-15, "{}", m[0].0);
+        assert!((m[1].0 - Matrix3::new(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.5)).norm() < 1e-15);
+        assert!((m[0].0.trace() - 2.5).abs() < 1e-15 && m[0].1 == 2.5 && m[1].1 == 0.5 && m[2].1 == 2.0);
+    }
 }

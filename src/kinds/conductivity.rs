@@ -72,12 +72,14 @@ pub fn run_case(value: toml::Value, base: &std::path::Path) -> Result<serde_json
         // closed forms of docs/heat-model.md for the pipe conductance of the lattice's nearest neighbours
         let r = p.radius[0];
         let neck = crate::neck::solve(r, r, 2.0 * r - d)?;
-        let kp = prep.conductance.pipe(kappa_mat, kappa_mat, r, r, neck.a).pair;
-        let f = match lat {
-            crate::scene::Lattice::SimpleCubic => 1.0,
-            crate::scene::Lattice::BodyCentred => 3f64.sqrt(),
-            crate::scene::Lattice::FaceCentred => 2.0 * 2f64.sqrt(),
+        // the crowding of every neck of the lattice (heat-model.md (H8c)): nᵀMn/(2a) = 1 (SC),
+        // (2 + 6/9)/2 = 4/3 (BCC), (2 + 8/4)/2 = 2 (FCC)
+        let (f, phi) = match lat {
+            crate::scene::Lattice::SimpleCubic => (1.0, 1.0),
+            crate::scene::Lattice::BodyCentred => (3f64.sqrt(), 4.0 / 3.0),
+            crate::scene::Lattice::FaceCentred => (2.0 * 2f64.sqrt(), 2.0),
         };
+        let kp = prep.conductance.pipe_crowded(kappa_mat, kappa_mat, r, r, neck.a, [phi, phi]).pair;
         out.insert("lattice_closed_form_W_per_mK".into(), (f * kp / d).into());
     }
     Ok(serde_json::Value::Object(out))

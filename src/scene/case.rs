@@ -431,6 +431,10 @@ pub struct ThermalSpec {
     pub conductance_factor: f64,
     /// Interface conductance in series [W/K] (default none).
     pub contact_conductance: Option<f64>,
+    /// Multi-neck correction of the half pipes: "none" (default: every half pipe the pair's) or
+    /// "fabric" (docs/heat-model.md (H8a)–(H8c), validated within 2 % of 3-D FE).
+    #[serde(default)]
+    pub multi_neck: crate::heat::MultiNeck,
     /// Radiation Newton tolerance (default 1e-9).
     #[serde(default = "rad_tol")]
     pub radiation_tolerance: f64,
@@ -455,6 +459,7 @@ impl Default for ThermalSpec {
             conductance: ConductanceLaw::Linear,
             conductance_factor: ck(),
             contact_conductance: None,
+            multi_neck: crate::heat::MultiNeck::default(),
             radiation_tolerance: rad_tol(),
             contact_temperature: arith(),
             fixed: Vec::new(),

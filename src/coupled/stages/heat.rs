@@ -35,20 +35,22 @@ impl Simulation {
         Ok(self.pipe_parts()?.iter().map(|p| p.pair).collect())
     }
 
-    /// Halves and series conductance of every pipe at the materials' constant κ [W/K].
+    /// Halves and series conductance of every pipe at the materials' constant κ [W/K], with the
+    /// crowding of each neck from the current necks and branch vectors (heat-model.md (H8a)).
     pub(crate) fn pipe_parts(&self) -> Result<Vec<crate::heat::PipeConductance>, ModelError> {
         let p = &self.prep.scene.particles;
         let law: &Conductance = &self.prep.conductance;
         let mats = &self.prep.scene.materials;
         let eps = self.thermal_strains();
-        self.contacts
+        let necks: Vec<f64> = self
+            .contacts
             .pairs
             .iter()
             .zip(&self.contacts.state)
             .enumerate()
             .map(|(k, (&[i, j], c))| {
                 let (ri, rj) = (p.radius[i as usize], p.radius[j as usize]);
-                let a = match self.settings.neck {
+                Ok(match self.settings.neck {
                     NeckSource::SevenDof => c.y[0],
                     NeckSource::VolumeConserving => {
                         // in the reference geometry of the contact (X9)
@@ -59,10 +61,25 @@ impl Simulation {
                         let h = ri + rj - d;
                         crate::neck::solve(ri, rj, h).map_err(|e| e.with_context(format!("contact {k} ({i}–{j}) at t = {} s", self.t)))?.a
                     }
-                };
-                let (ki, kj) = (mats[p.material[i as usize] as usize].conductivity, mats[p.material[j as usize] as usize].conductivity);
-                Ok(law.pipe(ki, kj, ri, rj, a))
+                })
             })
-            .collect()
+            .collect::<Result<_, ModelError>>()?;
+        let phi = if law.multi_neck == crate::heat::MultiNeck::None {
+            vec![[1.0, 1.0]; necks.len()]
+        } else {
+            let branch: Vec<nalgebra::Vector3<f64>> = self.contacts.pairs.iter().map(|&[i, j]| self.branch(i, j)).collect();
+            crate::heat::pipes::crowding(&self.contacts.pairs, &branch, &necks, p.len(), law)
+        };
+        Ok(self
+            .contacts
+            .pairs
+            .iter()
+            .zip(necks.iter().zip(&phi))
+            .map(|(&[i, j], (&a, &ph))| {
+                let (ri, rj) = (p.radius[i as usize], p.radius[j as usize]);
+                let (ki, kj) = (mats[p.material[i as usize] as usize].conductivity, mats[p.material[j as usize] as usize].conductivity);
+                law.pipe_crowded(ki, kj, ri, rj, a, ph)
+            })
+            .collect())
     }
 }
