@@ -22,12 +22,12 @@ pub enum ConductanceLaw {
 pub enum MultiNeck {
     /// Every half pipe is the pair's half, whatever the particle's other necks (the law before
     /// issue 23; exact for a pair and a simple-cubic lattice, 11–18 % too conductive for random
-    /// packings at h/r ≈ 0.12, 44 % for FCC). Still the default: making `Fabric` the default
-    /// changes every bundled result, whose checksums are yet to be re-recorded (docs/decisions.md).
-    #[default]
+    /// packings at h/r ≈ 0.12, 44 % for FCC). Kept selectable for comparison with earlier results.
     None,
     /// The pair's half resistance plus the body resistance the neck shares with the particle's
     /// other necks, from the neck fabric of the particle (H8a)–(H8c); within 2 % of the 3-D FE.
+    /// The default (docs/decisions.md: the bundled checksums were re-recorded for it).
+    #[default]
     Fabric,
 }
 

@@ -156,12 +156,12 @@ impl Stepper {
         }
     }
 
-    /// The compact simulation in its current state (None for a heat run): what `sinterdem rve`
-    /// branches its perturbed runs from (docs/rve.md).
+    /// The compact simulation in its current state (None for heat and explicit_sinter runs):
+    /// what `sinterdem rve` branches its perturbed runs from (docs/rve.md).
     pub(crate) fn compact_simulation(&self) -> Option<&crate::coupled::Simulation> {
         match &self.inner {
-            Inner::Heat(_) => None,
             Inner::Compact(r) => Some(&r.sim),
+            Inner::Heat(_) | Inner::Explicit(_) => None,
         }
     }
 
