@@ -162,3 +162,49 @@ fn sigint_stops_an_explicit_sinter_protocol_where_it_is() {
     assert!(s["branches"].as_array().unwrap().len() < 3);
     let _ = std::fs::remove_dir_all(&out);
 }
+
+/// SIGINT to `sinterdem study` (one run at a time): the run in progress stops, no new run
+/// starts, the interrupted run leaves no record (it is not a result), `study.csv` is written with
+/// the runs not done missing, the exit code is 130; the same command again runs exactly the
+/// missing runs and ends with every run ok.
+#[test]
+fn sigint_stops_a_study_and_the_next_invocation_finishes_it() {
+    let out = std::env::temp_dir().join(format!("sinterdem-interrupt-study-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&out);
+    let study = |out: &Path| {
+        Command::new(env!("CARGO_BIN_EXE_sinterdem"))
+            .current_dir(root())
+            .args(["study", "cases/studies/copper-temperatures.toml", "-q", "--jobs", "1", "--out"])
+            .arg(out)
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("sinterdem runs")
+    };
+    let records = |out: &Path| (0..6).filter(|i| out.join(format!("runs/{i:04}/result.json")).exists()).count();
+    let mut child = study(&out);
+    let t0 = Instant::now();
+    while records(&out) < 1 {
+        assert!(t0.elapsed() < Duration::from_secs(300), "no run record in 300 s");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    assert!(Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap().success());
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(130), "{status:?}");
+    let done = records(&out);
+    assert!((1..6).contains(&done), "{done} records after the interrupt");
+    let log = std::fs::read_to_string(out.join("executions.log")).unwrap();
+    let interrupted = log.lines().filter(|l| l.starts_with("interrupted")).count();
+    assert!(interrupted <= 1, "{log}");
+    let csv = std::fs::read_to_string(out.join("study.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 7, "{csv}");
+    let mut again = study(&out);
+    assert_eq!(again.wait().unwrap().code(), Some(0));
+    assert_eq!(records(&out), 6);
+    let log = std::fs::read_to_string(out.join("executions.log")).unwrap();
+    assert_eq!(log.lines().filter(|l| l.starts_with("start")).count(), 6 + interrupted, "each missing run once, nothing twice: {log}");
+    let csv = std::fs::read_to_string(out.join("study.csv")).unwrap();
+    let status_col = csv.lines().next().unwrap().split(',').position(|c| c == "status").unwrap();
+    assert!(csv.lines().skip(1).all(|l| l.split(',').nth(status_col) == Some("ok")), "{csv}");
+    let _ = std::fs::remove_dir_all(&out);
+}

@@ -41,6 +41,10 @@ pub fn run(dir: &Path, plan: &[PlannedRun], todo: &[usize], jobs: usize, threads
             let (next, failed, bar) = (&next, &failed, &bar);
             s.spawn(move || {
                 loop {
+                    // Ctrl-C/SIGTERM: the runs in progress stop with their outputs, no new run starts
+                    if crate::interrupt::requested() {
+                        break;
+                    }
                     let k = next.fetch_add(1, Ordering::Relaxed);
                     let Some(&i) = todo.get(k) else { break };
                     let rec = pool.install(|| store::execute(dir, &plan[i]));

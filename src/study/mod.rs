@@ -141,7 +141,11 @@ pub fn run_study(path: &Path, opts: &StudyOptions, log: &mut dyn FnMut(&str)) ->
         }
         // the local engine executed every pending run: a run without its record is a record that
         // could not be written (a full disk, permissions), an error and not a study that ended well
-        if matches!(opts.engine, Engine::Local) && counts.missing > 0 {
+        // (an interrupted study: the runs not done are missing by design, and rerunning the study
+        // runs them; the command line exits with the signal's code)
+        if crate::interrupt::requested() {
+            log(&format!("study interrupted: {} of {} runs have no record yet; run the study again to finish them", counts.missing, counts.runs));
+        } else if matches!(opts.engine, Engine::Local) && counts.missing > 0 {
             return Err(IoError::new(
                 dir.join("runs"),
                 format!("{} of {} run records (runs/NNNN/result.json) could not be written; see executions.log", counts.missing, counts.runs),

@@ -161,6 +161,12 @@ pub fn execute(dir: &Path, run: &PlannedRun) -> RunRecord {
         }
     };
     let rec = RunRecord { index: run.index, hash: run.hash.clone(), status: status.into(), error, wall_seconds: wall.elapsed().as_secs_f64(), summary };
+    // a run stopped by Ctrl-C/SIGTERM (its summary says completed = false, or its error is the
+    // stop) is not a result: no record, so the next invocation of the study runs it again
+    if crate::interrupt::requested() {
+        log_execution(dir, &format!("interrupted {} {}", run.index, run.hash));
+        return RunRecord { status: "interrupted".into(), ..rec };
+    }
     let _ = std::fs::create_dir_all(&out);
     match serde_json::to_string(&rec) {
         Ok(text) => {
