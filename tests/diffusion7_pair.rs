@@ -116,7 +116,7 @@ fn bad_pair_cases_are_rejected_clearly() {
     let e = bad("pair.radius=-1e-6");
     assert!(e.contains("pair.radius") && e.contains("-1e-6") && e.contains("(m)"), "{e}");
     let e = bad("solver.rtol=2");
-    assert!(e.contains("solver.rtol") && e.contains("(0, 0.1)"), "{e}");
+    assert!(e.contains("solver.rtol") && e.contains("[1e-12, 0.1]"), "{e}");
     assert!(bad("pair.radius_typo=1").contains("radius_typo"));
     assert!(bad("solver.method=euler").contains("euler"));
     assert!(bad("temperature.schedule=\"start 300 K\"").contains("temperature"));

@@ -381,22 +381,7 @@ pub fn run(setup: Setup, out: &Path, log: &mut dyn FnMut(&str)) -> Result<report
     let res = loss::residuals(&pb.experiments, &preds);
     let r: Vec<f64> = res.iter().map(|x| x.residual).collect();
     let chi2 = loss::chi2(&r);
-    // a fit in which every run fails has no result: an error, not a report of penalties
-    if let Some(Err(first)) = preds.first().filter(|_| preds.iter().all(|p| p.is_err())) {
-        return Err(crate::error::ModelError::new(format!(
-            "every run of the calibration fails at the optimum ({} experiments); the first: {first}",
-            preds.len()
-        ))
-        .into());
-    }
-    if !chi2.is_finite() {
-        return Err(crate::error::SolveError {
-            stage: "calibration".into(),
-            message: format!("chi2 at the optimum is {chi2}: not finite"),
-            residuals: r.clone(),
-        }
-        .into());
-    }
+    check_optimum(&preds, chi2, &r)?;
     let n = pb.params.len();
     let dof = nvals as i64 - n as i64;
     let reduced = if dof > 0 { chi2 / dof as f64 } else { f64::NAN };
@@ -461,18 +446,8 @@ pub fn run(setup: Setup, out: &Path, log: &mut dyn FnMut(&str)) -> Result<report
     };
     let json_path = out.join("calibration.json");
     let text = serde_json::to_string_pretty(&rep).map_err(|e| IoError::new(&json_path, e))?;
-    std::fs::write(&json_path, text + "\n").map_err(|e| IoError::new(&json_path, e))?;
-    let mut m_out = m_fit.clone();
-    m_out.source =
-        format!("calibrated by sinterdem calibrate ({title}; data {}; chi2/dof = {reduced:.4}), starting from: {}", data_path.display(), pb.material.source);
-    let fitted_model = pb.params.iter().any(|p| matches!(p.target, params::Target::Model { .. }));
-    let mut header = format!("Calibrated material written by `sinterdem calibrate` ({title}).\nchi2 = {chi2:.6}, dof = {dof}, chi2/dof = {reduced:.4}\n");
-    for (p, v) in pb.params.iter().zip(&values) {
-        let s = rep.parameters.get(&p.key).and_then(|x| x.get("sigma")).and_then(|x| x.as_f64()).unwrap_or(f64::NAN);
-        header.push_str(&format!("{} = {v:e} +- {s:.3e} {}\n", p.key, p.unit));
-    }
-    header.push_str("Use: paste into a pair case (material = the name below), or include the file where a case accepts a material file.");
-    report::write_material(&out.join("material.toml"), &m_out, fitted_model.then_some(&f_fit), &header)?;
+    crate::io::write_atomic(&json_path, &(text + "\n"))?;
+    let m_out = write_fitted_material(out, &rep, pb, &m_fit, &f_fit, &values, &data_path)?;
     report::write_residuals(&out.join("residuals.csv"), &pb.experiments, &res)?;
     report::write_plots(out, &pb.experiments, &res)?;
     log(&format!(
@@ -492,6 +467,53 @@ pub fn run(setup: Setup, out: &Path, log: &mut dyn FnMut(&str)) -> Result<report
         log(&format!("compact validation: {}", path.display()));
     }
     Ok(rep)
+}
+
+/// A fit in which every run fails has no result (an error, not a report of penalties), and a
+/// non-finite χ² at the optimum is a SolveError carrying the residuals (issue 26 class 6).
+fn check_optimum<T, E: std::fmt::Display>(preds: &[Result<T, E>], chi2: f64, r: &[f64]) -> Result<(), Error> {
+    if let Some(Err(first)) = preds.first().filter(|_| preds.iter().all(|p| p.is_err())) {
+        return Err(crate::error::ModelError::new(format!(
+            "every run of the calibration fails at the optimum ({} experiments); the first: {first}",
+            preds.len()
+        ))
+        .into());
+    }
+    if !chi2.is_finite() {
+        return Err(crate::error::SolveError {
+            stage: "calibration".into(),
+            message: format!("chi2 at the optimum is {chi2}: not finite"),
+            residuals: r.to_vec(),
+        }
+        .into());
+    }
+    Ok(())
+}
+
+/// Writes `out/material.toml`: the fitted material (and path factors when the fit moved any) with
+/// a header of χ², the values and their σ; returns the material as written.
+fn write_fitted_material(
+    out: &Path,
+    rep: &report::CalibrationReport,
+    pb: &Problem,
+    m_fit: &crate::models::diffusion7::Material,
+    f_fit: &crate::models::diffusion7::PathFactors,
+    values: &[f64],
+    data_path: &Path,
+) -> Result<crate::models::diffusion7::Material, Error> {
+    let (title, chi2, dof, reduced) = (&rep.title, rep.chi2, rep.dof, rep.reduced_chi2);
+    let mut m_out = m_fit.clone();
+    m_out.source =
+        format!("calibrated by sinterdem calibrate ({title}; data {}; chi2/dof = {reduced:.4}), starting from: {}", data_path.display(), pb.material.source);
+    let fitted_model = pb.params.iter().any(|p| matches!(p.target, params::Target::Model { .. }));
+    let mut header = format!("Calibrated material written by `sinterdem calibrate` ({title}).\nchi2 = {chi2:.6}, dof = {dof}, chi2/dof = {reduced:.4}\n");
+    for (p, v) in pb.params.iter().zip(values) {
+        let s = rep.parameters.get(&p.key).and_then(|x| x.get("sigma")).and_then(|x| x.as_f64()).unwrap_or(f64::NAN);
+        header.push_str(&format!("{} = {v:e} +- {s:.3e} {}\n", p.key, p.unit));
+    }
+    header.push_str("Use: paste into a pair case (material = the name below), or include the file where a case accepts a material file.");
+    report::write_material(&out.join("material.toml"), &m_out, fitted_model.then_some(f_fit), &header)?;
+    Ok(m_out)
 }
 
 /// `sinterdem check FILE`: a calibration file (recognised by [`crate::config::is_calibration`])

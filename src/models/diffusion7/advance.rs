@@ -212,7 +212,13 @@ where
         let last = std::cell::Cell::new(y);
         let last_t = std::cell::Cell::new(a);
         let ctx = |e: ModelError| {
-            if e.message.starts_with(COLLAPSED) {
+            // a collapse with the neck at the size of the smaller particle is its absorption (the
+            // geometry, diagnosed below), not diffusion data too fast for the integrator
+            let absorbed = {
+                let y = last.get();
+                y[0] >= 0.9 * y[1].min(y[4])
+            };
+            if e.message.starts_with(COLLAPSED) && !absorbed {
                 let t = last_t.get();
                 return ModelError::new(explain_collapse(mats, t, temp.at(t), &last.get()))
                     .with_context(format!("contact interval [{a:.6e}, {b:.6e}] s, T = {ta:.2} to {tb:.2} K; integrator: {}", e.message));
