@@ -358,6 +358,12 @@ where
             128 + sig
         }
         Ok(()) => 0,
+        // a command that ends with an error because a signal stopped it (a calibration) exits
+        // with the signal's code as well
+        Err(e) if crate::interrupt::signal().is_some() => {
+            eprintln!("error: {e}");
+            128 + crate::interrupt::signal().unwrap_or(2)
+        }
         Err(e) => {
             eprintln!("error: {e}");
             e.exit_code()

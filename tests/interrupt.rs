@@ -208,3 +208,38 @@ fn sigint_stops_a_study_and_the_next_invocation_finishes_it() {
     assert!(csv.lines().skip(1).all(|l| l.split(',').nth(status_col) == Some("ok")), "{csv}");
     let _ = std::fs::remove_dir_all(&out);
 }
+
+/// SIGINT to `sinterdem calibrate` (the bundled synthetic titanium fit, far longer than the
+/// test waits): the batch in progress ends, no fit is written (no calibration.json, no
+/// material.toml), the error says it was interrupted, and the exit code is 130.
+#[test]
+fn sigint_stops_a_calibration_without_a_fit() {
+    let out = std::env::temp_dir().join(format!("sinterdem-interrupt-calib-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&out);
+    let mut child = Command::new(env!("CARGO_BIN_EXE_sinterdem"))
+        .current_dir(root())
+        .args(["calibrate", "cases/calibration/titanium-synthetic.toml", "-q", "--out"])
+        .arg(&out)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("sinterdem runs");
+    // the output lock is taken when the fit starts
+    let t0 = Instant::now();
+    while !out.join(".sinterdem.lock").exists() {
+        assert!(t0.elapsed() < Duration::from_secs(60), "the calibration did not start in 60 s");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    std::thread::sleep(Duration::from_millis(300));
+    assert!(Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap().success());
+    let t1 = Instant::now();
+    let status = child.wait().unwrap();
+    assert!(t1.elapsed() < Duration::from_secs(120), "the calibration took {:?} to stop", t1.elapsed());
+    let mut err = String::new();
+    use std::io::Read;
+    child.stderr.take().map(|mut e| e.read_to_string(&mut err));
+    assert_eq!(status.code(), Some(130), "{status:?}: {err}");
+    assert!(err.contains("interrupted"), "{err}");
+    assert!(!out.join("calibration.json").exists() && !out.join("material.toml").exists());
+    let _ = std::fs::remove_dir_all(&out);
+}

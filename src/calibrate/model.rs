@@ -149,6 +149,15 @@ impl<'a> Evaluator<'a> {
         if !todo.is_empty() {
             let batch = self.batches.lock().unwrap_or_else(|e| e.into_inner()).len();
             let (preds, executed) = self.model.run_batch(batch, label, &todo)?;
+            // Ctrl-C/SIGTERM: the runs of the batch stopped early, so their results are not
+            // predictions; the calibration ends without a fit (the compact model's studies keep
+            // their finished runs, so the same command again continues from them)
+            if crate::interrupt::requested() {
+                return Err(ModelError::new(format!(
+                    "calibration interrupted by a signal in batch {batch} ({label}): no fit written; run the same command again"
+                ))
+                .into());
+            }
             let failed: usize = preds.iter().map(|p| p.iter().filter(|r| r.is_err()).count()).sum();
             self.evaluations.fetch_add(todo.len() as u64, Ordering::Relaxed);
             self.failures.fetch_add(failed as u64, Ordering::Relaxed);
