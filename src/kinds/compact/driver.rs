@@ -260,8 +260,8 @@ fn announce(sim: &Simulation, log: &mut dyn FnMut(&str)) {
         sim.contacts.len(),
         sim.settings.strategy,
         sim.dt,
-        sim.settings.dt_max,
-        sim.settings.end
+        crate::error::fmt_value(sim.settings.dt_max),
+        crate::error::fmt_value(sim.settings.end)
     ));
     let isolated = sim.isolated_particles();
     if !isolated.is_empty() {

@@ -171,8 +171,8 @@ fn setup(prep: &mut Prepared, log: &mut dyn FnMut(&str)) -> Result<(HeatNetwork,
         prep.pipes.pairs.len(),
         prep.pipes.extrapolated,
         case.time.scheme,
-        case.time.dt,
-        case.time.end
+        crate::error::fmt_value(case.time.dt),
+        crate::error::fmt_value(case.time.end)
     ));
     let mut net = network_for(&prep.case, &prep.sources, p, &prep.scene.materials, &prep.conductance);
     // the conductances of the network's pipes: the contacts', then the gap pipes' (static packing)
