@@ -186,6 +186,10 @@ fn strip_outputs(mut v: serde_json::Value) -> serde_json::Value {
         for r in runs {
             if let Some(m) = r.as_object_mut() {
                 m.remove("outputs");
+                // a run without a record (an interrupted study: exit 143) has no wall time
+                if m.get("status").and_then(|s| s.as_str()) == Some("missing") {
+                    m.remove("wall_seconds");
+                }
             }
         }
     }
