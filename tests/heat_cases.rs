@@ -93,6 +93,45 @@ fn faces_method_on_a_simple_cubic_block() {
     }
 }
 
+/// (H17a): a particle standing proud of the top face of an SC block (bonded to one top particle)
+/// must not become the cold layer by itself. Before the face placement by coverage, the layer was
+/// that particle alone and κ_z fell to a few per cent of the block's; now the face moves to the
+/// block's top layer and κ_z is the block's closed form again (the proud particle is in the cold
+/// layer at T_cold, outside the mean of L_D). The other axes keep their closed forms.
+#[test]
+fn a_particle_standing_proud_of_a_face_does_not_become_the_layer() {
+    let dir = common::tmp_dir("faces-proud");
+    let (r, d, cells) = (1.0e-3, 1.8e-3, [4usize, 4, 6]);
+    let mut csv = String::from("x_m,y_m,z_m,radius_m\n");
+    for i in 0..cells[0] {
+        for j in 0..cells[1] {
+            for k in 0..cells[2] {
+                csv += &format!("{:e},{:e},{:e},{r:e}\n", r + i as f64 * d, r + j as f64 * d, r + k as f64 * d);
+            }
+        }
+    }
+    // on top of particle (1, 2, top), at the lattice distance
+    csv += &format!("{:e},{:e},{:e},{r:e}\n", r + d, r + 2.0 * d, r + cells[2] as f64 * d);
+    std::fs::write(dir.join("block.csv"), csv).unwrap();
+    let text =
+        LATTICE.replace("source = \"lattice\"\nlattice = \"sc\"\ncells = [4, 4, 4]\nradius = 1.0e-3\noverlap = 0.1", "source = \"file\"\nfile = \"block.csv\"");
+    let v = case(&text, &["conductivity.boundary=\"faces\"", "thermal.multi_neck=\"none\""]);
+    let out = conductivity::run_case(v, &dir).unwrap();
+    let neck = sinterdem::neck::solve(r, r, 2.0 * r - d).unwrap();
+    let k = sinterdem::heat::Conductance::default().pipe(394.0, 394.0, r, r, neck.a).pair;
+    let ext = |n: usize| (n - 1) as f64 * d + 2.0 * r;
+    for (axis, item) in out["axes"].as_array().unwrap().iter().enumerate() {
+        let (n_a, n_b) = (cells[(axis + 1) % 3], cells[(axis + 2) % 3]);
+        let exact = (n_a * n_b) as f64 * k * d / (ext(n_a) * ext(n_b));
+        let kappa = item["kappa"].as_f64().unwrap();
+        assert!((kappa / exact - 1.0).abs() < 1e-9, "axis {axis}: {kappa} vs {exact}: {item}");
+    }
+    let z = &out["axes"][2];
+    assert!((z["cold_face_shift_m"].as_f64().unwrap() - d).abs() < 1e-12, "{z}");
+    assert_eq!(z["cold_particles"].as_u64().unwrap(), 17, "{z}");
+    assert!(z["cold_coverage"].as_f64().unwrap() > 0.9 && z["hot_face_shift_m"].as_f64().unwrap() == 0.0, "{z}");
+}
+
 fn expect_err(text: &str, sets: &[&str], needles: &[&str]) {
     let v = case(text, sets);
     let e = match prepare(v, Path::new(".")) {

@@ -70,6 +70,33 @@ def affine(x0, x1, d_mean):
     return coef[:3].T, int(inside.sum())
 
 
+def near_neighbours(gen_dir, periodic, d_mean=50e-6):
+    """Neighbours per particle at gaps between 1e-3 and 2 % of the contact distance r_i + r_j in a
+    green packing (the contacts that close during sintering); the walled body's interior only."""
+    import pandas as pd
+    from scipy.spatial import cKDTree
+
+    p = pd.read_csv(gen_dir / "packing.csv")
+    x, r = p[["x_m", "y_m", "z_m"]].to_numpy(), p["radius_m"].to_numpy()
+    if periodic:
+        box = np.asarray(json.load(open(gen_dir / "summary.json"))["box_size_m"])
+        x = np.mod(x, box)
+        tree, sel = cKDTree(x, boxsize=box), np.ones(len(x), bool)
+    else:
+        tree = cKDTree(x)
+        lo, hi = x.min(axis=0), x.max(axis=0)
+        sel = np.all((x > lo + 1.5 * d_mean) & (x < hi - 1.5 * d_mean), axis=1)
+    pairs = tree.query_pairs(2.0 * r.max() * 1.03, output_type="ndarray")
+    i, j = pairs[:, 0], pairs[:, 1]
+    d = x[j] - x[i]
+    if periodic:
+        d -= box * np.round(d / box)
+    gap = np.linalg.norm(d, axis=1) / (r[i] + r[j]) - 1.0
+    m = (gap >= 1e-3) & (gap < 2e-2)
+    count = np.bincount(i[m], minlength=len(x)) + np.bincount(j[m], minlength=len(x))
+    return float(count[sel].mean())
+
+
 def kappa(summary):
     c = summary.get("conductivity") or []
     last = c[-1]
@@ -85,6 +112,8 @@ def main():
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
     ap.add_argument("--end", type=float, default=1000.0)
     ap.add_argument("--bin", default=str(ROOT / "target/release/sinterdem"))
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="extra override of both sintering runs, e.g. contacts.detect_new=false (the green packings of --out are reused)")
     a = ap.parse_args()
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -103,7 +132,7 @@ def main():
                     "--set", f"packing.seed={s}", "--set", f"packing.target_solid_fraction={phi:.6f}"], out / f"{tag}-gp.log")
             box = json.load(open(gp / "summary.json"))["box_size_m"]
             common = ["--set", f"time.end={a.end}", "--set", "output.snapshots=1", "--set", f"output.conductivity_at=[{a.end}]",
-                      "--set", "output.checkpoint_every=0"]
+                      "--set", "output.checkpoint_every=0", *[x for kv in a.set for x in ("--set", kv)]]
             rp, rw = out / f"run-periodic-{tag}", out / f"run-walled-{tag}"
             if not (rp / "summary.json").exists():
                 sh([b, "run", ROOT / "cases/periodic-copper-rve.toml", "--out", rp, "--quiet",
@@ -117,12 +146,14 @@ def main():
             kp, kw = kappa(sp), kappa(sw)
             rows.append(dict(n=n, seed=s, body="periodic", phi0=phi, shrink_x=sp["shrinkage_x"], shrink_y=sp["shrinkage_y"],
                              shrink_z=sp["shrinkage_z"], density=sp["relative_density"], kxx=kp[0], kyy=kp[1], kzz=kp[2], interior=n,
+                             near_neighbours=near_neighbours(gp, True),
                              wall_s=sum(sp["timing_seconds"].values())))
             x0, x1 = positions(gw / "packing.csv", rw / "sinterdem.h5")
             d_mean = 50e-6
             f, inside = affine(x0, x1, d_mean)
             rows.append(dict(n=n, seed=s, body="walled interior", phi0=phi, shrink_x=1 - f[0, 0], shrink_y=1 - f[1, 1],
                              shrink_z=1 - f[2, 2], density=phi / np.linalg.det(f), kxx=kw[0], kyy=kw[1], kzz=kw[2],
+                             near_neighbours=near_neighbours(gw, False),
                              interior=inside, wall_s=sum(sw["timing_seconds"].values())))
             print(tag, rows[-2], rows[-1], flush=True)
     import pandas as pd
@@ -131,7 +162,7 @@ def main():
     df.to_csv(out / "study.csv", index=False)
     df["shrink_mean"] = df[["shrink_x", "shrink_y", "shrink_z"]].mean(axis=1)
     df["kappa_mean"] = df[["kxx", "kyy", "kzz"]].mean(axis=1)
-    g = df.groupby(["body", "n"])[["phi0", "shrink_mean", "density", "kappa_mean"]].agg(["mean", "std", "count"])
+    g = df.groupby(["body", "n"])[["phi0", "shrink_mean", "density", "kappa_mean", "near_neighbours"]].agg(["mean", "std", "count"])
     pd.set_option("display.width", 200)
     print(g)
     g.to_csv(out / "summary_by_size.csv")

@@ -30,7 +30,7 @@ from . import _native
 from ._errors import ConfigError, Error, IoError, ModelError, SolveError
 
 __all__ = [
-    "Case", "RunResult", "CalibrationResult", "Simulation", "run", "study", "calibrate", "read_csv",
+    "Case", "RunResult", "RveResult", "CalibrationResult", "Simulation", "run", "rve", "study", "calibrate", "read_csv",
     "Error", "ConfigError", "ModelError", "SolveError", "IoError", "__version__",
 ]
 __version__ = _native.__version__
@@ -255,6 +255,26 @@ def _as_case(case: Union[Case, Mapping[str, Any], PathLike]) -> Case:
     return Case.load(case)
 
 
+def _run_command(command: str, case: Union[Case, Mapping[str, Any], PathLike], out: Optional[PathLike], progress: bool,
+                 threads: Optional[int]):
+    c = _as_case(case)
+    tmp = None
+    if out is None:
+        tmp = tempfile.TemporaryDirectory(prefix="sinterdem-")
+        out_path = Path(tmp.name)
+    else:
+        out_path = Path(out)
+    line = _ProgressLine.make(progress)
+    try:
+        kind, wall, interrupted = getattr(c._core, command)(os.fspath(out_path), progress, threads, line)
+    finally:
+        if line is not None:
+            line.close()
+    if interrupted:
+        raise KeyboardInterrupt(f"sinterdem.{command} interrupted: the outputs in {out_path} are written (summary.json: completed = false)")
+    return out_path, kind, wall, tmp
+
+
 def run(case: Union[Case, Mapping[str, Any], PathLike], out: Optional[PathLike] = None, progress: bool = True,
         threads: Optional[int] = None) -> RunResult:
     """Runs a case of any kind, as ``sinterdem run CASE --out OUT``, and returns a :class:`RunResult`.
@@ -265,22 +285,41 @@ def run(case: Union[Case, Mapping[str, Any], PathLike], out: Optional[PathLike] 
     GIL is released while the run computes. Raises :class:`ConfigError`, :class:`ModelError`,
     :class:`SolveError` or :class:`IoError`.
     """
-    c = _as_case(case)
-    tmp = None
-    if out is None:
-        tmp = tempfile.TemporaryDirectory(prefix="sinterdem-")
-        out_path = Path(tmp.name)
-    else:
-        out_path = Path(out)
-    line = _ProgressLine.make(progress)
-    try:
-        kind, wall, interrupted = c._core.run(os.fspath(out_path), progress, threads, line)
-    finally:
-        if line is not None:
-            line.close()
-    if interrupted:
-        raise KeyboardInterrupt(f"sinterdem.run interrupted: the outputs in {out_path} are written (summary.json: completed = false)")
-    return RunResult(out_path, kind, wall, tmp)
+    return RunResult(*_run_command("run", case, out, progress, threads))
+
+
+class RveResult(RunResult):
+    """What :func:`rve` returns: a :class:`RunResult` of the free periodic run plus
+
+    - ``constitutive``: ``out/constitutive.csv`` (one row per ``rve.at`` time: relative density,
+      sintering stress [Pa], bulk and uniaxial viscosities [Pa s], viscous Poisson ratio,
+      conductivity tensor [W/(m K)]; docs/rve.md "Output") as a DataFrame (a dict of numpy arrays
+      without pandas);
+    - ``fit``: dict, ``out/fit.json`` (the continuum law fitted to the table).
+    """
+
+    def __init__(self, out: Path, kind: str, wall_seconds: float, tmp: Optional[tempfile.TemporaryDirectory] = None) -> None:
+        super().__init__(out, kind, wall_seconds, tmp)
+        with open(out / "fit.json", encoding="utf-8") as f:
+            self.fit: Dict[str, Any] = json.load(f)
+        self._constitutive = None
+
+    @property
+    def constitutive(self):
+        """``constitutive.csv`` as a DataFrame or a dict of numpy arrays."""
+        if self._constitutive is None:
+            self._constitutive = read_csv(self.out / "constitutive.csv")
+        return self._constitutive
+
+
+def rve(case: Union[Case, Mapping[str, Any], PathLike], out: Optional[PathLike] = None, progress: bool = True,
+        threads: Optional[int] = None) -> RveResult:
+    """The constitutive data of a periodic compact, as ``sinterdem rve CASE --out OUT`` (docs/rve.md):
+    the free run, branch runs under small stress perturbations at ``rve.at``, then
+    ``constitutive.csv``, ``fit.json``, plots and ``summary.json``. Arguments and errors as
+    :func:`run`; returns an :class:`RveResult`.
+    """
+    return RveResult(*_run_command("rve", case, out, progress, threads))
 
 
 def _in_notebook() -> bool:

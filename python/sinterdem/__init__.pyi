@@ -50,6 +50,11 @@ class RunResult:
     def particles(self, i: int = -1) -> Dict[str, np.ndarray]: ...
     def contacts(self, i: int = -1) -> Dict[str, np.ndarray]: ...
 
+class RveResult(RunResult):
+    fit: Dict[str, Any]
+    @property
+    def constitutive(self) -> Any: ...
+
 class Simulation:
     out: Path
     case: Case
@@ -94,6 +99,8 @@ class CalibrationResult:
 
 def run(case: Union[Case, Mapping[str, Any], PathLike], out: Optional[PathLike] = None, progress: bool = True,
         threads: Optional[int] = None) -> RunResult: ...
+def rve(case: Union[Case, Mapping[str, Any], PathLike], out: Optional[PathLike] = None, progress: bool = True,
+        threads: Optional[int] = None) -> RveResult: ...
 def study(path_or_dict: Union[Mapping[str, Any], PathLike], out: PathLike, engine: str = "local", jobs: Optional[int] = None,
           progress: bool = True, overrides: Optional[List[str]] = None) -> Any: ...
 def calibrate(path_or_dict: Union[Mapping[str, Any], PathLike], out: PathLike, overrides: Optional[List[str]] = None,

@@ -137,6 +137,47 @@ fn base_of(path: &Path) -> PathBuf {
     path.parent().filter(|p| !p.as_os_str().is_empty()).map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from("."))
 }
 
+/// The run commands of a case (`sinterdem run`, `sinterdem rve`): one signature.
+type RunCommand = fn(&toml::Value, &[String], &Path, &sinterdem::kinds::RunParams) -> Result<sinterdem::kinds::RunSummary, Error>;
+
+impl CaseCore {
+    /// Runs `command` into `out` with the GIL released (module doc of `run`).
+    fn run_command(
+        &self,
+        py: Python<'_>,
+        out: PathBuf,
+        progress: bool,
+        threads: Option<usize>,
+        poll: Option<Py<PyAny>>,
+        command: RunCommand,
+    ) -> PyResult<(String, f64, bool)> {
+        let params = sinterdem::kinds::RunParams { base_dir: self.base_dir.clone(), progress, echo_log: false, plots: true, wall_limit: None };
+        let (value, sets) = (&self.value, &self.sets);
+        let watch = Watch::new(poll);
+        let res = watch.detached(py, || -> Result<sinterdem::kinds::RunSummary, Error> {
+            match threads {
+                Some(n) if n > 0 => {
+                    let pool =
+                        rayon::ThreadPoolBuilder::new().num_threads(n).build().map_err(|e| Error::from(ConfigError::invalid(format!("threads = {n}: {e}"))))?;
+                    // the run goes to the pool; this thread (the one whose poll sees Python's
+                    // signal handlers) asks for a stop request every poll interval until it ends
+                    std::thread::scope(|scope| {
+                        let worker = scope.spawn(|| pool.install(|| command(value, sets, &out, &params)));
+                        while !worker.is_finished() {
+                            sinterdem::interrupt::requested();
+                            std::thread::sleep(std::time::Duration::from_secs_f64(0.2 * sinterdem::interrupt::POLL_INTERVAL));
+                        }
+                        worker.join().unwrap_or_else(|p| std::panic::resume_unwind(p))
+                    })
+                }
+                _ => command(value, sets, &out, &params),
+            }
+        });
+        let s = res.map_err(|e| self.err(py, e))?;
+        Ok((s.kind.name().to_string(), s.wall_seconds, watch.interrupted()))
+    }
+}
+
 #[pymethods]
 impl CaseCore {
     /// Reads a case file (as `sinterdem run FILE` does: includes expanded relative to its folder).
@@ -218,30 +259,15 @@ impl CaseCore {
     /// is True (the Python layer raises KeyboardInterrupt).
     #[pyo3(signature = (out, progress=true, threads=None, poll=None))]
     fn run(&self, py: Python<'_>, out: PathBuf, progress: bool, threads: Option<usize>, poll: Option<Py<PyAny>>) -> PyResult<(String, f64, bool)> {
-        let params = sinterdem::kinds::RunParams { base_dir: self.base_dir.clone(), progress, echo_log: false, plots: true, wall_limit: None };
-        let (value, sets) = (&self.value, &self.sets);
-        let watch = Watch::new(poll);
-        let res = watch.detached(py, || -> Result<sinterdem::kinds::RunSummary, Error> {
-            match threads {
-                Some(n) if n > 0 => {
-                    let pool =
-                        rayon::ThreadPoolBuilder::new().num_threads(n).build().map_err(|e| Error::from(ConfigError::invalid(format!("threads = {n}: {e}"))))?;
-                    // the run goes to the pool; this thread (the one whose poll sees Python's
-                    // signal handlers) asks for a stop request every poll interval until it ends
-                    std::thread::scope(|scope| {
-                        let worker = scope.spawn(|| pool.install(|| sinterdem::kinds::run(value, sets, &out, &params)));
-                        while !worker.is_finished() {
-                            sinterdem::interrupt::requested();
-                            std::thread::sleep(std::time::Duration::from_secs_f64(0.2 * sinterdem::interrupt::POLL_INTERVAL));
-                        }
-                        worker.join().unwrap_or_else(|p| std::panic::resume_unwind(p))
-                    })
-                }
-                _ => sinterdem::kinds::run(value, sets, &out, &params),
-            }
-        });
-        let s = res.map_err(|e| self.err(py, e))?;
-        Ok((s.kind.name().to_string(), s.wall_seconds, watch.interrupted()))
+        self.run_command(py, out, progress, threads, poll, sinterdem::kinds::run)
+    }
+
+    /// `sinterdem rve`: the constitutive data of a periodic compact (docs/rve.md) into `out`
+    /// through `sinterdem::kinds::rve::run`, as `run` does (GIL released, Ctrl-C, threads);
+    /// returns (kind, wall seconds, interrupted).
+    #[pyo3(signature = (out, progress=true, threads=None, poll=None))]
+    fn rve(&self, py: Python<'_>, out: PathBuf, progress: bool, threads: Option<usize>, poll: Option<Py<PyAny>>) -> PyResult<(String, f64, bool)> {
+        self.run_command(py, out, progress, threads, poll, sinterdem::kinds::rve::run)
     }
 
     /// A bundled material (`copper`, `titanium`) as a `[[materials]]` table to edit: its
