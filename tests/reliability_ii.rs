@@ -135,20 +135,24 @@ fn class02_a_new_run_takes_the_directory_and_an_earlier_checkpoint_cannot_be_res
     let o = bin().arg("run").arg(&case).arg("--out").arg(&out).arg("--quiet").output().unwrap();
     assert!(o.status.success());
     assert!(out.join("checkpoint.json").exists());
-    // the second run writes no checkpoints
-    let o = bin()
-        .arg("run")
-        .arg(&case)
-        .arg("--out")
-        .arg(&out)
-        .arg("--quiet")
-        .args(["--set", "output.checkpoint_every=0", "--set", "time.end=100"])
-        .output()
-        .unwrap();
+    // the second run writes no checkpoints; it needs --force (issue 25: a directory holding
+    // another run's outputs is refused without it, and changes nothing)
+    let second = |force: bool| {
+        let mut c = bin();
+        c.arg("run").arg(&case).arg("--out").arg(&out).arg("--quiet").args(["--set", "output.checkpoint_every=0", "--set", "time.end=100"]);
+        if force {
+            c.arg("--force");
+        }
+        c.output().unwrap()
+    };
+    let o = second(false);
+    assert_eq!(o.status.code(), Some(5), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(out.join("checkpoint.json").exists(), "a refused run changes nothing");
+    let o = second(true);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(!out.join("checkpoint.json").exists(), "the earlier run's checkpoint must not survive a new run");
     let log = std::fs::read_to_string(out.join("log.txt")).unwrap();
-    assert!(log.contains("removed checkpoint.json of an earlier run"), "{log}");
+    assert!(log.contains("--force: removed the outputs of a run (checkpoint.json"), "{log}");
     let rows = std::fs::read_to_string(out.join("series.csv")).unwrap().lines().count();
     let o = bin().arg("resume").arg(&out).arg("--quiet").output().unwrap();
     assert!(!o.status.success(), "resume must refuse: there is no checkpoint of this run");
@@ -187,7 +191,8 @@ fn class04_one_writer_per_output_directory_and_a_dead_holders_lock_is_taken_over
     first.kill().unwrap();
     let _ = first.wait();
     // the dead holder's lock file is still there; the next writer takes it over and says so
-    let o = bin().arg("run").arg(&case).arg("--out").arg(&out).arg("--quiet").args(["--set", "time.end=10"]).output().unwrap();
+    // (--force: the killed run left its outputs)
+    let o = bin().arg("run").arg(&case).arg("--out").arg(&out).arg("--quiet").arg("--force").args(["--set", "time.end=10"]).output().unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let log = std::fs::read_to_string(out.join("log.txt")).unwrap();
     assert!(log.contains("taken over from a process that is gone"), "{log}");
@@ -684,7 +689,8 @@ fn class01_runs_killed_at_random_points_resume_to_the_uninterrupted_result() {
             bin().arg("resume").arg(&work).arg("--quiet").output().unwrap()
         } else {
             reran += 1;
-            bin().arg("run").arg(&case).arg("--out").arg(&work).arg("--quiet").output().unwrap()
+            // the killed run left its log: a new run into its directory needs --force
+            bin().arg("run").arg(&case).arg("--out").arg(&work).arg("--quiet").arg("--force").output().unwrap()
         };
         assert!(o.status.success(), "trial {k}: {}", String::from_utf8_lossy(&o.stderr));
         assert!(std::fs::read_to_string(work.join("series.csv")).unwrap() == series, "trial {k}: series.csv differs from the uninterrupted run");

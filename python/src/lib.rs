@@ -137,6 +137,11 @@ fn base_of(path: &Path) -> PathBuf {
     path.parent().filter(|p| !p.as_os_str().is_empty()).map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from("."))
 }
 
+/// `sinterdem.run` and `Simulation` replace an earlier run's outputs in `out` (the command line's
+/// `--force`): a notebook re-executes its cells into the same directory (docs/decisions.md
+/// "Clean output directories"). The outputs are never a mix of two runs either way.
+const PY_FORCE: bool = true;
+
 #[pymethods]
 impl CaseCore {
     /// Reads a case file (as `sinterdem run FILE` does: includes expanded relative to its folder).
@@ -218,7 +223,7 @@ impl CaseCore {
     /// is True (the Python layer raises KeyboardInterrupt).
     #[pyo3(signature = (out, progress=true, threads=None, poll=None))]
     fn run(&self, py: Python<'_>, out: PathBuf, progress: bool, threads: Option<usize>, poll: Option<Py<PyAny>>) -> PyResult<(String, f64, bool)> {
-        let params = sinterdem::kinds::RunParams { base_dir: self.base_dir.clone(), progress, echo_log: false, plots: true, wall_limit: None };
+        let params = sinterdem::kinds::RunParams { base_dir: self.base_dir.clone(), progress, echo_log: false, plots: true, wall_limit: None, force: PY_FORCE };
         let (value, sets) = (&self.value, &self.sets);
         let watch = Watch::new(poll);
         let res = watch.detached(py, || -> Result<sinterdem::kinds::RunSummary, Error> {
@@ -393,7 +398,7 @@ impl SimulationCore {
     #[new]
     #[pyo3(signature = (case, out, progress=true, poll=None))]
     fn new(py: Python<'_>, case: &CaseCore, out: PathBuf, progress: bool, poll: Option<Py<PyAny>>) -> PyResult<SimulationCore> {
-        let params = sinterdem::kinds::RunParams { base_dir: case.base_dir.clone(), progress, echo_log: false, plots: true, wall_limit: None };
+        let params = sinterdem::kinds::RunParams { base_dir: case.base_dir.clone(), progress, echo_log: false, plots: true, wall_limit: None, force: PY_FORCE };
         let (value, sets) = (case.value.clone(), case.sets.clone());
         let res = py.detach(move || SameThread(sinterdem::kinds::Stepper::start(&value, &sets, &out, &params))).get();
         let stepper = res.map_err(|e| case.err(py, e))?;

@@ -47,6 +47,9 @@ pub struct StudyOptions {
     pub slurm: slurm::SlurmOverrides,
     /// Write `DIR/plots/` when gathering (default true; a calibration's batches turn it off).
     pub plots: bool,
+    /// Remove the outputs of an earlier command in the directory first (`--force`); without it a
+    /// directory holding a run's or calibration's outputs is refused, a study's own continued.
+    pub force: bool,
 }
 
 impl Default for StudyOptions {
@@ -61,6 +64,7 @@ impl Default for StudyOptions {
             progress: false,
             slurm: Default::default(),
             plots: true,
+            force: false,
         }
     }
 }
@@ -99,6 +103,11 @@ pub fn run_study(path: &Path, opts: &StudyOptions, log: &mut dyn FnMut(&str)) ->
     let (study, dir, plan) = prepare(path, opts)?;
     let lock = crate::io::lock::OutputLock::acquire(&dir, "study")?;
     if let Some(note) = lock.takeover_note() {
+        log(&note);
+    }
+    // a study continues its own directory; another command's outputs need --force
+    // (docs/outputs.md "Guarantees")
+    if let Some(note) = crate::io::outdir::claim(&dir, crate::io::outdir::Claimant::Study, opts.force, None)? {
         log(&note);
     }
     store::write_plan(&dir, &plan)?;
