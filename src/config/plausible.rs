@@ -336,7 +336,13 @@ pub fn default_end(case: &mut toml::Value) -> Result<Option<String>, ConfigError
         return Ok(None);
     };
     table.insert(key.to_string(), toml::Value::Float(stop));
-    Ok(Some(format!("{sec}.{key} not given: the end of the heating profile {pkey}, {} s", fmt_value(stop))))
+    Ok(Some(format!("{sec}.{key} not given: the end of the heating profile {pkey}, {} s", tidy(stop))))
+}
+
+/// `x` to 10 significant digits, for messages: a schedule's end summed from its segments
+/// (3899.8199999999997 s) reads as written (3899.82 s).
+fn tidy(x: f64) -> String {
+    fmt_value(format!("{x:.9e}").parse::<f64>().unwrap_or(x))
 }
 
 /// What a case's end time cuts from its heating profiles (docs/case-file.md "End time and
@@ -359,12 +365,12 @@ pub fn schedule_end_warnings(case: &toml::Value) -> (Vec<String>, Vec<String>) {
         }
         let (_, peak) = p.range();
         let t_end = p.temperature(end);
-        let head = format!("{key} = {} s ends before the heating profile {pkey} (which ends at {} s)", fmt_value(end), fmt_value(stop));
-        let tail = format!("set {key} = {} or leave it out to run the whole schedule", fmt_value(stop));
+        let head = format!("{key} = {} s ends before the heating profile {pkey} (which ends at {} s)", tidy(end), tidy(stop));
+        let tail = format!("set {key} = {} or leave it out to run the whole schedule", tidy(stop));
         warnings.push(match p.first_reaching(peak, stop) {
             Some(t_peak) if t_peak > end => format!(
                 "{head}: the run stops at {t_end:.1} K, below the profile's peak {peak:.1} K (reached at {} s); {tail}",
-                fmt_value(t_peak)
+                tidy(t_peak)
             ),
             _ => format!("{head}: the run stops at {t_end:.1} K, after the profile's peak {peak:.1} K, without the rest of its hold or cooling; {tail}"),
         });
