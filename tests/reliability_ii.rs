@@ -80,6 +80,8 @@ fn class01_resumes_killed_at_random_points_continue_to_the_uninterrupted_result(
     let (mut at_cut, mut cut_seen) = (0, 0);
     for k in 0..kills {
         copy_dir(&full, &work);
+        // a run killed before its end has no summary.json (a finished one is not resumed: issue 25)
+        std::fs::remove_file(work.join("summary.json")).unwrap();
         // three kinds of kill: (0) at the moment series.csv changes on disk (the cut back to the
         // checkpoint, where an in-place rewrite used to leave a truncated file), (1) after 0–40 ms
         // (start-up and the cut), (2) after 0–400 ms (a whole resume takes about 0.4 s), twice in a
@@ -280,6 +282,8 @@ fn class03_a_resume_refuses_a_packing_changed_since_the_run_started() {
     let o = bin().arg("run").arg(&case).arg("--out").arg(&out).arg("--quiet").output().unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let series = std::fs::read_to_string(out.join("series.csv")).unwrap();
+    // as a run killed before its end (a finished run has nothing to resume: issue 25)
+    std::fs::remove_file(out.join("summary.json")).unwrap();
     // radii +3 %, as in the issue
     std::fs::write(d.join("packing.csv"), "x,y,z,r\n0,0,0,2.575e-5\n0,4.95e-5,0,2.575e-5\n").unwrap();
     let o = bin().arg("resume").arg(&out).arg("--quiet").output().unwrap();
@@ -354,6 +358,8 @@ fn class12_a_resumed_compact_summary_equals_the_uninterrupted_one_mechanics_coun
     assert!(topo > 2, "the case must change its topology several times ({topo})");
     let work = d.join("work");
     copy_dir(&full, &work);
+    // as a run killed before its end: no summary.json (a finished run is not resumed)
+    std::fs::remove_file(work.join("summary.json")).unwrap();
     let o = bin().arg("resume").arg(&work).arg("--quiet").output().unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert_eq!(summary_without_times(&work), summary);
@@ -367,6 +373,7 @@ fn refused_edits(d: &Path, run: &Path, good: &serde_json::Value, edits: Vec<(&st
     for (pointer, v, needle) in edits {
         let dir = d.join(format!("edit{}", pointer.replace('/', "-")));
         copy_dir(run, &dir);
+        let _ = std::fs::remove_file(dir.join("summary.json"));
         let mut ck = good.clone();
         *ck.pointer_mut(pointer).unwrap_or_else(|| panic!("{pointer} not in the checkpoint")) = v.clone();
         std::fs::write(dir.join("checkpoint.json"), ck.to_string()).unwrap();
