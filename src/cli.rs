@@ -353,6 +353,15 @@ fn bundled(rel: &str) -> Result<PathBuf, Error> {
     })
 }
 
+/// A study's log line on the console: `warning: …` lines as warnings (shown with `-q`), the rest
+/// as info.
+fn study_log(m: &str) {
+    match m.strip_prefix("warning: ") {
+        Some(w) => tracing::warn!("{w}"),
+        None => tracing::info!("{m}"),
+    }
+}
+
 /// The folder of a case file (relative paths in it start there); "." for a bare file name.
 fn base_dir(case: &Path) -> PathBuf {
     case.parent().filter(|p| !p.as_os_str().is_empty()).map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from("."))
@@ -467,7 +476,7 @@ fn real_main(cli: Cli) -> Result<(), Error> {
                 set.push(format!("pair.radius={:e}", d / 2.0));
             }
             let opts = crate::study::StudyOptions { out: Some(out), overrides: set, progress: !quiet, force, ..Default::default() };
-            crate::study::run_study(&study, &opts, &mut |m| tracing::info!("{m}"))?;
+            crate::study::run_study(&study, &opts, &mut study_log)?;
             Ok(())
         }
         Command::Study { study, engine, jobs, out, wait, retry_failed, force, set, partition, time, account, cpus_per_task, chunk, sbatch } => {
@@ -477,7 +486,7 @@ fn real_main(cli: Cli) -> Result<(), Error> {
             };
             let slurm = crate::study::slurm::SlurmOverrides { partition, time, account, cpus_per_task, chunk, extra: sbatch };
             let opts = crate::study::StudyOptions { engine, jobs, out, wait, retry_failed, overrides: set, progress: !quiet, slurm, plots: true, force };
-            let info = crate::study::run_study(&study, &opts, &mut |m| tracing::info!("{m}"))?;
+            let info = crate::study::run_study(&study, &opts, &mut study_log)?;
             if info.gathered && info.counts.failed > 0 {
                 tracing::warn!("{} of {} runs failed (see status and error in {})", info.counts.failed, info.counts.runs, info.dir.join("study.csv").display());
             }

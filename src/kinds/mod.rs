@@ -226,7 +226,16 @@ pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunPar
         Kind::Generate => {
             let s = crate::kinds::generate::generate_case(&value, out, params.progress)?;
             logf(&format!("done: {} particles, solid fraction {:.4}, coordination {:.3}", s.particles, s.solid_fraction, s.coordination_mean));
-            serde_json::to_value(&s).map_err(|e| IoError::new(out.join("summary.json"), e))?
+            let mut v = serde_json::to_value(&s).map_err(|e| IoError::new(out.join("summary.json"), e))?;
+            // a packing that stops short of its target (the jamming limit, the wall layers of a
+            // small box: docs/packing.md) is usable but not what was asked: say so (issue 25)
+            if let Some(w) = crate::kinds::generate::target_shortfall(s.solid_fraction, s.target_solid_fraction, s.boundary.is_some()) {
+                logf(&format!("warning: {w}"));
+                v["target_reached"] = serde_json::json!(false);
+                v["warnings"] = serde_json::json!([w]);
+                crate::io::write_json(&out.join("summary.json"), &v)?;
+            }
+            v
         }
         Kind::Heat | Kind::Compact | Kind::ExplicitSinter => {
             return Err(ConfigError::invalid("internal: heat, compact and explicit_sinter runs are stepped").into());
