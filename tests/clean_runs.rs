@@ -57,12 +57,18 @@ fn every_command_refuses_a_directory_holding_another_commands_outputs_without_fo
         ("generate", sinterdem(&["-q", "generate", "cases/green-copper.toml", "--out", s(&run)])),
         ("study", sinterdem(&["-q", "study", s(&study), "--out", s(&run)])),
         ("calibrate", sinterdem(&["-q", "calibrate", s(&calib), "--out", s(&run)])),
-        ("titanium", Command::new(env!("CARGO_BIN_EXE_sinterdem")).current_dir(std::env::temp_dir()).args(["-q", "titanium", "--out", s(&run)]).output().unwrap()),
+        (
+            "titanium",
+            Command::new(env!("CARGO_BIN_EXE_sinterdem")).current_dir(std::env::temp_dir()).args(["-q", "titanium", "--out", s(&run)]).output().unwrap(),
+        ),
     ];
     for (cmd, o) in attempts {
         let e = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(5), "{cmd}: {e}");
-        assert!(e.contains("holds the outputs of a run (series.csv, ") && e.contains("summary.json, 14 snapshot files)") && e.contains("add --force"), "{cmd}: {e}");
+        assert!(
+            e.contains("holds the outputs of a run (series.csv, ") && e.contains("summary.json, 14 snapshot files)") && e.contains("add --force"),
+            "{cmd}: {e}"
+        );
     }
     assert_eq!(std::fs::read_to_string(run.join("summary.json")).unwrap(), before, "refused commands change nothing");
     // a run into a study's directory is refused too
@@ -112,14 +118,22 @@ fn time_end_defaults_to_the_end_of_the_schedule_in_every_kind_with_one() {
     let t = json(&out.join("summary.json"))["final_time_s"].as_f64().unwrap();
     let expected = (1273.0 - 293.15) / (100.0 / 60.0) + 300.0;
     assert!((t - expected).abs() < 1e-9 * expected, "{t} vs {expected}");
-    assert!(std::fs::read_to_string(out.join("log.txt")).unwrap().contains("time.end not given: the end of the heating profile thermal.fixed.0.profile, 887.91 s"));
+    assert!(
+        std::fs::read_to_string(out.join("log.txt")).unwrap().contains("time.end not given: the end of the heating profile thermal.fixed.0.profile, 887.91 s")
+    );
     // pair: 1000 K → 1293 K at 10 K/min (1758 s), hold 2 min: 1878 s
     let pair = d.join("pair.toml");
     let text = std::fs::read_to_string(root.join("cases/pair-copper.toml")).unwrap();
     let text: String = text
         .lines()
         .filter(|l| !l.trim_start().starts_with("end_time"))
-        .map(|l| if l.trim_start().starts_with("constant") { "schedule = \"start 1000 K, heat 10 K/min to 1293 K, hold 2 min\"\n".to_string() } else { format!("{l}\n") })
+        .map(|l| {
+            if l.trim_start().starts_with("constant") {
+                "schedule = \"start 1000 K, heat 10 K/min to 1293 K, hold 2 min\"\n".to_string()
+            } else {
+                format!("{l}\n")
+            }
+        })
         .collect();
     std::fs::write(&pair, text).unwrap();
     let out = d.join("pair");
@@ -139,7 +153,12 @@ fn time_end_defaults_to_the_end_of_the_schedule_in_every_kind_with_one() {
 #[test]
 fn an_explicit_end_before_the_schedule_warns_once_and_no_bundled_case_does() {
     // after the peak, in the hold: 1200 s of the hot plate's 60 min hold
-    let o = sinterdem(&["check", "cases/hot-plate-compact.toml", "--set", "thermal.fixed.0.profile.schedule=start 293.15 K, heat 1000 K/min to 1373 K, hold 60 min"]);
+    let o = sinterdem(&[
+        "check",
+        "cases/hot-plate-compact.toml",
+        "--set",
+        "thermal.fixed.0.profile.schedule=start 293.15 K, heat 1000 K/min to 1373 K, hold 60 min",
+    ]);
     let e = ok(&o);
     assert_eq!(e.matches("ends before the heating profile").count(), 1, "{e}");
     assert!(
@@ -149,7 +168,8 @@ fn an_explicit_end_before_the_schedule_warns_once_and_no_bundled_case_does() {
     // before the peak: T at the end from the ramp, (1373 - 293.15) K in 64.791 s
     let e = ok(&sinterdem(&["check", "cases/hot-plate-compact.toml", "--set", "time.end=30"]));
     let t30 = 293.15 + 1000.0 / 60.0 * 30.0;
-    let at: f64 = e.split("the run stops at ").nth(1).and_then(|r| r.split(" K, below the profile's peak 1373.0 K").next()).and_then(|x| x.parse().ok()).unwrap();
+    let at: f64 =
+        e.split("the run stops at ").nth(1).and_then(|r| r.split(" K, below the profile's peak 1373.0 K").next()).and_then(|x| x.parse().ok()).unwrap();
     assert!((at - t30).abs() <= 0.06, "{at} K vs {t30} K: {e}");
     for dir in ["cases", "cases/titanium"] {
         let root = Path::new(env!("CARGO_MANIFEST_DIR")).join(dir);
@@ -280,7 +300,9 @@ fn a_study_reports_its_runs_warnings_and_collect_times_past_their_end() {
     let e = ok(&o);
     assert!(e.contains("2 runs (first run 0000, runs/0000/log.txt): pair.end_time = 100 s ends before the heating profile temperature"), "{e}");
     assert!(
-        e.contains("study.csv column neck_ratio_at_500s is empty for 2 of 2 successful runs (first run 0000): t = 500 s is outside the run's series, 0 s to 100 s"),
+        e.contains(
+            "study.csv column neck_ratio_at_500s is empty for 2 of 2 successful runs (first run 0000): t = 500 s is outside the run's series, 0 s to 100 s"
+        ),
         "{e}"
     );
     assert!(!e.contains("neck_ratio_at_50s is empty"), "{e}");
@@ -292,11 +314,20 @@ fn a_study_reports_its_runs_warnings_and_collect_times_past_their_end() {
 fn a_packing_short_of_its_target_warns() {
     let d = common::tmp_dir("generate");
     let out = d.join("g");
-    let e = ok(&sinterdem(&["-q", "generate", "cases/green-copper.toml", "--out", s(&out), "--set", "packing.particles=200", "--set", "packing.target_solid_fraction=0.64"]));
+    let e = ok(&sinterdem(&[
+        "-q",
+        "generate",
+        "cases/green-copper.toml",
+        "--out",
+        s(&out),
+        "--set",
+        "packing.particles=200",
+        "--set",
+        "packing.target_solid_fraction=0.64",
+    ]));
     let v = json(&out.join("summary.json"));
     let got = v["solid_fraction"].as_f64().unwrap();
     assert!(got < 0.63, "{got}");
     assert_eq!(v["target_reached"], false);
     assert!(e.contains("is short of packing.target_solid_fraction = 0.6400"), "{e}");
 }
-

@@ -248,7 +248,19 @@ fn a_rerun_needs_force_and_then_leaves_no_stale_snapshot() {
     let out = d.join("out");
     let go = |snaps: &str, force: bool| {
         let mut c = bin();
-        c.args(["-q", "run", "cases/hot-plate.toml", "--out", out.to_str().unwrap(), "--set", "time.end=20", "--set", "particles.cells=[3, 3, 4]", "--set", snaps]);
+        c.args([
+            "-q",
+            "run",
+            "cases/hot-plate.toml",
+            "--out",
+            out.to_str().unwrap(),
+            "--set",
+            "time.end=20",
+            "--set",
+            "particles.cells=[3, 3, 4]",
+            "--set",
+            snaps,
+        ]);
         if force {
             c.arg("--force");
         }

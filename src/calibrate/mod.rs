@@ -349,8 +349,23 @@ pub fn run(setup: Setup, out: &Path, log: &mut dyn FnMut(&str)) -> Result<report
     if let Some(note) = crate::io::outdir::claim(out, crate::io::outdir::Claimant::Calibration, setup.force, None)? {
         log(&note);
     }
-    let Setup { title, model, data_path, series_path, experiments, material, factors, params, settings, solver, geometry, compact, base, validate_compact, force: _ } =
-        setup;
+    let Setup {
+        title,
+        model,
+        data_path,
+        series_path,
+        experiments,
+        material,
+        factors,
+        params,
+        settings,
+        solver,
+        geometry,
+        compact,
+        base,
+        validate_compact,
+        force: _,
+    } = setup;
     let nvals: usize = experiments.iter().map(|e| e.count()).sum();
     let problem = Problem { experiments, material, factors, params };
     let pair_model;

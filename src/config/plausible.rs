@@ -368,10 +368,9 @@ pub fn schedule_end_warnings(case: &toml::Value) -> (Vec<String>, Vec<String>) {
         let head = format!("{key} = {} s ends before the heating profile {pkey} (which ends at {} s)", tidy(end), tidy(stop));
         let tail = format!("set {key} = {} or leave it out to run the whole schedule", tidy(stop));
         warnings.push(match p.first_reaching(peak, stop) {
-            Some(t_peak) if t_peak > end => format!(
-                "{head}: the run stops at {t_end:.1} K, below the profile's peak {peak:.1} K (reached at {} s); {tail}",
-                tidy(t_peak)
-            ),
+            Some(t_peak) if t_peak > end => {
+                format!("{head}: the run stops at {t_end:.1} K, below the profile's peak {peak:.1} K (reached at {} s); {tail}", tidy(t_peak))
+            }
             _ => format!("{head}: the run stops at {t_end:.1} K, after the profile's peak {peak:.1} K, without the rest of its hold or cooling; {tail}"),
         });
     }

@@ -86,11 +86,7 @@ pub fn held(dir: &Path) -> Held {
     if snapshots > 0 {
         run.push(format!("{snapshots} snapshot file{}", if snapshots == 1 { "" } else { "s" }));
     }
-    if run.is_empty() {
-        Held::Nothing
-    } else {
-        Held::Run(run)
-    }
+    if run.is_empty() { Held::Nothing } else { Held::Run(run) }
 }
 
 /// Whether `name` (a file at the top of an output directory) is of a kind sinterdem writes:
@@ -112,8 +108,7 @@ fn holds_outputs(dir: &Path, depth: usize) -> bool {
     if held(dir) != Held::Nothing {
         return true;
     }
-    depth > 0
-        && std::fs::read_dir(dir).is_ok_and(|es| es.flatten().any(|e| e.file_type().is_ok_and(|t| t.is_dir()) && holds_outputs(&e.path(), depth - 1)))
+    depth > 0 && std::fs::read_dir(dir).is_ok_and(|es| es.flatten().any(|e| e.file_type().is_ok_and(|t| t.is_dir()) && holds_outputs(&e.path(), depth - 1)))
 }
 
 /// What `--force` removed: counts for the log line, and the files kept because no sinterdem
@@ -230,7 +225,10 @@ pub fn claim(dir: &Path, who: Claimant, force: bool, fingerprint: Option<&str>) 
         && same_case(dir, fp)
     {
         let c = clear(dir)?;
-        return Ok(Some(format!("a rerun of the same case ({RUN_MARKER}: the same resolved case and input files): {}", c.note(&h).trim_start_matches("--force: "))));
+        return Ok(Some(format!(
+            "a rerun of the same case ({RUN_MARKER}: the same resolved case and input files): {}",
+            c.note(&h).trim_start_matches("--force: ")
+        )));
     }
     let own = match (&h, who) {
         (Held::Nothing, _) => return Ok(None),
@@ -249,10 +247,7 @@ pub fn claim(dir: &Path, who: Claimant, force: bool, fingerprint: Option<&str>) 
         };
         return Err(IoError::new(
             dir,
-            format!(
-                "holds {}; {command} would mix its files with them: choose another --out, or add --force to remove them first",
-                h.describe()
-            ),
+            format!("holds {}; {command} would mix its files with them: choose another --out, or add --force to remove them first", h.describe()),
         ));
     }
     let c = clear(dir)?;

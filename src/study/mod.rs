@@ -221,12 +221,7 @@ fn empty_series_cells(study: &spec::Study, dir: &Path, rows: &[report::Row]) -> 
                     )
                 }
             };
-            out.push(format!(
-                "study.csv column {key} is empty for {} of {} successful runs (first run {:04}): {why}",
-                empty.len(),
-                ok.len(),
-                first.run.index
-            ));
+            out.push(format!("study.csv column {key} is empty for {} of {} successful runs (first run {:04}): {why}", empty.len(), ok.len(), first.run.index));
         }
     }
     out

@@ -280,4 +280,3 @@ mod target_tests {
         assert!(target_shortfall(0.58, 0.62, true).is_none());
     }
 }
-
