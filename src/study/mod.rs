@@ -210,7 +210,7 @@ fn empty_series_cells(study: &spec::Study, dir: &Path, rows: &[report::Row]) -> 
             let Some(first) = empty.first() else { continue };
             let why = match report::read_series(&store::run_dir(dir, first.run.index).join("series.csv")) {
                 None => "the run wrote no series.csv".to_string(),
-                Some((h, _)) if !h.iter().any(|c| *c == s.column) => format!("series.csv has no column `{}` (columns: {})", s.column, h.join(", ")),
+                Some((h, _)) if !h.contains(&s.column) => format!("series.csv has no column `{}` (columns: {})", s.column, h.join(", ")),
                 Some((_, rows)) => {
                     let (a, b) = (rows.first().map_or(f64::NAN, |r| r[0]), rows.last().map_or(f64::NAN, |r| r[0]));
                     format!(
