@@ -42,14 +42,24 @@ enum Command {
         /// Compact, heat and explicit_sinter runs: write DIR/checkpoint.json every N steps (same as --set output.checkpoint_every=N).
         #[arg(long, value_name = "N")]
         checkpoint_every: Option<u64>,
+        /// Threads of the run (default: every core; RAYON_NUM_THREADS too).
+        #[arg(long, value_name = "N")]
+        threads: Option<usize>,
+        /// Remove the outputs of an earlier command in the output directory first (without it such a directory is refused; docs/outputs.md).
+        #[arg(long)]
+        force: bool,
     },
     /// Generate a green packing (kind = "generate"): packing.csv, packing.vtu, summary.json, laminae.
+    #[command(mut_arg("set", |a| a.help("Override a key: --set packing.particles=500 (repeatable; arrays by index: materials.0.density=8960)")))]
     Generate {
         #[command(flatten)]
         case: CaseArgs,
         /// Output directory (default: out/<case name>).
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Remove the outputs of an earlier command in the output directory first (without it such a directory is refused; docs/outputs.md).
+        #[arg(long)]
+        force: bool,
     },
     /// Constitutive data of a periodic compact (docs/rve.md): the free run, branch runs under
     /// small stress perturbations at rve.at, then constitutive.csv, fit.json, plots, summary.json.
@@ -59,6 +69,9 @@ enum Command {
         /// Output directory (default: out/<case name>).
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Remove the outputs of an earlier command in the output directory first (without it such a directory is refused; docs/outputs.md).
+        #[arg(long)]
+        force: bool,
     },
     /// Continue an interrupted compact, heat or explicit_sinter run from DIR/checkpoint.json.
     Resume {
@@ -103,7 +116,7 @@ enum Command {
         case: CaseArgs,
     },
     /// The 28 titanium experiments as pair runs: an alias of
-    /// `sinterdem study cases/studies/titanium-28.toml` (run from the repository root).
+    /// `sinterdem study cases/studies/titanium-28.toml` (the bundled file, found from any directory).
     Titanium {
         /// Output directory.
         #[arg(long, default_value = "out/titanium")]
@@ -114,6 +127,9 @@ enum Command {
         /// Use one common particle diameter [m] instead of each experiment's own.
         #[arg(long, allow_hyphen_values = true)]
         diameter: Option<f64>,
+        /// Remove the outputs of an earlier command in the output directory first (without it a directory holding another command's outputs is refused; the study's own is continued).
+        #[arg(long)]
+        force: bool,
     },
     /// Run a study: many runs over a design of parameters, locally or on SLURM (docs/studies.md).
     Study {
@@ -134,6 +150,9 @@ enum Command {
         /// Run again the runs that failed before.
         #[arg(long)]
         retry_failed: bool,
+        /// Remove the outputs of an earlier command in the output directory first and start over (without it a directory holding another command's outputs is refused; the study's own is continued).
+        #[arg(long)]
+        force: bool,
         /// Override a key of every run (repeatable), after the study's own overrides.
         #[arg(long = "set", value_name = "KEY=VALUE")]
         set: Vec<String>,
@@ -168,6 +187,7 @@ enum Command {
         threads: usize,
     },
     /// Fit diffusion data / path factors to measured neck ratios and shrinkages (docs/calibration.md).
+    #[command(mut_arg("set", |a| a.help("Override a key of the calibration file: --set optimiser.swarm_iterations=0 (repeatable)")))]
     Calibrate {
         #[command(flatten)]
         case: CaseArgs,
@@ -181,6 +201,9 @@ enum Command {
         /// and write compact_validation.csv (docs/calibration.md).
         #[arg(long)]
         validate_compact: bool,
+        /// Remove the outputs of an earlier command in the output directory first and start over (without it a directory holding another command's outputs is refused; the calibration's own is continued).
+        #[arg(long)]
+        force: bool,
     },
     /// Print every numeric case-file key with its allowed range and unit (Markdown).
     Keys {
@@ -311,18 +334,46 @@ enum Bench {
     },
 }
 
+/// A bundled file (`cases/…`) found from anywhere: under the working directory, beside the
+/// binary (`target/release/sinterdem` → the repository two levels up; an installed
+/// `bin/sinterdem` → `share/sinterdem/`), or in the source tree this binary was built from.
+fn bundled(rel: &str) -> Result<PathBuf, Error> {
+    let mut roots = vec![PathBuf::from(".")];
+    if let Some(dir) = std::env::current_exe().ok().and_then(|e| e.canonicalize().ok()).and_then(|e| e.parent().map(Path::to_path_buf)) {
+        roots.extend([dir.join("../.."), dir.join("../share/sinterdem"), dir.clone()]);
+    }
+    roots.push(PathBuf::from(env!("CARGO_MANIFEST_DIR")));
+    roots.iter().map(|r| r.join(rel)).find(|p| p.is_file()).ok_or_else(|| {
+        crate::ConfigError::invalid(format!(
+            "{rel} not found under the working directory, beside the binary or in {}: run `sinterdem study PATH/{}` with the file of a sinterdem checkout",
+            env!("CARGO_MANIFEST_DIR"),
+            Path::new(rel).file_name().map(|n| n.to_string_lossy().to_string()).unwrap_or_default()
+        ))
+        .into()
+    })
+}
+
+/// A study's log line on the console: `warning: …` lines as warnings (shown with `-q`), the rest
+/// as info.
+fn study_log(m: &str) {
+    match m.strip_prefix("warning: ") {
+        Some(w) => tracing::warn!("{w}"),
+        None => tracing::info!("{m}"),
+    }
+}
+
 /// The folder of a case file (relative paths in it start there); "." for a bare file name.
 fn base_dir(case: &Path) -> PathBuf {
     case.parent().filter(|p| !p.as_os_str().is_empty()).map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from("."))
 }
 
 /// `run` and `generate`: the run API with the case's folder as base and log lines on stderr.
-fn run_case(case: &CaseArgs, value: toml::Value, out: Option<PathBuf>, quiet: bool, extra: Vec<String>) -> Result<(), Error> {
+fn run_case(case: &CaseArgs, value: toml::Value, out: Option<PathBuf>, quiet: bool, force: bool, extra: Vec<String>) -> Result<(), Error> {
     let stem = case.case.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| "case".into());
     let out = out.unwrap_or_else(|| PathBuf::from("out").join(stem));
     let mut sets = case.set.clone();
     sets.extend(extra);
-    let params = crate::kinds::RunParams { base_dir: base_dir(&case.case), progress: !quiet, echo_log: true, plots: true, wall_limit: None };
+    let params = crate::kinds::RunParams { base_dir: base_dir(&case.case), progress: !quiet, echo_log: true, plots: true, wall_limit: None, force };
     crate::kinds::run(&value, &sets, &out, &params)?;
     Ok(())
 }
@@ -374,23 +425,33 @@ where
 fn real_main(cli: Cli) -> Result<(), Error> {
     let quiet = cli.quiet;
     match cli.command {
-        Command::Generate { case, out } => located(&case, || {
+        Command::Generate { case, out, force } => located(&case, || {
             let value = crate::config::load_case(&case.case, &[])?;
             if crate::kinds::Kind::of(&value)? != crate::kinds::Kind::Generate {
                 return Err(crate::ConfigError::invalid(format!("{}: kind must be \"generate\"", case.case.display())).into());
             }
-            run_case(&case, value, out.clone(), quiet, vec![])
+            run_case(&case, value, out.clone(), quiet, force, vec![])
         }),
-        Command::Run { case, out, checkpoint_every } => located(&case, || {
+        Command::Run { case, out, checkpoint_every, threads, force } => located(&case, || {
             let value = crate::config::load_case(&case.case, &[])?;
             let extra = checkpoint_every.map(|n| format!("output.checkpoint_every={n}")).into_iter().collect();
-            run_case(&case, value, out.clone(), quiet, extra)
+            match threads {
+                Some(0) => Err(crate::ConfigError::OutOfRange { key: "--threads".into(), value: 0.0, range: "[1, inf)".into(), unit: "1".into() }.into()),
+                Some(n) => {
+                    let pool = rayon::ThreadPoolBuilder::new()
+                        .num_threads(n)
+                        .build()
+                        .map_err(|e| Error::from(crate::ConfigError::invalid(format!("--threads {n}: {e}"))))?;
+                    pool.install(|| run_case(&case, value, out.clone(), quiet, force, extra))
+                }
+                None => run_case(&case, value, out.clone(), quiet, force, extra),
+            }
         }),
-        Command::Rve { case, out } => located(&case, || {
+        Command::Rve { case, out, force } => located(&case, || {
             let value = crate::config::load_case(&case.case, &[])?;
             let stem = case.case.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| "case".into());
             let out = out.clone().unwrap_or_else(|| PathBuf::from("out").join(stem));
-            let params = crate::kinds::RunParams { base_dir: base_dir(&case.case), progress: !quiet, echo_log: true, plots: true, wall_limit: None };
+            let params = crate::kinds::RunParams { base_dir: base_dir(&case.case), progress: !quiet, echo_log: true, plots: true, wall_limit: None, force };
             crate::kinds::rve::run(&value, &case.set, &out, &params)?;
             Ok(())
         }),
@@ -405,15 +466,8 @@ fn real_main(cli: Cli) -> Result<(), Error> {
             println!("{}: ok ({what})", case.case.display());
             Ok(())
         }),
-        Command::Titanium { out, full, diameter } => {
-            let study = PathBuf::from("cases/studies/titanium-28.toml");
-            if !study.is_file() {
-                return Err(crate::ConfigError::invalid(format!(
-                    "{} not found: run `sinterdem titanium` from the repository root, or `sinterdem study PATH/titanium-28.toml`",
-                    study.display()
-                ))
-                .into());
-            }
+        Command::Titanium { out, full, diameter, force } => {
+            let study = bundled("cases/studies/titanium-28.toml")?;
             let mut set = vec![];
             if full {
                 set.push("temperature.start_temperature=313".to_string());
@@ -421,18 +475,18 @@ fn real_main(cli: Cli) -> Result<(), Error> {
             if let Some(d) = diameter {
                 set.push(format!("pair.radius={:e}", d / 2.0));
             }
-            let opts = crate::study::StudyOptions { out: Some(out), overrides: set, progress: !quiet, ..Default::default() };
-            crate::study::run_study(&study, &opts, &mut |m| tracing::info!("{m}"))?;
+            let opts = crate::study::StudyOptions { out: Some(out), overrides: set, progress: !quiet, force, ..Default::default() };
+            crate::study::run_study(&study, &opts, &mut study_log)?;
             Ok(())
         }
-        Command::Study { study, engine, jobs, out, wait, retry_failed, set, partition, time, account, cpus_per_task, chunk, sbatch } => {
+        Command::Study { study, engine, jobs, out, wait, retry_failed, force, set, partition, time, account, cpus_per_task, chunk, sbatch } => {
             let engine = match engine {
                 EngineArg::Local => crate::study::Engine::Local,
                 EngineArg::Slurm => crate::study::Engine::Slurm,
             };
             let slurm = crate::study::slurm::SlurmOverrides { partition, time, account, cpus_per_task, chunk, extra: sbatch };
-            let opts = crate::study::StudyOptions { engine, jobs, out, wait, retry_failed, overrides: set, progress: !quiet, slurm, plots: true };
-            let info = crate::study::run_study(&study, &opts, &mut |m| tracing::info!("{m}"))?;
+            let opts = crate::study::StudyOptions { engine, jobs, out, wait, retry_failed, overrides: set, progress: !quiet, slurm, plots: true, force };
+            let info = crate::study::run_study(&study, &opts, &mut study_log)?;
             if info.gathered && info.counts.failed > 0 {
                 tracing::warn!("{} of {} runs failed (see status and error in {})", info.counts.failed, info.counts.runs, info.dir.join("study.csv").display());
             }
@@ -489,8 +543,8 @@ fn real_main(cli: Cli) -> Result<(), Error> {
             println!("{}", serde_json::to_string_pretty(&v).unwrap());
             Ok(())
         }),
-        Command::Calibrate { case, out, generate_synthetic, validate_compact } => {
-            located(&case, || crate::calibrate::run_file(&case.case, &case.set, &out, quiet, generate_synthetic, validate_compact))
+        Command::Calibrate { case, out, generate_synthetic, validate_compact, force } => {
+            located(&case, || crate::calibrate::run_file_forced(&case.case, &case.set, &out, quiet, generate_synthetic, validate_compact, force))
         }
         Command::Keys { study } => {
             print!("{}", if study { crate::study::spec::markdown() } else { crate::config::ranges::markdown(&crate::calibrate::every_table()) });

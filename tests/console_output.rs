@@ -239,14 +239,16 @@ fn the_copper_compact_reads_like_a_lab_instrument() {
     assert!(o.stderr.is_empty(), "{}", String::from_utf8_lossy(&o.stderr));
 }
 
-/// A rerun into the same directory with fewer snapshots leaves only its own `particles_*.vtu`
-/// (ParaView's file-series pattern), and says so in its log (issue 25).
+/// A run into a directory holding another run's outputs is refused without `--force` and changes
+/// nothing; with `--force` and fewer snapshots only its own `particles_*.vtu` are left (ParaView's
+/// file-series pattern), and its log says what was removed (issue 25 item 6).
 #[test]
-fn a_rerun_with_fewer_snapshots_leaves_no_stale_snapshot() {
+fn a_rerun_needs_force_and_then_leaves_no_stale_snapshot() {
     let d = common::tmp_dir("stale");
     let out = d.join("out");
-    let go = |snaps: &str| {
-        run(&[
+    let go = |snaps: &str, force: bool| {
+        let mut c = bin();
+        c.args([
             "-q",
             "run",
             "cases/hot-plate.toml",
@@ -259,15 +261,29 @@ fn a_rerun_with_fewer_snapshots_leaves_no_stale_snapshot() {
             "--set",
             snaps,
         ]);
-        let files = |prefix: &str| std::fs::read_dir(&out).unwrap().flatten().filter(|e| e.file_name().to_string_lossy().starts_with(prefix)).count();
-        let pvd = std::fs::read_to_string(out.join("particles.pvd")).unwrap();
-        (files("particles_"), files("contacts_"), pvd.matches("<DataSet").count())
+        if force {
+            c.arg("--force");
+        }
+        c.output().unwrap()
     };
-    let (p1, c1, n1) = go("output.snapshots=6");
-    assert_eq!((p1, c1), (n1, n1));
-    let (p2, c2, n2) = go("output.snapshots=2");
+    let files = |prefix: &str| std::fs::read_dir(&out).unwrap().flatten().filter(|e| e.file_name().to_string_lossy().starts_with(prefix)).count();
+    let pvd_sets = || std::fs::read_to_string(out.join("particles.pvd")).unwrap().matches("<DataSet").count();
+    assert!(go("output.snapshots=6", false).status.success());
+    let n1 = pvd_sets();
+    assert_eq!((files("particles_"), files("contacts_")), (n1, n1));
+    let summary = std::fs::read_to_string(out.join("summary.json")).unwrap();
+    // without --force: refused (an i/o error, exit 5) naming the directory, what it holds and the way out
+    let o = go("output.snapshots=2", false);
+    assert_eq!(o.status.code(), Some(5), "{}", String::from_utf8_lossy(&o.stderr));
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains(out.to_str().unwrap()) && e.contains("holds the outputs of a run") && e.contains("summary.json") && e.contains("--force"), "{e}");
+    assert_eq!(std::fs::read_to_string(out.join("summary.json")).unwrap(), summary, "the refused run changed nothing");
+    assert_eq!((files("particles_"), pvd_sets()), (n1, n1));
+    // with --force: the earlier outputs are removed first
+    assert!(go("output.snapshots=2", true).status.success());
+    let n2 = pvd_sets();
     assert!(n2 < n1, "{n2} vs {n1}");
-    assert_eq!((p2, c2), (n2, n2), "particles_*.vtu / contacts_*.vtu against the {n2} snapshots of the run");
+    assert_eq!((files("particles_"), files("contacts_")), (n2, n2), "particles_*.vtu / contacts_*.vtu against the {n2} snapshots of the run");
     let log = std::fs::read_to_string(out.join("log.txt")).unwrap();
-    assert!(log.contains(&format!("removed {} snapshot files of an earlier run in this directory", 2 * n1 + 2)), "{log}");
+    assert!(log.contains("--force: removed the outputs of a run") && log.contains(&format!("{} snapshot files", 2 * n1 + 2)), "{log}");
 }

@@ -80,6 +80,8 @@ fn class01_resumes_killed_at_random_points_continue_to_the_uninterrupted_result(
     let (mut at_cut, mut cut_seen) = (0, 0);
     for k in 0..kills {
         copy_dir(&full, &work);
+        // a run killed before its end has no summary.json (a finished one is not resumed: issue 25)
+        std::fs::remove_file(work.join("summary.json")).unwrap();
         // three kinds of kill: (0) at the moment series.csv changes on disk (the cut back to the
         // checkpoint, where an in-place rewrite used to leave a truncated file), (1) after 0–40 ms
         // (start-up and the cut), (2) after 0–400 ms (a whole resume takes about 0.4 s), twice in a
@@ -135,20 +137,24 @@ fn class02_a_new_run_takes_the_directory_and_an_earlier_checkpoint_cannot_be_res
     let o = bin().arg("run").arg(&case).arg("--out").arg(&out).arg("--quiet").output().unwrap();
     assert!(o.status.success());
     assert!(out.join("checkpoint.json").exists());
-    // the second run writes no checkpoints
-    let o = bin()
-        .arg("run")
-        .arg(&case)
-        .arg("--out")
-        .arg(&out)
-        .arg("--quiet")
-        .args(["--set", "output.checkpoint_every=0", "--set", "time.end=100"])
-        .output()
-        .unwrap();
+    // the second run writes no checkpoints; it needs --force (issue 25: a directory holding
+    // another run's outputs is refused without it, and changes nothing)
+    let second = |force: bool| {
+        let mut c = bin();
+        c.arg("run").arg(&case).arg("--out").arg(&out).arg("--quiet").args(["--set", "output.checkpoint_every=0", "--set", "time.end=100"]);
+        if force {
+            c.arg("--force");
+        }
+        c.output().unwrap()
+    };
+    let o = second(false);
+    assert_eq!(o.status.code(), Some(5), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(out.join("checkpoint.json").exists(), "a refused run changes nothing");
+    let o = second(true);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(!out.join("checkpoint.json").exists(), "the earlier run's checkpoint must not survive a new run");
     let log = std::fs::read_to_string(out.join("log.txt")).unwrap();
-    assert!(log.contains("removed checkpoint.json of an earlier run"), "{log}");
+    assert!(log.contains("--force: removed the outputs of a run (checkpoint.json"), "{log}");
     let rows = std::fs::read_to_string(out.join("series.csv")).unwrap().lines().count();
     let o = bin().arg("resume").arg(&out).arg("--quiet").output().unwrap();
     assert!(!o.status.success(), "resume must refuse: there is no checkpoint of this run");
@@ -187,7 +193,8 @@ fn class04_one_writer_per_output_directory_and_a_dead_holders_lock_is_taken_over
     first.kill().unwrap();
     let _ = first.wait();
     // the dead holder's lock file is still there; the next writer takes it over and says so
-    let o = bin().arg("run").arg(&case).arg("--out").arg(&out).arg("--quiet").args(["--set", "time.end=10"]).output().unwrap();
+    // (--force: the killed run left its outputs)
+    let o = bin().arg("run").arg(&case).arg("--out").arg(&out).arg("--quiet").arg("--force").args(["--set", "time.end=10"]).output().unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let log = std::fs::read_to_string(out.join("log.txt")).unwrap();
     assert!(log.contains("taken over from a process that is gone"), "{log}");
@@ -275,6 +282,8 @@ fn class03_a_resume_refuses_a_packing_changed_since_the_run_started() {
     let o = bin().arg("run").arg(&case).arg("--out").arg(&out).arg("--quiet").output().unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let series = std::fs::read_to_string(out.join("series.csv")).unwrap();
+    // as a run killed before its end (a finished run has nothing to resume: issue 25)
+    std::fs::remove_file(out.join("summary.json")).unwrap();
     // radii +3 %, as in the issue
     std::fs::write(d.join("packing.csv"), "x,y,z,r\n0,0,0,2.575e-5\n0,4.95e-5,0,2.575e-5\n").unwrap();
     let o = bin().arg("resume").arg(&out).arg("--quiet").output().unwrap();
@@ -349,6 +358,8 @@ fn class12_a_resumed_compact_summary_equals_the_uninterrupted_one_mechanics_coun
     assert!(topo > 2, "the case must change its topology several times ({topo})");
     let work = d.join("work");
     copy_dir(&full, &work);
+    // as a run killed before its end: no summary.json (a finished run is not resumed)
+    std::fs::remove_file(work.join("summary.json")).unwrap();
     let o = bin().arg("resume").arg(&work).arg("--quiet").output().unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert_eq!(summary_without_times(&work), summary);
@@ -362,6 +373,7 @@ fn refused_edits(d: &Path, run: &Path, good: &serde_json::Value, edits: Vec<(&st
     for (pointer, v, needle) in edits {
         let dir = d.join(format!("edit{}", pointer.replace('/', "-")));
         copy_dir(run, &dir);
+        let _ = std::fs::remove_file(dir.join("summary.json"));
         let mut ck = good.clone();
         *ck.pointer_mut(pointer).unwrap_or_else(|| panic!("{pointer} not in the checkpoint")) = v.clone();
         std::fs::write(dir.join("checkpoint.json"), ck.to_string()).unwrap();
@@ -684,7 +696,8 @@ fn class01_runs_killed_at_random_points_resume_to_the_uninterrupted_result() {
             bin().arg("resume").arg(&work).arg("--quiet").output().unwrap()
         } else {
             reran += 1;
-            bin().arg("run").arg(&case).arg("--out").arg(&work).arg("--quiet").output().unwrap()
+            // the killed run left its log: a new run into its directory needs --force
+            bin().arg("run").arg(&case).arg("--out").arg(&work).arg("--quiet").arg("--force").output().unwrap()
         };
         assert!(o.status.success(), "trial {k}: {}", String::from_utf8_lossy(&o.stderr));
         assert!(std::fs::read_to_string(work.join("series.csv")).unwrap() == series, "trial {k}: series.csv differs from the uninterrupted run");

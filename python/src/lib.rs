@@ -137,6 +137,11 @@ fn base_of(path: &Path) -> PathBuf {
     path.parent().filter(|p| !p.as_os_str().is_empty()).map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from("."))
 }
 
+/// `sinterdem.run` and `Simulation` replace an earlier run's outputs in `out` (the command line's
+/// `--force`): a notebook re-executes its cells into the same directory (docs/decisions.md
+/// "Clean output directories"). The outputs are never a mix of two runs either way.
+const PY_FORCE: bool = true;
+
 /// The run commands of a case (`sinterdem run`, `sinterdem rve`): one signature.
 type RunCommand = fn(&toml::Value, &[String], &Path, &sinterdem::kinds::RunParams) -> Result<sinterdem::kinds::RunSummary, Error>;
 
@@ -151,7 +156,7 @@ impl CaseCore {
         poll: Option<Py<PyAny>>,
         command: RunCommand,
     ) -> PyResult<(String, f64, bool)> {
-        let params = sinterdem::kinds::RunParams { base_dir: self.base_dir.clone(), progress, echo_log: false, plots: true, wall_limit: None };
+        let params = sinterdem::kinds::RunParams { base_dir: self.base_dir.clone(), progress, echo_log: false, plots: true, wall_limit: None, force: PY_FORCE };
         let (value, sets) = (&self.value, &self.sets);
         let watch = Watch::new(poll);
         let res = watch.detached(py, || -> Result<sinterdem::kinds::RunSummary, Error> {
@@ -419,7 +424,7 @@ impl SimulationCore {
     #[new]
     #[pyo3(signature = (case, out, progress=true, poll=None))]
     fn new(py: Python<'_>, case: &CaseCore, out: PathBuf, progress: bool, poll: Option<Py<PyAny>>) -> PyResult<SimulationCore> {
-        let params = sinterdem::kinds::RunParams { base_dir: case.base_dir.clone(), progress, echo_log: false, plots: true, wall_limit: None };
+        let params = sinterdem::kinds::RunParams { base_dir: case.base_dir.clone(), progress, echo_log: false, plots: true, wall_limit: None, force: PY_FORCE };
         let (value, sets) = (case.value.clone(), case.sets.clone());
         let res = py.detach(move || SameThread(sinterdem::kinds::Stepper::start(&value, &sets, &out, &params))).get();
         let stepper = res.map_err(|e| case.err(py, e))?;

@@ -21,7 +21,7 @@ pub fn bench_coupled(copper_case: Option<&Path>, sizes: &[usize], steps: u64, ov
             .collect();
         let base = case.parent().unwrap_or(Path::new(".")).to_path_buf();
         let dir = std::env::temp_dir().join(format!("sinterdem-bench-{}", std::process::id()));
-        let params = crate::kinds::RunParams { base_dir: base, plots: false, ..Default::default() };
+        let params = crate::kinds::RunParams { base_dir: base, plots: false, force: true, ..Default::default() };
         let s = crate::kinds::run(&value, &sets, &dir, &params)?.summary;
         let _ = std::fs::remove_dir_all(&dir);
         let tm: Timing = serde_json::from_value(s["timing_seconds"].clone()).unwrap_or_default();

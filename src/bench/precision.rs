@@ -105,7 +105,7 @@ fn run_one(value: &toml::Value, base: &Path, sets: &[String], dir: &Path, family
     let mut all: Vec<String> =
         ["output.snapshots=0", "output.vtu=false", "output.hdf5=false", "output.checkpoint_every=0", "output.conductivity_at=[]"].map(String::from).to_vec();
     all.extend(sets.iter().cloned());
-    let params = crate::kinds::RunParams { base_dir: base.to_path_buf(), plots: false, wall_limit, ..Default::default() };
+    let params = crate::kinds::RunParams { base_dir: base.to_path_buf(), plots: false, wall_limit, force: true, ..Default::default() };
     let mut o = Outcome {
         family: family.into(),
         label: label.into(),

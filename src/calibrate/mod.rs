@@ -209,6 +209,8 @@ pub struct Setup {
     pub base: PathBuf,
     /// Run the chosen experiments on the compact with the fitted material after the fit.
     pub validate_compact: bool,
+    /// Remove the outputs of an earlier command in `out` first (`--force`).
+    pub force: bool,
 }
 
 fn materials_of(list: Vec<toml::Value>, at: &str) -> Result<Vec<Material>, ConfigError> {
@@ -331,6 +333,7 @@ pub fn parse(value: &toml::Value, base: &Path) -> Result<Setup, Error> {
         compact: f.compact,
         base: base.to_path_buf(),
         validate_compact: false,
+        force: false,
     })
 }
 
@@ -341,8 +344,28 @@ pub fn run(setup: Setup, out: &Path, log: &mut dyn FnMut(&str)) -> Result<report
     if let Some(note) = lock.takeover_note() {
         log(&note);
     }
-    let Setup { title, model, data_path, series_path, experiments, material, factors, params, settings, solver, geometry, compact, base, validate_compact } =
-        setup;
+    // an unfinished calibration is continued; a finished one or another command's outputs need
+    // --force (docs/outputs.md "Guarantees")
+    if let Some(note) = crate::io::outdir::claim(out, crate::io::outdir::Claimant::Calibration, setup.force, None)? {
+        log(&note);
+    }
+    let Setup {
+        title,
+        model,
+        data_path,
+        series_path,
+        experiments,
+        material,
+        factors,
+        params,
+        settings,
+        solver,
+        geometry,
+        compact,
+        base,
+        validate_compact,
+        force: _,
+    } = setup;
     let nvals: usize = experiments.iter().map(|e| e.count()).sum();
     let problem = Problem { experiments, material, factors, params };
     let pair_model;
@@ -573,6 +596,19 @@ pub fn check(value: &toml::Value, base: &Path) -> Result<String, Error> {
 /// it instead (re)writes the calibration's data file with the bundled synthetic titanium data
 /// ([`synthetic::write_titanium_synthetic`]).
 pub fn run_file(path: &Path, overrides: &[String], out: &Path, quiet: bool, generate_synthetic: bool, validate_compact: bool) -> Result<(), Error> {
+    run_file_forced(path, overrides, out, quiet, generate_synthetic, validate_compact, false)
+}
+
+/// [`run_file`] with `--force`: the outputs of an earlier command in `out` are removed first.
+pub fn run_file_forced(
+    path: &Path,
+    overrides: &[String],
+    out: &Path,
+    quiet: bool,
+    generate_synthetic: bool,
+    validate_compact: bool,
+    force: bool,
+) -> Result<(), Error> {
     let value = crate::config::load_case(path, overrides)?;
     let base = path.parent().map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from("."));
     if generate_synthetic {
@@ -597,6 +633,7 @@ pub fn run_file(path: &Path, overrides: &[String], out: &Path, quiet: bool, gene
         compact::derived_case(&case_path, &setup.material, &setup.factors, &setup.factors, &setup.compact.overrides)?;
     }
     setup.validate_compact = validate_compact;
+    setup.force = force;
     let mut log = |m: &str| {
         if !quiet {
             tracing::info!("{m}");

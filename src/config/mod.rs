@@ -18,6 +18,15 @@ use std::path::Path;
 pub fn load_case(path: &Path, overrides: &[String]) -> Result<toml::Value, Error> {
     let text = crate::io::read_input(path)?;
     let mut value = parse_case_str(&text, &path.display().to_string())?;
+    // an empty file (or comments only) is no case: read as the default kind it would fail on a
+    // missing [time] with nothing pointing at the real cause (issue 25)
+    if value.as_table().is_some_and(|t| t.is_empty()) {
+        return Err(ConfigError::invalid(format!(
+            "{}: the file is empty (no keys, at most comments): a case needs at least its `kind` and sections, see docs/case-file.md or a bundled case in cases/",
+            path.display()
+        ))
+        .into());
+    }
     expand_includes(&mut value, path.parent().unwrap_or(Path::new(".")))?;
     for o in overrides {
         apply_override(&mut value, o)?;

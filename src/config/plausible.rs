@@ -292,11 +292,63 @@ fn profiles(prefix: &str, v: &toml::Value, out: &mut Vec<(String, crate::profile
     }
 }
 
+/// The end-time key of a case's kind: `time.end`, or `pair.end_time` for a pair case (None for the
+/// kinds without one: generate, explicit_sinter, whose protocol sets its own times).
+fn end_key(case: &toml::Value) -> Option<(&'static str, &'static str)> {
+    match case.get("kind").and_then(|k| k.as_str()).unwrap_or("heat") {
+        "heat" | "compact" => Some(("time", "end")),
+        "pair" => Some(("pair", "end_time")),
+        _ => None,
+    }
+}
+
+/// The heating profiles of a case that end (a `schedule` or `table`; constant profiles have no
+/// end), with their keys.
+fn finite_profiles(case: &toml::Value) -> Vec<(String, crate::profile::Profile)> {
+    let mut list = Vec::new();
+    profiles("", case, &mut list);
+    list.retain(|(_, p)| !p.is_constant() && p.duration().is_finite() && p.duration() > 0.0);
+    list
+}
+
+/// `time.end` (a pair's `pair.end_time`) defaults to the end of the case's heating profile(s),
+/// the latest one when there are several (issue 25 item 3, docs/case-file.md "End time and
+/// schedule"): inserted into the resolved case when the key is absent and a profile ends. Returns
+/// the log line saying so (None: an end was given, or no profile ends and the kind's own
+/// "missing end" error stands).
+pub fn default_end(case: &mut toml::Value) -> Result<Option<String>, ConfigError> {
+    let Some((sec, key)) = end_key(case) else { return Ok(None) };
+    if case.get(sec).and_then(|t| t.get(key)).is_some() {
+        return Ok(None);
+    }
+    let list = finite_profiles(case);
+    let Some((pkey, stop)) = list.iter().map(|(k, p)| (k.clone(), p.duration())).max_by(|a, b| a.1.total_cmp(&b.1)) else {
+        // a pair case says so itself ("required when the temperature history has no end")
+        if sec == "time" {
+            return Err(ConfigError::inconsistent(
+                format!("{sec}.{key}"),
+                format!("missing, and no heating profile of the case ends (all constant) to take the end time from: give {sec}.{key} [s]"),
+            ));
+        }
+        return Ok(None);
+    };
+    let Some(table) = case.as_table_mut().and_then(|t| t.entry(sec).or_insert_with(|| toml::Value::Table(toml::Table::new())).as_table_mut()) else {
+        return Ok(None);
+    };
+    table.insert(key.to_string(), toml::Value::Float(stop));
+    Ok(Some(format!("{sec}.{key} not given: the end of the heating profile {pkey}, {} s", tidy(stop))))
+}
+
+/// `x` to 10 significant digits, for messages: a schedule's end summed from its segments
+/// (3899.8199999999997 s) reads as written (3899.82 s).
+fn tidy(x: f64) -> String {
+    fmt_value(format!("{x:.9e}").parse::<f64>().unwrap_or(x))
+}
+
 /// What a case's end time cuts from its heating profiles (docs/case-file.md "End time and
-/// schedule"), as (warnings, notes): a warning per profile whose peak the run does not reach
-/// (`time.end`, a pair's `pair.end_time`, before the profile first reaches its highest
-/// temperature), naming the temperature at the end and the peak; a note per profile cut after its
-/// peak (a shortened hold or cooling, which the bundled cases do on purpose to stay short).
+/// schedule"), as (warnings, notes): a warning per profile that ends after the run's end
+/// (`time.end`, a pair's `pair.end_time`), naming the temperature the run stops at, and whether
+/// the profile's peak is reached. (Notes: none today; kept for the callers' log lines.)
 pub fn schedule_end_warnings(case: &toml::Value) -> (Vec<String>, Vec<String>) {
     let num = |v: Option<&toml::Value>| v.and_then(|x| x.as_float().or_else(|| x.as_integer().map(|i| i as f64)));
     let (key, end) = match (num(case.get("time").and_then(|t| t.get("end"))), num(case.get("pair").and_then(|t| t.get("end_time")))) {
@@ -304,27 +356,25 @@ pub fn schedule_end_warnings(case: &toml::Value) -> (Vec<String>, Vec<String>) {
         (None, Some(e)) => ("pair.end_time", e),
         _ => return (Vec::new(), Vec::new()),
     };
-    let mut list = Vec::new();
-    profiles("", case, &mut list);
-    let (mut warnings, mut notes) = (Vec::new(), Vec::new());
-    for (pkey, p) in list {
+    let mut warnings = Vec::new();
+    for (pkey, p) in finite_profiles(case) {
         let stop = p.duration();
-        if p.is_constant() || !(end < stop) {
+        // a relative tolerance: an end written with fewer digits than the schedule's sum
+        if !(end < stop * (1.0 - 1e-9)) {
             continue;
         }
         let (_, peak) = p.range();
         let t_end = p.temperature(end);
-        let head = format!("{key} = {} s ends before the heating profile {pkey} (which ends at {} s)", fmt_value(end), fmt_value(stop));
-        match p.first_reaching(peak, stop) {
-            Some(t_peak) if t_peak > end => warnings.push(format!(
-                "{head}: the run stops at {t_end:.1} K, below the profile's peak {peak:.1} K (reached at {} s); set {key} = {} to run the whole schedule",
-                fmt_value(t_peak),
-                fmt_value(stop)
-            )),
-            _ => notes.push(format!("{head}: the run stops at {t_end:.1} K, after the profile's peak {peak:.1} K")),
-        }
+        let head = format!("{key} = {} s ends before the heating profile {pkey} (which ends at {} s)", tidy(end), tidy(stop));
+        let tail = format!("set {key} = {} or leave it out to run the whole schedule", tidy(stop));
+        warnings.push(match p.first_reaching(peak, stop) {
+            Some(t_peak) if t_peak > end => {
+                format!("{head}: the run stops at {t_end:.1} K, below the profile's peak {peak:.1} K (reached at {} s); {tail}", tidy(t_peak))
+            }
+            _ => format!("{head}: the run stops at {t_end:.1} K, after the profile's peak {peak:.1} K, without the rest of its hold or cooling; {tail}"),
+        });
     }
-    (warnings, notes)
+    (warnings, Vec::new())
 }
 
 #[cfg(test)]

@@ -63,7 +63,13 @@ pub const fn o(key: &'static str, lo: f64, hi: f64, unit: &'static str, meaning:
 /// The table. Add a row for every new numeric key.
 pub static TABLE: &[Range] = &[
     // time stepping
-    c("time.end", 1e-9, 1e9, "s", "simulated end time (below 1 ns nothing sinters or heats: a floor, so that no loop runs on subnormal times)"),
+    c(
+        "time.end",
+        1e-9,
+        1e9,
+        "s",
+        "simulated end time (default: the end of the heating profile(s); below 1 ns nothing sinters or heats: a floor, so that no loop runs on subnormal times)",
+    ),
     c("time.dt", 1e-15, 1e7, "s", "time step (initial step where adaptive); end/dt at most 1e9 steps"),
     c("time.dt_min", 1e-15, 1e7, "s", "smallest step the step control may take (at most dt_max)"),
     c("time.dt_max", 1e-15, 1e7, "s", "largest step the step control may take; end/dt_max at most 1e9 steps"),

@@ -49,7 +49,7 @@ pub fn referenced_files(case: &toml::Value, base: &Path) -> Vec<(String, PathBuf
 }
 
 /// SHA-256 of a file, hex.
-fn digest(path: &Path) -> Result<(u64, String), IoError> {
+pub(crate) fn digest(path: &Path) -> Result<(u64, String), IoError> {
     let bytes = std::fs::read(path).map_err(|e| IoError::new(path, e))?;
     let hash = Sha256::digest(&bytes);
     Ok((bytes.len() as u64, hash.iter().map(|b| format!("{b:02x}")).collect()))

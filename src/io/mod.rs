@@ -4,6 +4,7 @@
 pub mod hdf5;
 pub mod inputs;
 pub mod lock;
+pub mod outdir;
 pub mod progress;
 pub mod vtu;
 

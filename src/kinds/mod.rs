@@ -88,11 +88,14 @@ pub struct RunParams {
     /// Wall-time budget [s] of a compact run: it stops with `completed = false` and the reason
     /// in `stop_reason` once exceeded (None: unlimited).
     pub wall_limit: Option<f64>,
+    /// Remove the outputs of an earlier command in the output directory before writing (`--force`);
+    /// without it such a directory is refused ([`crate::io::outdir::claim`]).
+    pub force: bool,
 }
 
 impl Default for RunParams {
     fn default() -> Self {
-        RunParams { base_dir: PathBuf::from("."), progress: false, echo_log: false, plots: true, wall_limit: None }
+        RunParams { base_dir: PathBuf::from("."), progress: false, echo_log: false, plots: true, wall_limit: None, force: false }
     }
 }
 
@@ -131,15 +134,22 @@ pub fn lookup<'a>(v: &'a serde_json::Value, path: &str) -> Option<&'a serde_json
 
 /// The case with the overrides applied (what a run actually runs).
 pub fn resolve(case: &toml::Value, overrides: &[String]) -> Result<toml::Value, ConfigError> {
+    resolve_noting(case, overrides).map(|(v, _)| v)
+}
+
+/// [`resolve`], with the log line of a defaulted end time (`time.end` omitted: the end of the
+/// heating profile, [`config::plausible::default_end`]).
+pub fn resolve_noting(case: &toml::Value, overrides: &[String]) -> Result<(toml::Value, Option<String>), ConfigError> {
     let mut v = case.clone();
     for o in overrides {
         config::apply_override(&mut v, o)?;
     }
     config::apply_aliases(&mut v)?;
+    let note = config::plausible::default_end(&mut v)?;
     // values typical of the wrong unit (docs/case-file.md "Unit slips"); the warnings are logged
     // by `open_run` and `check`
     config::plausible::unit_slips(&v)?;
-    Ok(v)
+    Ok((v, note))
 }
 
 /// A run's log: every line goes to `DIR/log.txt` (appending), and with `echo` to the console as a
@@ -216,7 +226,16 @@ pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunPar
         Kind::Generate => {
             let s = crate::kinds::generate::generate_case(&value, out, params.progress)?;
             logf(&format!("done: {} particles, solid fraction {:.4}, coordination {:.3}", s.particles, s.solid_fraction, s.coordination_mean));
-            serde_json::to_value(&s).map_err(|e| IoError::new(out.join("summary.json"), e))?
+            let mut v = serde_json::to_value(&s).map_err(|e| IoError::new(out.join("summary.json"), e))?;
+            // a packing that stops short of its target (the jamming limit, the wall layers of a
+            // small box: docs/packing.md) is usable but not what was asked: say so (issue 25)
+            if let Some(w) = crate::kinds::generate::target_shortfall(s.solid_fraction, s.target_solid_fraction, s.boundary.is_some()) {
+                logf(&format!("warning: {w}"));
+                v["target_reached"] = serde_json::json!(false);
+                v["warnings"] = serde_json::json!([w]);
+                crate::io::write_json(&out.join("summary.json"), &v)?;
+            }
+            v
         }
         Kind::Heat | Kind::Compact | Kind::ExplicitSinter => {
             return Err(ConfigError::invalid("internal: heat, compact and explicit_sinter runs are stepped").into());
@@ -236,41 +255,7 @@ fn validate_before_run(kind: Kind, value: &toml::Value) -> Result<(), Error> {
     }
 }
 
-/// Removes `dir/checkpoint.json` left by an earlier run (true when there was one).
-fn remove_stale_checkpoint(dir: &Path) -> Result<bool, IoError> {
-    let path = dir.join("checkpoint.json");
-    match std::fs::remove_file(&path) {
-        Ok(()) => Ok(true),
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(false),
-        Err(e) => Err(IoError::new(&path, e)),
-    }
-}
-
-/// Whether `name` is a snapshot file of a run (`particles_NNNNNN.vtu`, `contacts_NNNNNN.vtu`, their
-/// `.pvd` indices): the file series ParaView groups by name, which a new run into the same
-/// directory must not mix with an earlier run's (issue 25).
-pub fn is_snapshot_file(name: &str) -> bool {
-    if matches!(name, "particles.pvd" | "contacts.pvd") {
-        return true;
-    }
-    ["particles_", "contacts_"]
-        .iter()
-        .any(|p| name.strip_prefix(p).and_then(|r| r.strip_suffix(".vtu")).is_some_and(|d| !d.is_empty() && d.bytes().all(|b| b.is_ascii_digit())))
-}
-
-/// Removes the snapshot files of an earlier run in `dir` ([`is_snapshot_file`]); returns how many.
-fn remove_stale_snapshots(dir: &Path) -> Result<usize, IoError> {
-    let Ok(entries) = std::fs::read_dir(dir) else { return Ok(0) };
-    let mut n = 0;
-    for e in entries.flatten() {
-        let name = e.file_name();
-        if e.file_type().is_ok_and(|t| t.is_file()) && name.to_str().is_some_and(is_snapshot_file) {
-            std::fs::remove_file(e.path()).map_err(|err| IoError::new(e.path(), err))?;
-            n += 1;
-        }
-    }
-    Ok(n)
-}
+pub use crate::io::outdir::is_snapshot_file;
 
 /// The start of every run: includes expanded, overrides applied, the kind, the output directory
 /// and `log.txt` opened with the first lines (version, overrides, warnings about keys the kind
@@ -278,27 +263,22 @@ fn remove_stale_snapshots(dir: &Path) -> Result<usize, IoError> {
 pub(crate) fn open_run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunParams) -> Result<(toml::Value, Kind, RunLog), Error> {
     let mut case = case.clone();
     config::expand_includes(&mut case, &params.base_dir)?;
-    let value = resolve(&case, overrides)?;
+    let (value, end_note) = resolve_noting(&case, overrides)?;
     let kind = Kind::of(&value)?;
     let lock = crate::io::lock::OutputLock::acquire(out, "run")?;
-    // a new run owns its directory: a checkpoint left by an earlier run would let `resume` mix the
-    // two runs' outputs (docs/outputs.md "Guarantees")
-    let stale_checkpoint = remove_stale_checkpoint(out)?;
-    // nor may its snapshot series mix with this run's (ParaView groups particles_*.vtu by name)
-    let stale_snapshots = remove_stale_snapshots(out)?;
+    // a new run owns its directory: it refuses one holding another run's outputs (a checkpoint
+    // `resume` would continue, a snapshot series ParaView would mix with this run's) unless
+    // `force`, which removes them first (docs/outputs.md "Guarantees")
+    let fingerprint = crate::io::outdir::case_fingerprint(&value, &params.base_dir);
+    let cleared = crate::io::outdir::claim(out, crate::io::outdir::Claimant::Run, params.force, Some(&fingerprint))?;
+    crate::io::outdir::write_marker(out, kind.name(), &fingerprint)?;
     let mut log = RunLog::open(out, false, params.echo_log);
     log.line(&format!("sinterdem {}: {} case → {}", env!("CARGO_PKG_VERSION"), kind.name(), out.display()));
     if let Some(note) = lock.takeover_note() {
         log.line(&note);
     }
-    if stale_checkpoint {
-        log.line("removed checkpoint.json of an earlier run in this directory (a new run cannot be resumed from it)");
-    }
-    if stale_snapshots > 0 {
-        log.line(&format!(
-            "removed {stale_snapshots} snapshot file{} of an earlier run in this directory (particles_*.vtu, contacts_*.vtu, *.pvd), so that the file series holds this run's only",
-            if stale_snapshots == 1 { "" } else { "s" }
-        ));
+    if let Some(note) = cleared {
+        log.line(&note);
     }
     log.hold(lock);
     // the files the case names, fingerprinted for `resume` (docs/outputs.md "Guarantees")
@@ -310,7 +290,7 @@ pub(crate) fn open_run(case: &toml::Value, overrides: &[String], out: &Path, par
     for w in compact_only_keys(&value).into_iter().chain(config::plausible::unit_slips(&value)?).chain(later) {
         log.line(&format!("warning: {w}"));
     }
-    for n in notes {
+    for n in end_note.into_iter().chain(notes) {
         log.line(&n);
     }
     validate_before_run(kind, &value)?;
@@ -354,6 +334,18 @@ pub fn resume(dir: &Path, params: &RunParams) -> Result<RunSummary, Error> {
         format: Option<String>,
     }
     let format = serde_json::from_str::<Head>(&text).map_err(|e| IoError::new(&path, format!("not a sinterdem checkpoint: {e}")))?.format.unwrap_or_default();
+    // a run that finished has nothing to continue: say so instead of running again from its last
+    // checkpoint (issue 25); an interrupted or stopped run's summary says `completed = false`
+    if let Some((kind, summary, t)) = finished_run(dir) {
+        let line = format!(
+            "{}: the run finished (summary.json: completed{}); nothing to resume — `sinterdem run CASE --out {} --force` runs it again",
+            dir.display(),
+            t.map(|t| format!(" at t = {} s", crate::error::fmt_value(t))).unwrap_or_default(),
+            dir.display()
+        );
+        tracing::info!(target: "sinterdem::kinds", "{line}");
+        return Ok(RunSummary { kind, wall_seconds: wall.elapsed().as_secs_f64(), summary });
+    }
     let lock = crate::io::lock::OutputLock::acquire(dir, "resume")?;
     let mut log = RunLog::open(dir, true, params.echo_log);
     if let Some(note) = lock.takeover_note() {
@@ -381,17 +373,35 @@ pub fn resume(dir: &Path, params: &RunParams) -> Result<RunSummary, Error> {
     Ok(RunSummary { kind, wall_seconds: wall.elapsed().as_secs_f64(), summary })
 }
 
+/// The summary of a run in `dir` that finished: `summary.json` present, not `completed = false`,
+/// of a kind that resumes (heat, compact, explicit_sinter); with its final time when it has one.
+fn finished_run(dir: &Path) -> Option<(Kind, serde_json::Value, Option<f64>)> {
+    let text = std::fs::read_to_string(dir.join("summary.json")).ok()?;
+    let summary: serde_json::Value = serde_json::from_str(&text).ok()?;
+    if summary.get("completed").and_then(|c| c.as_bool()) == Some(false) {
+        return None;
+    }
+    let kind = match summary.get("kind").and_then(|k| k.as_str()) {
+        Some("heat") => Kind::Heat,
+        Some("compact") | Some("rve") => Kind::Compact,
+        Some("explicit_sinter") => Kind::ExplicitSinter,
+        _ => return None,
+    };
+    let t = summary.get("final_time_s").and_then(|t| t.as_f64());
+    Some((kind, summary, t))
+}
+
 /// Validates a case without running it; returns a one-line description. (A calibration file,
 /// recognised by [`config::is_calibration`], is checked by `crate::calibrate::check`.)
 pub fn check(case: &toml::Value, overrides: &[String], base: &Path) -> Result<String, Error> {
     let mut case = case.clone();
     config::expand_includes(&mut case, base)?;
-    let value = resolve(&case, overrides)?;
+    let (value, end_note) = resolve_noting(&case, overrides)?;
     let (later, notes) = config::plausible::schedule_end_warnings(&value);
     for w in config::plausible::unit_slips(&value)?.into_iter().chain(later) {
         tracing::warn!(target: "sinterdem::kinds", "{w}");
     }
-    for n in notes {
+    for n in end_note.into_iter().chain(notes) {
         tracing::info!(target: "sinterdem::kinds", "{n}");
     }
     Ok(match Kind::of(&value)? {

@@ -47,6 +47,9 @@ pub struct StudyOptions {
     pub slurm: slurm::SlurmOverrides,
     /// Write `DIR/plots/` when gathering (default true; a calibration's batches turn it off).
     pub plots: bool,
+    /// Remove the outputs of an earlier command in the directory first (`--force`); without it a
+    /// directory holding a run's or calibration's outputs is refused, a study's own continued.
+    pub force: bool,
 }
 
 impl Default for StudyOptions {
@@ -61,6 +64,7 @@ impl Default for StudyOptions {
             progress: false,
             slurm: Default::default(),
             plots: true,
+            force: false,
         }
     }
 }
@@ -101,6 +105,11 @@ pub fn run_study(path: &Path, opts: &StudyOptions, log: &mut dyn FnMut(&str)) ->
     if let Some(note) = lock.takeover_note() {
         log(&note);
     }
+    // a study continues its own directory; another command's outputs need --force
+    // (docs/outputs.md "Guarantees")
+    if let Some(note) = crate::io::outdir::claim(&dir, crate::io::outdir::Claimant::Study, opts.force, None)? {
+        log(&note);
+    }
     store::write_plan(&dir, &plan)?;
     let todo: Vec<usize> = plan.iter().filter(|r| store::pending(&dir, r, opts.retry_failed)).map(|r| r.index).collect();
     log(&format!(
@@ -136,6 +145,10 @@ pub fn run_study(path: &Path, opts: &StudyOptions, log: &mut dyn FnMut(&str)) ->
             executed,
             wall.elapsed().as_secs_f64()
         ));
+        // what the runs warned about (each run's log.txt) and collected cells left empty
+        for w in run_warnings(&dir, &rows).into_iter().chain(empty_series_cells(&study, &dir, &rows)) {
+            log(&format!("warning: {w}"));
+        }
         for r in rows.iter().filter(|r| r.record.as_ref().is_some_and(|x| !x.ok())).take(5) {
             log(&format!("  run {} failed: {}", r.run.index, r.record.as_ref().and_then(|x| x.error.clone()).unwrap_or_default()));
         }
@@ -154,4 +167,62 @@ pub fn run_study(path: &Path, opts: &StudyOptions, log: &mut dyn FnMut(&str)) ->
         }
     }
     Ok(StudyInfo { dir, counts, executed, gathered: gather, wall_seconds: wall.elapsed().as_secs_f64() })
+}
+
+/// The distinct warnings of the study's runs (the `warning: …` lines of each `runs/NNNN/log.txt`),
+/// each with the number of runs and the first run that gave it; at most 10 (issue 25: the runs of a
+/// study log to their own files, so their warnings would otherwise never reach the console).
+fn run_warnings(dir: &Path, rows: &[report::Row]) -> Vec<String> {
+    let mut seen: Vec<(String, usize, usize)> = Vec::new();
+    for r in rows.iter().filter(|r| r.record.is_some()) {
+        let Ok(text) = std::fs::read_to_string(store::run_dir(dir, r.run.index).join("log.txt")) else { continue };
+        let mut mine: Vec<&str> = text.lines().filter_map(|l| l.strip_prefix("warning: ")).collect();
+        mine.dedup();
+        for w in mine {
+            match seen.iter_mut().find(|(x, _, _)| x == w) {
+                Some(e) => e.1 += 1,
+                None => seen.push((w.to_string(), 1, r.run.index)),
+            }
+        }
+    }
+    let total = seen.len();
+    let mut out: Vec<String> = seen
+        .into_iter()
+        .take(10)
+        .map(|(w, n, first)| format!("{n} run{} (first run {first:04}, runs/{first:04}/log.txt): {w}", if n == 1 { "" } else { "s" }))
+        .collect();
+    if total > 10 {
+        out.push(format!("{} more distinct run warnings in runs/*/log.txt", total - 10));
+    }
+    out
+}
+
+/// A message per collected series column and time whose cell is empty in some runs that
+/// succeeded: the time lies past the end of their series (or before its start), or the column
+/// is not in their series.csv (issue 25: an empty column and no word about it before).
+fn empty_series_cells(study: &spec::Study, dir: &Path, rows: &[report::Row]) -> Vec<String> {
+    let ok: Vec<&report::Row> = rows.iter().filter(|r| r.record.as_ref().is_some_and(|x| x.ok())).collect();
+    let mut out = Vec::new();
+    for s in &study.collect_series {
+        for &t in &s.times {
+            let key = format!("{}_at_{t}s", s.column);
+            let empty: Vec<&&report::Row> = ok.iter().filter(|r| r.outputs.iter().any(|(k, v)| *k == key && v.is_empty())).collect();
+            let Some(first) = empty.first() else { continue };
+            let why = match report::read_series(&store::run_dir(dir, first.run.index).join("series.csv")) {
+                None => "the run wrote no series.csv".to_string(),
+                Some((h, _)) if !h.contains(&s.column) => format!("series.csv has no column `{}` (columns: {})", s.column, h.join(", ")),
+                Some((_, rows)) => {
+                    let (a, b) = (rows.first().map_or(f64::NAN, |r| r[0]), rows.last().map_or(f64::NAN, |r| r[0]));
+                    format!(
+                        "t = {} s is outside the run's series, {} s to {} s (its time.end): collect at most the runs' end time",
+                        crate::error::fmt_value(t),
+                        crate::error::fmt_value(a),
+                        crate::error::fmt_value(b)
+                    )
+                }
+            };
+            out.push(format!("study.csv column {key} is empty for {} of {} successful runs (first run {:04}): {why}", empty.len(), ok.len(), first.run.index));
+        }
+    }
+    out
 }

@@ -149,6 +149,8 @@ pub fn execute(dir: &Path, run: &PlannedRun) -> RunRecord {
             echo_log: false,
             plots: false,
             wall_limit: None,
+            // the study owns its run directories (removed above; a leftover is this run's own)
+            force: true,
         };
         kinds::run(&case, &run.overrides, &out, &params)
     }));

@@ -79,9 +79,23 @@ pub(crate) fn write_snapshot(sim: &Simulation, snaps: &mut SnapshotWriter) -> Re
         Some(e) => p.radius.iter().zip(e).map(|(r, e)| r * (1.0 + e)).collect(),
         None => p.radius.clone(),
     };
+    // particles without a conductive path keep their initial temperature (their true model
+    // state): a 0/1 field marks them, so that ParaView's Threshold (isolated = 0) keeps them from
+    // pinning the temperature colour map; written only when there are some (docs/outputs.md)
+    let isolated_ids = sim.isolated_particles();
+    let mut isolated = vec![];
+    if !isolated_ids.is_empty() {
+        isolated = vec![0.0; p.len()];
+        for &i in &isolated_ids {
+            isolated[i as usize] = 1.0;
+        }
+    }
     let mut particle_data = vec![];
     if let Some(e) = &eps {
         particle_data.push(("thermal_strain", e.as_slice()));
+    }
+    if !isolated.is_empty() {
+        particle_data.push(("isolated", isolated.as_slice()));
     }
     snaps.write(&Snapshot {
         time: sim.t,
