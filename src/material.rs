@@ -111,7 +111,9 @@ impl MaterialSpec {
     pub fn resolve(&self) -> Result<Material, ConfigError> {
         let key = |k: &str| format!("materials.{}.{k}", self.name);
         let base = match &self.preset {
-            Some(p) => Some(preset(p).ok_or_else(|| ConfigError::invalid(format!("{}: unknown preset \"{p}\" ({}; docs/materials.md)", key("preset"), crate::models::diffusion7::library::names())))?),
+            Some(p) => Some(preset(p).ok_or_else(|| {
+                ConfigError::invalid(format!("{}: unknown preset \"{p}\" ({}; docs/materials.md)", key("preset"), crate::models::diffusion7::library::names()))
+            })?),
             None => None,
         };
         let get = |v: Option<f64>, k: &str, from_base: Option<f64>| -> Result<f64, ConfigError> {
@@ -340,8 +342,9 @@ impl Table {
     /// From a case value: a bundled name or an array of `[T, v]` pairs.
     pub fn from_value(v: &toml::Value, key: &str, quantity: Quantity) -> Result<Table, ConfigError> {
         match v {
-            toml::Value::String(name) => bundled_table(name, quantity)
-                .ok_or_else(|| ConfigError::invalid(format!("{key} = \"{name}\": no bundled table of this name ({}), or give [[T, value], ...]", table_names(quantity)))),
+            toml::Value::String(name) => bundled_table(name, quantity).ok_or_else(|| {
+                ConfigError::invalid(format!("{key} = \"{name}\": no bundled table of this name ({}), or give [[T, value], ...]", table_names(quantity)))
+            }),
             toml::Value::Array(rows) => {
                 let num = |x: &toml::Value| x.as_float().or_else(|| x.as_integer().map(|i| i as f64));
                 let mut pts = Vec::with_capacity(rows.len());

@@ -253,10 +253,7 @@ pub fn markdown() -> String {
     let mut s = String::new();
     for e in entries() {
         s.push_str(&format!("### `{}` — {}\n\n", e.name, e.description));
-        s.push_str(&format!(
-            "`preset = \"{0}\"` (heat and compact cases), `diffusion = \"{0}\"`, `pair.material = \"{0}\"`.\n\n",
-            e.name
-        ));
+        s.push_str(&format!("`preset = \"{0}\"` (heat and compact cases), `diffusion = \"{0}\"`, `pair.material = \"{0}\"`.\n\n", e.name));
         s.push_str("| quantity | value | unit | source |\n|---|---|---|---|\n");
         let p = &e.preset;
         let t = fmt(p.temperature);
@@ -276,7 +273,11 @@ pub fn markdown() -> String {
             e.range_source
         ));
         if let Some(tb) = &e.tables {
-            let rows = [("κ(T) table", "W/(m·K)", &tb.conductivity_table), ("c(T) table", "J/(kg·K)", &tb.heat_capacity_table), ("α(T) table", "1/K", &tb.thermal_expansion_table)];
+            let rows = [
+                ("κ(T) table", "W/(m·K)", &tb.conductivity_table),
+                ("c(T) table", "J/(kg·K)", &tb.heat_capacity_table),
+                ("α(T) table", "1/K", &tb.thermal_expansion_table),
+            ];
             for (what, unit, tab) in rows {
                 if let Some(tab) = tab {
                     s.push_str(&format!("| {what} | {} | {unit} | {} |\n", table_points(tab), tb.source));
