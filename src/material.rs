@@ -447,6 +447,21 @@ mod table_tests {
     }
 
     #[test]
+    fn library_presets_equal_their_own_tables_at_the_stated_temperature() {
+        // nickel … alumina take ρ, c, κ from the same handbook table as their κ(T), c(T)
+        // (Incropera et al. 2007 at 300 K); copper and titanium keep their older constants
+        let mut n = 0;
+        for e in crate::models::diffusion7::library::entries().iter().filter(|e| !matches!(e.name.as_str(), "copper" | "titanium")) {
+            let p = preset(&e.name).unwrap();
+            let at = |q| bundled_table(&e.name, q).unwrap().at(e.preset.temperature);
+            assert_eq!(at(Quantity::Conductivity), p.conductivity, "{}", e.name);
+            assert_eq!(at(Quantity::HeatCapacity), p.heat_capacity, "{}", e.name);
+            n += 1;
+        }
+        assert_eq!(n, 6);
+    }
+
+    #[test]
     fn bundled_tables_at_300_k_match_the_constants_of_the_same_handbook() {
         // Incropera et al. (2007) Table A.1 at 300 K: copper 401 W/(m K), 385 J/(kg K); titanium 21.9, 522
         let k = |m, q| bundled_table(m, q).unwrap().at(300.0);
