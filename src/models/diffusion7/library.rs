@@ -257,11 +257,19 @@ pub fn markdown() -> String {
         s.push_str("| quantity | value | unit | source |\n|---|---|---|---|\n");
         let p = &e.preset;
         let t = fmt(p.temperature);
-        s.push_str(&format!("| density ρ | {} | kg/m³ | {} |\n", fmt(p.density), p.source));
-        s.push_str(&format!("| heat capacity c ({t} K) | {} | J/(kg·K) | {} |\n", fmt(p.heat_capacity), p.source));
-        s.push_str(&format!("| conductivity κ ({t} K) | {} | W/(m·K) | {} |\n", fmt(p.conductivity), p.source));
-        s.push_str(&format!("| Young's modulus E (preset) | {} | Pa | {} |\n", fmt(e.preset_young_modulus()), e.elastic_source));
-        s.push_str(&format!("| Poisson's ratio ν (preset) | {} | 1 | {} |\n", fmt(e.preset_poisson_ratio()), e.elastic_source));
+        s.push_str(&format!(
+            "| density ρ, heat capacity c, conductivity κ ({t} K) | {}, {}, {} | kg/m³, J/(kg·K), W/(m·K) | {} |\n",
+            fmt(p.density),
+            fmt(p.heat_capacity),
+            fmt(p.conductivity),
+            p.source
+        ));
+        s.push_str(&format!(
+            "| Young's modulus E, Poisson's ratio ν (preset) | {}, {} | Pa, 1 | {} |\n",
+            fmt(e.preset_young_modulus()),
+            fmt(e.preset_poisson_ratio()),
+            e.elastic_source
+        ));
         if e.preset_young_modulus() != e.young_modulus || e.preset_poisson_ratio() != e.poisson_ratio {
             s.push_str(&format!("| E, ν of the 7-DOF data | {}, {} | Pa, 1 | {} |\n", fmt(e.young_modulus), fmt(e.poisson_ratio), e.elastic_source));
         }
@@ -355,10 +363,30 @@ mod tests {
                 let s = &lp.source;
                 let i = s.find("δD0b = ").unwrap_or_else(|| panic!("{}: no δD0b in {s}", e.name)) + "δD0b = ".len();
                 let num: f64 = s[i..].split_whitespace().next().unwrap().parse().unwrap();
+                let j = s.find("(b = ").unwrap() + "(b = ".len();
+                let b: f64 = s[j..].split_whitespace().next().unwrap().parse().unwrap();
+                assert!((lp.phase.delta_gb / (2.0 * b) - 1.0).abs() < 1e-12, "{}: δ_gb = 2b", e.name);
                 let prod = lp.phase.d0_gb * lp.phase.delta_gb;
                 assert!((prod / num - 1.0).abs() < 5e-3, "{} {}: {prod} vs {num}", e.name, lp.phase.name);
             }
         }
+    }
+
+    #[test]
+    fn correlated_surface_data_follow_gjostein_at_the_stated_melting_point() {
+        // [G73]: D_s = 7.4e-2 m²/s · exp(−Q_s/RT) with Q_s = 30·T_m cal/mol = 30·4.184·T_m J/mol,
+        // written to 0.1 kJ/mol; T_m as stated in the phase's source
+        let mut n = 0;
+        for e in entries() {
+            for lp in e.phases.iter().filter(|p| p.source.contains("[G73] with T_m = ")) {
+                let i = lp.source.find("[G73] with T_m = ").unwrap() + "[G73] with T_m = ".len();
+                let tm: f64 = lp.source[i..].split_whitespace().next().unwrap().parse().unwrap();
+                assert!((lp.phase.q_surface - 30.0 * 4.184 * tm).abs() <= 50.0, "{} {}: Q_s {} vs T_m {tm}", e.name, lp.phase.name, lp.phase.q_surface);
+                assert_eq!(lp.phase.d0_surface, 7.4e-2, "{}", e.name);
+                n += 1;
+            }
+        }
+        assert_eq!(n, 6, "nickel, silver, iron α and γ, tungsten, 316l");
     }
 
     #[test]
