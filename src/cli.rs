@@ -211,6 +211,13 @@ enum Command {
         #[arg(long)]
         study: bool,
     },
+    /// The bundled materials library (docs/materials.md): one line per preset, or with
+    /// `--markdown` the generated part of docs/materials.md.
+    #[command(hide = true)]
+    Materials {
+        #[arg(long)]
+        markdown: bool,
+    },
     /// Benchmarks (print figures; not tests).
     Bench {
         #[command(subcommand)]
@@ -548,6 +555,17 @@ fn real_main(cli: Cli) -> Result<(), Error> {
         }
         Command::Keys { study } => {
             print!("{}", if study { crate::study::spec::markdown() } else { crate::config::ranges::markdown(&crate::calibrate::every_table()) });
+            Ok(())
+        }
+        Command::Materials { markdown } => {
+            use crate::models::diffusion7::library;
+            if markdown {
+                print!("{}", library::markdown());
+            } else {
+                for e in library::entries() {
+                    println!("{}: {}", e.name, e.description);
+                }
+            }
             Ok(())
         }
         Command::Bench { which } => run_bench(which),

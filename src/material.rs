@@ -11,7 +11,8 @@ use serde::{Deserialize, Serialize};
 pub struct MaterialSpec {
     /// Name other sections refer to.
     pub name: String,
-    /// Built-in values to start from: "copper" or "titanium".
+    /// Built-in values to start from: a materials-library entry ("copper", "titanium", "nickel",
+    /// "silver", "iron", "tungsten", "316l", "alumina"; docs/materials.md).
     pub preset: Option<String>,
     /// Mass density ρ [kg/m³].
     pub density: Option<f64>,
@@ -20,7 +21,8 @@ pub struct MaterialSpec {
     /// Thermal conductivity κ [W/(m·K)].
     pub conductivity: Option<f64>,
     /// κ(T) as a piecewise-linear table: `[[T, κ], ...]` ([K], [W/(m·K)]) or the name of a bundled
-    /// table ("copper", "titanium"); replaces `conductivity` in every heat path (heat-model.md eq. P3).
+    /// table (a library entry, docs/materials.md); replaces `conductivity` in every heat path
+    /// (heat-model.md eq. P3).
     pub conductivity_table: Option<toml::Value>,
     /// c(T) as a piecewise-linear table: `[[T, c], ...]` ([K], [J/(kg·K)]) or the name of a bundled
     /// table; replaces `heat_capacity` in every heat path (heat-model.md eqs. P1–P2).
@@ -29,14 +31,15 @@ pub struct MaterialSpec {
     /// absent: no thermal expansion.
     pub thermal_expansion: Option<f64>,
     /// α(T) as a piecewise-linear table `[[T, α], ...]` ([K], [1/K]) or the name of a bundled table
-    /// ("copper", "titanium"); replaces `thermal_expansion` (docs/coupled.md (X1)).
+    /// (a library entry with an α(T) table: "copper", "titanium"); replaces `thermal_expansion`
+    /// (docs/coupled.md (X1)).
     pub thermal_expansion_table: Option<toml::Value>,
     /// Young's modulus E [Pa].
     pub young_modulus: Option<f64>,
     /// Poisson's ratio ν [1].
     pub poisson_ratio: Option<f64>,
-    /// 7-DOF diffusion data (compact runs): a bundled set, "copper" or "titanium" (default: the
-    /// preset's name). Ignored when `phases` are given.
+    /// 7-DOF diffusion data (compact runs): a materials-library entry (docs/materials.md; default:
+    /// the preset's name). Ignored when `phases` are given.
     pub diffusion: Option<String>,
     /// Where user-defined diffusion data come from (as in pair cases).
     pub source: Option<String>,
@@ -79,40 +82,28 @@ pub struct Material {
     pub diffusion_data: Option<crate::models::diffusion7::Material>,
 }
 
-/// Built-in values. Copper: ρ, c, κ handbook values near room temperature (κ = 394 W/(m·K) as in
-/// Rojek et al. 2022), E = 72 GPa as in Ivannikov et al. 2022 Table 2. Titanium (α, room
-/// temperature): ρ = 4506, c = 523, κ = 21.9; E = 57 GPa and ν = 0.39 as in Ivannikov et al. 2022
-/// Table 4 (β-Ti at 1273 K; the same values as the bundled 7-DOF titanium data).
+/// Built-in values of `preset = NAME`: the `[materials.preset]` constants of the materials
+/// library (docs/materials.md, `src/models/diffusion7/materials.toml`) with E and ν, and the
+/// entry's 7-DOF diffusion data by name. Copper: ρ, c, κ handbook values near room temperature
+/// (κ = 394 W/(m·K) as in Rojek et al. 2022), E = 72 GPa as in Ivannikov et al. 2022 Table 2,
+/// ν = 0.34. Titanium (α, room temperature): ρ = 4506, c = 523, κ = 21.9; E = 57 GPa, ν = 0.39 as
+/// in Ivannikov et al. 2022 Table 4. The others: Incropera et al. (2007) at 300 K and handbook
+/// elastic constants (the file cites each). Names are matched ignoring ASCII case.
 pub fn preset(name: &str) -> Option<Material> {
-    match name {
-        "copper" => Some(Material {
-            name: "copper".into(),
-            density: 8960.0,
-            heat_capacity: 385.0,
-            conductivity: 394.0,
-            conductivity_table: None,
-            heat_capacity_table: None,
-            thermal_expansion: None,
-            young_modulus: 72e9,
-            poisson_ratio: 0.34,
-            diffusion: Some("copper".into()),
-            diffusion_data: None,
-        }),
-        "titanium" => Some(Material {
-            name: "titanium".into(),
-            density: 4506.0,
-            heat_capacity: 523.0,
-            conductivity: 21.9,
-            conductivity_table: None,
-            heat_capacity_table: None,
-            thermal_expansion: None,
-            young_modulus: 57e9,
-            poisson_ratio: 0.39,
-            diffusion: Some("titanium".into()),
-            diffusion_data: None,
-        }),
-        _ => None,
-    }
+    let e = crate::models::diffusion7::library::entry(name)?;
+    Some(Material {
+        name: e.name.clone(),
+        density: e.preset.density,
+        heat_capacity: e.preset.heat_capacity,
+        conductivity: e.preset.conductivity,
+        conductivity_table: None,
+        heat_capacity_table: None,
+        thermal_expansion: None,
+        young_modulus: e.preset_young_modulus(),
+        poisson_ratio: e.preset_poisson_ratio(),
+        diffusion: Some(e.name.clone()),
+        diffusion_data: None,
+    })
 }
 
 impl MaterialSpec {
@@ -120,7 +111,9 @@ impl MaterialSpec {
     pub fn resolve(&self) -> Result<Material, ConfigError> {
         let key = |k: &str| format!("materials.{}.{k}", self.name);
         let base = match &self.preset {
-            Some(p) => Some(preset(p).ok_or_else(|| ConfigError::invalid(format!("{}: unknown preset \"{p}\" (copper, titanium)", key("preset"))))?),
+            Some(p) => Some(preset(p).ok_or_else(|| {
+                ConfigError::invalid(format!("{}: unknown preset \"{p}\" ({}; docs/materials.md)", key("preset"), crate::models::diffusion7::library::names()))
+            })?),
             None => None,
         };
         let get = |v: Option<f64>, k: &str, from_base: Option<f64>| -> Result<f64, ConfigError> {
@@ -275,30 +268,31 @@ pub struct Table {
     pub value: Vec<f64>,
 }
 
-/// Bundled tables: Incropera, DeWitt, Bergman & Lavine (2007), *Fundamentals of Heat and Mass
-/// Transfer*, 6th ed., Wiley, Table A.1 (pure copper; unalloyed titanium), points 200–1200 K
-/// (copper, melting at 1358 K) and 200–1500 K (titanium). The titanium heat capacity falls from
-/// 675 (1000 K) to 620 J/(kg·K) (1200 K) across the α→β transition (1155 K); the table has no
-/// point inside it and no latent-heat peak (docs/heat-model.md). Thermal expansion α(T): Kaye &
-/// Laby (NPL) §2.3.5, copper 100–1100 K, titanium 293–1100 K (α phase; the α→β step in length at
-/// 1155 K is not modelled, docs/coupled.md "Thermal expansion").
+/// Bundled tables of the materials library (`[materials.tables]`, docs/materials.md): copper and
+/// titanium κ(T), c(T) from Incropera, DeWitt, Bergman & Lavine (2007), *Fundamentals of Heat and
+/// Mass Transfer*, 6th ed., Table A.1, 200–1200 K (copper) and 200–1500 K (titanium; the heat
+/// capacity falls from 675 (1000 K) to 620 J/(kg·K) (1200 K) across the α→β transition (1155 K),
+/// no latent-heat peak, docs/heat-model.md); α(T) from Kaye & Laby (NPL) §2.3.5, copper
+/// 100–1100 K, titanium 293–1100 K (α phase). The other entries cite their tables in the file.
+/// None when the entry has no table of this quantity.
 pub fn bundled_table(name: &str, quantity: Quantity) -> Option<Table> {
-    let (t, v): (&[f64], &[f64]) = match (name, quantity) {
-        ("copper", Quantity::Conductivity) => (&[200.0, 300.0, 400.0, 600.0, 800.0, 1000.0, 1200.0], &[413.0, 401.0, 393.0, 379.0, 366.0, 352.0, 339.0]),
-        ("copper", Quantity::HeatCapacity) => (&[200.0, 300.0, 400.0, 600.0, 800.0, 1000.0, 1200.0], &[356.0, 385.0, 397.0, 417.0, 433.0, 451.0, 480.0]),
-        ("titanium", Quantity::Conductivity) => {
-            (&[200.0, 300.0, 400.0, 600.0, 800.0, 1000.0, 1200.0, 1500.0], &[24.5, 21.9, 20.4, 19.4, 19.7, 20.7, 22.0, 24.5])
-        }
-        ("titanium", Quantity::HeatCapacity) => {
-            (&[200.0, 300.0, 400.0, 600.0, 800.0, 1000.0, 1200.0, 1500.0], &[465.0, 522.0, 551.0, 591.0, 633.0, 675.0, 620.0, 686.0])
-        }
-        // α [1/K]: Kaye & Laby, Tables of Physical and Chemical Constants (NPL), §2.3.5
-        // (docs/coupled.md "Thermal expansion", docs/references.md)
-        ("copper", Quantity::ThermalExpansion) => (&[100.0, 200.0, 293.0, 500.0, 800.0, 1100.0], &[10.3e-6, 15.2e-6, 16.5e-6, 18.3e-6, 20.3e-6, 23.7e-6]),
-        ("titanium", Quantity::ThermalExpansion) => (&[293.0, 500.0, 800.0, 1100.0], &[8.6e-6, 9.9e-6, 11.1e-6, 11.7e-6]),
-        _ => return None,
-    };
-    Some(Table { temperature: t.to_vec(), value: v.to_vec() })
+    let tables = crate::models::diffusion7::library::entry(name)?.tables.as_ref()?;
+    let points = match quantity {
+        Quantity::Conductivity => tables.conductivity_table.as_ref(),
+        Quantity::HeatCapacity => tables.heat_capacity_table.as_ref(),
+        Quantity::ThermalExpansion => tables.thermal_expansion_table.as_ref(),
+    }?;
+    Some(Table { temperature: points.iter().map(|p| p[0]).collect(), value: points.iter().map(|p| p[1]).collect() })
+}
+
+/// The entries of the library that have a table of `quantity` (for messages).
+fn table_names(quantity: Quantity) -> String {
+    crate::models::diffusion7::library::entries()
+        .iter()
+        .filter(|e| bundled_table(&e.name, quantity).is_some())
+        .map(|e| e.name.as_str())
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// Linear thermal expansion of a material (docs/coupled.md (X1)).
@@ -348,8 +342,9 @@ impl Table {
     /// From a case value: a bundled name or an array of `[T, v]` pairs.
     pub fn from_value(v: &toml::Value, key: &str, quantity: Quantity) -> Result<Table, ConfigError> {
         match v {
-            toml::Value::String(name) => bundled_table(name, quantity)
-                .ok_or_else(|| ConfigError::invalid(format!("{key} = \"{name}\": unknown bundled table (copper, titanium), or give [[T, value], ...]"))),
+            toml::Value::String(name) => bundled_table(name, quantity).ok_or_else(|| {
+                ConfigError::invalid(format!("{key} = \"{name}\": no bundled table of this name ({}), or give [[T, value], ...]", table_names(quantity)))
+            }),
             toml::Value::Array(rows) => {
                 let num = |x: &toml::Value| x.as_float().or_else(|| x.as_integer().map(|i| i as f64));
                 let mut pts = Vec::with_capacity(rows.len());
@@ -361,7 +356,7 @@ impl Table {
                 }
                 Table::new(&pts, key, quantity)
             }
-            other => Err(ConfigError::invalid(format!("{key} = {other}: expected [[T, value], ...] or a bundled name (copper, titanium)"))),
+            other => Err(ConfigError::invalid(format!("{key} = {other}: expected [[T, value], ...] or a bundled name ({})", table_names(quantity)))),
         }
     }
 
@@ -449,6 +444,21 @@ mod table_tests {
         assert!(e.contains("m.t[1]") && e.contains("pair of numbers"), "{e}");
         let v = toml::Value::String("brass".into());
         assert!(Table::from_value(&v, "m.t", q).unwrap_err().to_string().contains("copper, titanium"));
+    }
+
+    #[test]
+    fn library_presets_equal_their_own_tables_at_the_stated_temperature() {
+        // nickel … alumina take ρ, c, κ from the same handbook table as their κ(T), c(T)
+        // (Incropera et al. 2007 at 300 K); copper and titanium keep their older constants
+        let mut n = 0;
+        for e in crate::models::diffusion7::library::entries().iter().filter(|e| !matches!(e.name.as_str(), "copper" | "titanium")) {
+            let p = preset(&e.name).unwrap();
+            let at = |q| bundled_table(&e.name, q).unwrap().at(e.preset.temperature);
+            assert_eq!(at(Quantity::Conductivity), p.conductivity, "{}", e.name);
+            assert_eq!(at(Quantity::HeatCapacity), p.heat_capacity, "{}", e.name);
+            n += 1;
+        }
+        assert_eq!(n, 6);
     }
 
     #[test]

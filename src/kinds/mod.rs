@@ -293,6 +293,12 @@ pub(crate) fn open_run(case: &toml::Value, overrides: &[String], out: &Path, par
     for n in end_note.into_iter().chain(notes) {
         log.line(&n);
     }
+    // library materials whose 7-DOF data hold placeholders: said once, in log.txt (docs/materials.md)
+    if matches!(kind, Kind::Pair | Kind::Compact) {
+        for line in crate::models::diffusion7::library::used_by(&value).iter().filter_map(|e| e.unmeasured_line()) {
+            log.line(&format!("{}{line}", crate::logging::DETAIL));
+        }
+    }
     validate_before_run(kind, &value)?;
     Ok((value, kind, log))
 }

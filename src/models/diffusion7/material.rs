@@ -85,8 +85,9 @@ pub struct Material {
     pub phases: Vec<Phase>,
 }
 
-/// The bundled materials (copper and titanium of docs/diffusion7.md §9), as TOML.
-pub const BUILTIN_MATERIALS: &str = include_str!("materials.toml");
+/// The bundled materials library (docs/materials.md), as TOML: the 7-DOF data of every entry
+/// plus its preset constants, tables and sources ([`super::library`]).
+pub const BUILTIN_MATERIALS: &str = super::library::LIBRARY;
 
 impl Material {
     /// Deserialises and validates one `[[materials]]` table.
@@ -96,16 +97,16 @@ impl Material {
         Ok(m)
     }
 
-    /// A bundled material by name (`"copper"`, `"titanium"`).
+    /// A bundled material by name (`"copper"`, `"titanium"`, … : the entries of the materials
+    /// library, docs/materials.md).
     pub fn builtin(name: &str) -> Result<Material, ConfigError> {
-        let table: toml::Table = BUILTIN_MATERIALS.parse().map_err(|e: toml::de::Error| ConfigError::invalid(format!("internal: bundled materials: {e}")))?;
-        let list = table.get("materials").and_then(|m| m.as_array()).cloned().unwrap_or_default();
-        for v in list {
-            if v.get("name").and_then(|n| n.as_str()) == Some(name) {
-                return Material::from_value(v);
-            }
+        match super::library::entry(name) {
+            Some(e) => Ok(e.diffusion()),
+            None => Err(ConfigError::invalid(format!(
+                "material \"{name}\" is neither defined in the case's [[materials]] nor bundled (bundled: {}; docs/materials.md)",
+                super::library::names()
+            ))),
         }
-        Err(ConfigError::invalid(format!("material \"{name}\" is neither defined in the case's [[materials]] nor bundled (bundled: copper, titanium)")))
     }
 
     /// Bundled copper (docs/diffusion7.md §9, Table 2 of [IV22]).

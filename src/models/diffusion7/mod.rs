@@ -5,6 +5,7 @@
 //!
 //! - [`geometry`]: (G1)–(G10), admissibility (A1)–(A4);
 //! - [`kinetics`]: potentials (M3), fluxes (M5), balances (M7), ODE (M8), [`rates`], [`invariants`];
+//! - [`library`]: the bundled materials library (docs/materials.md);
 //! - [`material`]: material data (§9), phases, resolution per contact (§3), coefficients (M9);
 //! - [`contact`]: per-contact state, initial state (I1)–(I4), force (F4), (F5), correction (C1)–(C4);
 //! - [`advance`]: adaptive per-contact integration over an interval, split at kinks and phase changes;
@@ -14,6 +15,7 @@ pub mod contact;
 pub mod geometry;
 pub mod kinetics;
 pub mod lanes;
+pub mod library;
 pub mod material;
 pub mod ranges;
 
