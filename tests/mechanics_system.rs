@@ -422,3 +422,87 @@ fn warm_start_projects_onto_the_last_solutions() {
         assert!(one.iter().zip(&warm).all(|(a, b)| a.du == b.du), "{solver:?}: 1 vs 2 threads differ");
     }
 }
+
+/// docs/mechanics.md (B12) with a deeper history (`warm_start_depth`): a load mixed from the
+/// last three patterns is solved by the projection alone with three solutions kept, not with two
+/// (the oldest pattern is outside their span); the answer is the cold solve's to the tolerance.
+/// `amg_keep_on_new_bonds`: after new bonds the kept hierarchy preconditions the new stiffness
+/// (no build in that step) and CG reaches the same tolerance and answer as a fresh hierarchy.
+#[test]
+fn deeper_warm_start_and_amg_kept_across_new_bonds() {
+    let (pos, rad, pairs, y) = fcc_packing(2000, 5);
+    let n = pos.len();
+    let cons = Constraints::principal_planes(&pos, &rad, 0.01).unwrap();
+    let loads = |seed: u64, pairs: &[[u32; 2]]| -> Vec<f64> {
+        let mut s = seed;
+        pairs
+            .iter()
+            .map(|&[i, j]| {
+                let rm = 0.5 * (rad[i as usize] + rad[j as usize]);
+                load_increment(1e-4 * rm * rng(&mut s), 1e-4 * rm * rng(&mut s), rm, E)
+            })
+            .collect()
+    };
+    let (l1, l2, l3) = (loads(3, &pairs), loads(11, &pairs), loads(17, &pairs));
+    let mix: Vec<f64> = (0..l1.len()).map(|k| 0.5 * l1[k] + 0.3 * l2[k] + 0.2 * l3[k]).collect();
+    let rtol = 1e-8;
+    // bonds that join late: every 40th between particles with at least four bonds (so that no
+    // particle is left without one: the free DOF stay the same)
+    let mut degree = vec![0usize; n];
+    for &[a, b] in &pairs {
+        degree[a as usize] += 1;
+        degree[b as usize] += 1;
+    }
+    let late = |k: usize| k % 40 == 7 && pairs[k].iter().all(|&p| degree[p as usize] >= 4);
+    let y_early: Vec<[f64; 2]> = y.iter().enumerate().filter(|(k, _)| !late(*k)).map(|(_, v)| *v).collect();
+    let step = |sys: &mut BondedSystem, l: &[f64], pairs: &[[u32; 2]]| {
+        let y = if pairs.len() == y.len() { &y[..] } else { &y_early[..] };
+        sys.step(&StepInput { positions: &pos, radii: &rad, y4_y7: y, load: l, external: None }).unwrap()
+    };
+    let mut last = Vec::new();
+    for (depth, threads) in [(2, 2), (3, 2), (3, 1)] {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        let p = MechParams { warm_start: true, warm_start_depth: depth, rtol, ..params(LinearSolver::Amg) };
+        pool.install(|| {
+            let mut sys = BondedSystem::new(n, p, cons.clone()).unwrap();
+            sys.set_topology(&pairs).unwrap();
+            for l in [&l1, &l2, &l3] {
+                step(&mut sys, l, &pairs);
+            }
+            last.push(step(&mut sys, &mix, &pairs));
+        });
+    }
+    assert!(last[1].du == last[2].du, "depth 3: 1 vs 2 threads differ");
+    assert!(last[0].info.warm_start > 1e3 * rtol && last[0].info.pcg_iterations > 0, "depth 2: {:?}", last[0].info);
+    assert!(last[1].info.warm_start <= rtol && last[1].info.newton_iterations == 0, "depth 3: {:?}", last[1].info);
+    let mut cold = BondedSystem::new(n, MechParams { rtol, ..params(LinearSolver::Amg) }, cons.clone()).unwrap();
+    cold.set_topology(&pairs).unwrap();
+    let c = step(&mut cold, &mix, &pairs);
+    let scale = c.du.iter().map(|d| d.norm()).fold(0.0, f64::max);
+    for w in &last {
+        let diff = c.du.iter().zip(&w.du).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
+        assert!(diff < 1e-6 * scale, "warm vs cold {diff:e} of {scale:e}");
+    }
+    assert!(MechParams { warm_start_depth: 9, ..params(LinearSolver::Amg) }.validate().is_err());
+    assert!(MechParams { warm_start_depth: 0, ..params(LinearSolver::Amg) }.validate().is_err());
+
+    // new bonds: the late ones join after a first step
+    let early: Vec<[u32; 2]> = pairs.iter().enumerate().filter(|(k, _)| !late(*k)).map(|(_, p)| *p).collect();
+    assert!(early.len() < pairs.len());
+    let mut answers = Vec::new();
+    for keep in [false, true] {
+        let p = MechParams { rtol, amg_keep_on_new_bonds: keep, ..params(LinearSolver::Amg) };
+        let mut sys = BondedSystem::new(n, p, cons.clone()).unwrap();
+        sys.set_topology(&early).unwrap();
+        let first = step(&mut sys, &loads(5, &early), &early);
+        assert_eq!(first.info.amg_builds, 1);
+        sys.set_topology(&pairs).unwrap();
+        let second = step(&mut sys, &l1, &pairs);
+        assert_eq!(second.info.amg_builds, if keep { 0 } else { 1 }, "keep = {keep}: {:?}", second.info);
+        assert!(second.info.residuals.last().unwrap() <= &rtol);
+        answers.push(second);
+    }
+    let scale = answers[0].du.iter().map(|d| d.norm()).fold(0.0, f64::max);
+    let diff = answers[0].du.iter().zip(&answers[1].du).map(|(a, b)| (a - b).norm()).fold(0.0, f64::max);
+    assert!(diff < 1e-6 * scale, "kept vs fresh hierarchy {diff:e} of {scale:e}");
+}

@@ -93,6 +93,7 @@ pub static TABLE: &[Range] = &[
     c("contacts.epsilon", 1e-4, 0.1, "1", "initial neck excess epsilon of a new contact (I2)"),
     o("contacts.eta", 0.0, 1.0, "1", "initial cone parameter eta of a new contact (I2)"),
     c("mechanics.rtol", 1e-15, 1e-2, "1", "Newton tolerance of the bonded solve: scaled residual relative to the scaled load"),
+    c("mechanics.warm_start_depth", 1.0, 8.0, "1", "earlier solutions spanning the warm start of the bonded solve (an integer)"),
     c("mechanics.plane_margin", 1.0, 2.0, "1", "a particle touches a principal plane when its centre is within margin * r"),
     c("load.stress", 0.0, 1e9, "Pa", "compact runs: applied compressive stress (also every stress of load.stress_table; docs/pressure.md)"),
     p(

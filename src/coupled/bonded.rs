@@ -70,6 +70,8 @@ impl MechanicsStage {
             reuse_factor: self.settings.reuse_factor,
             rtol: self.settings.rtol,
             warm_start: self.settings.warm_start,
+            warm_start_depth: self.settings.warm_start_depth,
+            amg_keep_on_new_bonds: self.settings.amg_keep_on_new_bonds,
             ..Default::default()
         };
         self.sys = Some(BondedSystem::new(p.len(), params, cons)?);

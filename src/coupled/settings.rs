@@ -173,6 +173,10 @@ pub struct MechanicsSettings {
     pub rtol: f64,
     /// Warm start of the bonded solve (docs/mechanics.md (B12)).
     pub warm_start: bool,
+    /// Earlier solutions spanning the warm start [1].
+    pub warm_start_depth: usize,
+    /// Keep the AMG hierarchy across new contacts [flag].
+    pub amg_keep_on_new_bonds: bool,
     /// The periodic cell's controls (`boundary = "periodic"`); None: walls.
     pub cell: Option<super::cell::CellSettings>,
 }
@@ -188,6 +192,10 @@ impl MechanicsSettings {
             o => return Err(ConfigError::invalid(format!("mechanics.solver = \"{o}\": expected auto, cholesky, cg or amg"))),
         };
         let rtol = config::check("mechanics.rtol", m.rtol)?;
+        let depth = config::check("mechanics.warm_start_depth", m.warm_start_depth)?;
+        if depth.fract() != 0.0 {
+            return Err(ConfigError::invalid(format!("mechanics.warm_start_depth = {depth}: expected an integer in [1, 8] (earlier solutions)")));
+        }
         Ok(MechanicsSettings {
             constrain_planes: m.constrain_planes,
             plane_gap: margin - 1.0,
@@ -195,6 +203,8 @@ impl MechanicsSettings {
             reuse_factor: m.reuse_factor,
             rtol,
             warm_start: m.warm_start,
+            warm_start_depth: depth as usize,
+            amg_keep_on_new_bonds: m.amg_keep_on_new_bonds,
             cell: super::cell::CellSettings::from_spec(&m.boundary, m.cell.as_ref())?,
         })
     }

@@ -653,6 +653,11 @@ impl Amg {
         Ok(())
     }
 
+    /// The fixed-DOF masks of the fine level the hierarchy was built for.
+    pub fn fine_fixed(&self) -> &[u8] {
+        self.levels.first().map_or(&self.coarsest.fixed, |l| &l.fixed)
+    }
+
     /// Marks the hierarchy for a rebuild (aggregates and symbolic factor kept).
     pub fn into_stale(mut self) -> Self {
         self.stale = true;

@@ -220,6 +220,8 @@ impl BondedSystem {
         let keep = self.params.reuse_factor && self.params.stale_factor_cg;
         self.kept = match std::mem::replace(&mut self.kept, Kept::Nothing) {
             Kept::Cholesky { chol, eq, .. } if keep && chol.is_factored() => Kept::Cholesky { chol, eq, current: false },
+            // the hierarchy serves the new stiffness while the free DOF stay the same (checked at the solve)
+            Kept::Amg(h) if self.params.amg_keep_on_new_bonds => Kept::Amg(h),
             _ => Kept::Nothing,
         };
         Ok(())
@@ -369,7 +371,7 @@ impl BondedSystem {
         if b_norm > 0.0 && rep.n_eq > 0 && warm && !self.history[slot].is_empty() {
             let t0 = Instant::now();
             let op = amg::FineOp { blocks, pairs: &self.pairs, inc: &self.inc, fixed: &rep.fixed };
-            let (rel, r) = warm_start(&op, &self.history[slot], rhs, b_norm, &mut x);
+            let (rel, r) = warm_start(&op, &self.history[slot], rhs, b_norm, self.params.rtol, &mut x);
             info.warm_start = rel;
             r0 = r;
             info.solve_seconds += t0.elapsed().as_secs_f64();
@@ -383,7 +385,7 @@ impl BondedSystem {
         }
         if warm && b_norm > 0.0 {
             let h = &mut self.history[slot];
-            if h.len() == WARM_START_DEPTH {
+            while h.len() >= self.params.warm_start_depth {
                 h.remove(0);
             }
             h.push(x.clone());
@@ -594,14 +596,15 @@ impl BondedSystem {
         let fine = amg::FineOp { blocks, pairs: &self.pairs, inc: &self.inc, fixed: &rep.fixed };
         let ap = self.params.amg;
         let t0 = Instant::now();
+        // a kept hierarchy gets the fine smoother of this step's stiffness, but only when CG
+        // runs (a step that its warm start solves needs none)
         let (h, fresh) = match std::mem::replace(&mut self.kept, Kept::Nothing) {
-            Kept::Amg(mut h) if ap.reuse && !h.is_stale() => {
-                h.refresh_fine_smoother(&blocks.diag)?;
-                (*h, false)
-            }
+            Kept::Amg(h) if ap.reuse && !h.is_stale() && h.fine_fixed() == rep.fixed.as_slice() => (*h, false),
             old => {
+                // aggregates (and the coarse symbolic factor) of the last build serve while the
+                // free DOF are the same
                 let old = match old {
-                    Kept::Amg(h) => Some(*h),
+                    Kept::Amg(h) if h.fine_fixed() == rep.fixed.as_slice() => Some(*h),
                     _ => None,
                 };
                 let h = amg::Amg::build(fine, positions, r_scale, ap, old)?;
@@ -648,6 +651,13 @@ impl AmgSolve<'_> {
         let (mut r, mut rel) = initial_residual(&fine, b, b_norm, x, r0);
         if rel <= params.rtol {
             return (Some(h), Ok(()));
+        }
+        if !fresh {
+            let t0 = Instant::now();
+            if let Err(e) = h.refresh_fine_smoother(&fine.blocks.diag) {
+                return (None, Err(e.into()));
+            }
+            info.factor_seconds += t0.elapsed().as_secs_f64();
         }
         let mut dx = vec![0.0; x.len()];
         while info.newton_iterations < params.max_newton {

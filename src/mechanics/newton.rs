@@ -180,12 +180,18 @@ pub(super) fn initial_residual(op: &amg::FineOp, b: &[f64], b_norm: f64, x: &[f6
 /// The warm start (docs/mechanics.md (B12)): the Galerkin projection of `K x = b` onto the span of
 /// the earlier solutions `history` (fixed DOF of the current topology zeroed), `x₀ = V c` with
 /// `(VᵀKV) c = Vᵀb`, the K-norm-optimal start in that span. The directions are made
-/// K-orthonormal newest first; one that keeps less than 1e-12 of its K-norm² after
-/// orthogonalisation (parallel to those kept) is dropped. Writes `x` and returns the relative
-/// residual ‖b − K x₀‖₂/‖b‖₂ with the residual (1, None and `x = 0` when no direction lowers it).
-pub(super) fn warm_start(op: &amg::FineOp, history: &[Vec<f64>], b: &[f64], b_norm: f64, x: &mut [f64]) -> (f64, Option<Vec<f64>>) {
+/// K-orthonormal newest first and projected one by one; one that keeps less than 1e-12 of its
+/// K-norm² after orthogonalisation (parallel to those kept) is dropped, and the older ones are
+/// not needed once the relative residual is at most `rtol` (the step is then solved). Writes `x`
+/// and returns the relative residual ‖b − K x₀‖₂/‖b‖₂ with the residual (1, None and `x = 0`
+/// when no direction lowers it).
+pub(super) fn warm_start(op: &amg::FineOp, history: &[Vec<f64>], b: &[f64], b_norm: f64, rtol: f64, x: &mut [f64]) -> (f64, Option<Vec<f64>>) {
     let n = b.len();
+    let mut kept = false;
     let mut basis: Vec<(Vec<f64>, Vec<f64>)> = Vec::with_capacity(history.len());
+    x.iter_mut().for_each(|v| *v = 0.0);
+    let mut r = b.to_vec();
+    let mut rel = 1.0;
     for h in history.iter().rev() {
         let mut v = h.clone();
         for (i, m) in op.fixed.iter().enumerate() {
@@ -210,21 +216,18 @@ pub(super) fn warm_start(op: &amg::FineOp, history: &[Vec<f64>], b: &[f64], b_no
         let s = 1.0 / vkv.sqrt();
         v.par_iter_mut().for_each(|vi| *vi *= s);
         kv.par_iter_mut().for_each(|vi| *vi *= s);
+        // K-orthonormal basis: x₀ = Σ (uᵢ·b) uᵢ, r₀ = b − Σ (uᵢ·b) K uᵢ, one direction at a time
+        let c = cg::dot(&v, b);
+        x.par_iter_mut().zip(v.par_iter()).for_each(|(xi, ui)| *xi += c * ui);
+        r.par_iter_mut().zip(kv.par_iter()).for_each(|(ri, ki)| *ri -= c * ki);
+        kept = true;
+        rel = cg::dot(&r, &r).sqrt() / b_norm;
+        if rel <= rtol {
+            break;
+        }
         basis.push((v, kv));
     }
-    x.iter_mut().for_each(|v| *v = 0.0);
-    if basis.is_empty() {
-        return (1.0, None);
-    }
-    // K-orthonormal basis: x₀ = Σ (uᵢ·b) uᵢ, r₀ = b − Σ (uᵢ·b) K uᵢ
-    let mut r = b.to_vec();
-    for (u, ku) in &basis {
-        let c = cg::dot(u, b);
-        x.par_iter_mut().zip(u.par_iter()).for_each(|(xi, ui)| *xi += c * ui);
-        r.par_iter_mut().zip(ku.par_iter()).for_each(|(ri, ki)| *ri -= c * ki);
-    }
-    let rel = cg::dot(&r, &r).sqrt() / b_norm;
-    if !(rel.is_finite() && rel < 1.0) {
+    if !kept || !(rel.is_finite() && rel < 1.0) {
         x.iter_mut().for_each(|v| *v = 0.0);
         return (1.0, None);
     }

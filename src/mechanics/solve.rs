@@ -95,9 +95,15 @@ pub struct MechParams {
     /// system onto the last [`WARM_START_DEPTH`] solutions (docs/mechanics.md (B12)) instead of
     /// from zero [flag]. Cholesky steps do not use it.
     pub warm_start: bool,
+    /// Earlier solutions spanning the warm start (B12) [1], in [1, 8].
+    pub warm_start_depth: usize,
+    /// Keep the AMG hierarchy across a change of the bond set while the free DOF stay the same:
+    /// the fine level (smoother, residual) is the new stiffness, the coarse levels those of the
+    /// last build, rebuilt by the rule of `amg.reuse` [flag] (docs/coupled.md "Scaling", 2026-12-04).
+    pub amg_keep_on_new_bonds: bool,
 }
 
-/// Solutions of earlier steps kept for the warm start [1].
+/// Solutions of earlier steps kept for the warm start by default [1].
 pub const WARM_START_DEPTH: usize = 2;
 
 impl Default for MechParams {
@@ -114,6 +120,8 @@ impl Default for MechParams {
             stale_factor_cg: false,
             amg: Default::default(),
             warm_start: false,
+            warm_start_depth: WARM_START_DEPTH,
+            amg_keep_on_new_bonds: false,
         }
     }
 }
@@ -135,6 +143,9 @@ impl MechParams {
         }
         if !(1..=100).contains(&self.max_newton) {
             return bad("max_newton", self.max_newton as f64, "[1, 100]", "1");
+        }
+        if !(1..=8).contains(&self.warm_start_depth) {
+            return bad("warm_start_depth", self.warm_start_depth as f64, "[1, 8]", "1");
         }
         if self.pcg_max_iter == 0 {
             return bad("pcg_max_iter", 0.0, "[1, ∞)", "1");
