@@ -790,6 +790,24 @@ fn draw_marker<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, p: (f64, f64),
     }
 }
 
+/// The subtitle as drawn: one line, or two split at the "; " (else ", ") nearest its middle when
+/// one line would need a font below 80 % of `size` [px] in the width `w` [px].
+fn subtitle_lines(sub: &str, w: f64, size: f64) -> Vec<String> {
+    let n = sub.chars().count();
+    if sub.is_empty() {
+        return Vec::new();
+    }
+    if 0.56 * size * 0.8 * n as f64 <= 0.95 * w {
+        return vec![sub.to_string()];
+    }
+    let mid = sub.len() / 2;
+    let split = ["; ", ", "].iter().find_map(|sep| sub.match_indices(sep).map(|(i, _)| i).min_by_key(|&i| i.abs_diff(mid)).map(|i| (i, sep.len())));
+    match split {
+        Some((i, l)) => vec![sub[..i + l.min(1)].trim_end().to_string(), sub[i + l..].to_string()],
+        None => vec![sub.to_string()],
+    }
+}
+
 /// The title, subtitle, axes and series of a spec.
 fn draw<DB: DrawingBackend>(spec: &PlotSpec, root: DrawingArea<DB, Shift>, raster: bool) -> DrawResult<DB::ErrorType> {
     font();
@@ -799,17 +817,18 @@ fn draw<DB: DrawingBackend>(spec: &PlotSpec, root: DrawingArea<DB, Shift>, raste
     // title and subtitle, each shrunk to fit the width
     let fit = |text: &str, size: f64| -> f64 { size.min(0.95 * w as f64 / (0.56 * text.chars().count().max(1) as f64)) };
     let title_size = fit(&spec.title, lay.scale * 24.0);
-    let sub_size = fit(&spec.subtitle, lay.scale * 17.0);
+    let sub_lines = subtitle_lines(&spec.subtitle, w as f64, lay.scale * 17.0);
     let mut head = lay.px(8.0) as i32;
     if !spec.title.is_empty() {
         let st = TextStyle::from(("sans-serif", title_size).into_font()).pos(Pos::new(HPos::Center, VPos::Top));
         root.draw_text(&spec.title, &st, (w as i32 / 2, head))?;
         head += (title_size * 1.3) as i32;
     }
-    if !spec.subtitle.is_empty() {
-        let st = TextStyle::from(("sans-serif", sub_size).into_font()).color(&RGBColor(70, 70, 70)).pos(Pos::new(HPos::Center, VPos::Top));
-        root.draw_text(&spec.subtitle, &st, (w as i32 / 2, head))?;
-        head += (sub_size * 1.35) as i32;
+    for line in &sub_lines {
+        let size = fit(line, lay.scale * 17.0);
+        let st = TextStyle::from(("sans-serif", size).into_font()).color(&RGBColor(70, 70, 70)).pos(Pos::new(HPos::Center, VPos::Top));
+        root.draw_text(line, &st, (w as i32 / 2, head))?;
+        head += (size * 1.35) as i32;
     }
     let (_, body) = root.split_vertically(head + lay.px(4.0) as i32);
     let ((x0, x1), (y0, y1)) = (spec.x.range, spec.y.range);
@@ -1138,6 +1157,17 @@ mod tests {
         // 28 ids of 4 characters do not fit one row in 960 px: staggered rows
         assert!(tick_rows(&ticks, 30.0, 9.0) >= 2);
         assert_eq!(tick_rows(&ticks[..5], 150.0, 9.0), 1);
+    }
+
+    #[test]
+    fn a_long_subtitle_is_split_in_two_lines() {
+        let long = "28 two-particle runs, heating counted from 793 K, each experiment's own particle diameter; one line per peak temperature and heating rate";
+        assert_eq!(
+            subtitle_lines(long, 960.0, 17.0),
+            ["28 two-particle runs, heating counted from 793 K, each experiment's own particle diameter;", "one line per peak temperature and heating rate"]
+        );
+        assert_eq!(subtitle_lines("805 particles of copper", 960.0, 17.0), ["805 particles of copper"]);
+        assert!(subtitle_lines("", 960.0, 17.0).is_empty());
     }
 
     #[test]

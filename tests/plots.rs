@@ -125,3 +125,22 @@ fn study_plots_show_the_ids_and_one_line_per_value_of_the_second_factor() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn titanium_table_plot_has_one_line_per_schedule_from_zero() {
+    let dir = common::tmp_dir("titanium");
+    sinterdem::kinds::titanium::run_all_titanium(&dir, sinterdem::kinds::titanium::TRUNCATED_START, None).unwrap();
+    let s = svg(&dir.join("titanium_shrinkage.svg"));
+    let t = texts(&s);
+    assert!(t.contains(&"Titanium pairs of Ivannikov et al. 2022 (Table 3): final shrinkage".to_string()), "{t:?}");
+    assert!(t.contains(&"hold time at the peak temperature [min]".to_string()), "{t:?}");
+    for g in ["1203 K, 20 K/min", "1203 K, 50 K/min", "1373 K, 20 K/min", "1373 K, 50 K/min", "1573 K, 20 K/min", "1573 K, 50 K/min"] {
+        assert!(t.contains(&g.to_string()), "{g}: {t:?}");
+    }
+    // six lines in the four styles: three dash arrays
+    assert_eq!(dash_arrays(&s), ["0.5,7", "10,9", "12,8,0.5,8"]);
+    assert!(t.contains(&"0".to_string()), "the shrinkage axis starts at zero: {t:?}");
+    if std::env::var_os("SINTERDEM_KEEP_PLOTS").is_none() {
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}

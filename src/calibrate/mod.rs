@@ -450,9 +450,10 @@ pub fn run(setup: Setup, out: &Path, log: &mut dyn FnMut(&str)) -> Result<report
     let m_out = write_fitted_material(out, &rep, pb, &m_fit, &f_fit, &values, &data_path)?;
     report::write_residuals(&out.join("residuals.csv"), &pb.experiments, &res)?;
     let header = (
-        format!("{}: calibration of {}", rep.title, rep.material),
+        rep.title.clone(),
         format!(
-            "{} model, {} experiments, {} fitted parameters, chi2 per degree of freedom {:.3}",
+            "calibration of {}: {} model, {} experiments, {} fitted parameters, chi2 per degree of freedom {:.3}",
+            rep.material,
             rep.model,
             pb.experiments.len(),
             rep.parameter_order.len(),

@@ -363,11 +363,12 @@ pub fn calibration_plots(experiments: &[Experiment], res: &[Residual], header: &
             continue;
         }
         let x = |r: &Residual| (r.experiment + 1) as f64;
-        let mut p = Plot::new(format!("{}: {} at the end of each schedule", header.0, quantity_label(q)))
+        let short = if q == Quantity::NeckRatio { "neck size" } else { "shrinkage" };
+        let mut p = Plot::new(format!("{}: {short} at the end of each schedule", header.0))
             .subtitle(header.1.clone())
             .labels("experiment", quantity_label(q))
             .x_ticks(ticks.clone())
-            .y_zero(true);
+            .y_zero(q == Quantity::Shrinkage);
         p.add(
             Series::new("measured (± σ)", ends.iter().map(|r| (x(r), r.measured.value)).collect())
                 .points_only()
