@@ -1,12 +1,18 @@
-//! The shared line-plot facility: several named series, linear or logarithmic axes, axis labels,
-//! title, legend, markers and error bars, drawn with the `plotters` crate. Every plot is written as
-//! PNG and SVG ([`Plot::save_png`] writes both). Labels use DejaVu Sans, embedded in the binary
+//! The shared line-plot facility, in two halves: a plain [`PlotSpec`] that holds every decision
+//! (title, subtitle, axis labels with units, axis ranges, tick labels, per-series colour, line
+//! style and marker shape and where the markers sit) and a renderer that draws a spec with the
+//! `plotters` crate as PNG and SVG ([`Plot::save_png`] writes both). The decisions are tested on
+//! the spec; the renderer only draws it. Labels use DejaVu Sans, embedded in the binary
 //! (`assets/fonts/DejaVuSans.ttf`, licence in `assets/fonts/LICENSE-DejaVu.txt`), so no system
 //! fonts are needed.
 //!
+//! Every series is told apart by colour, line style (solid, dashed, dotted, dash-dot) and marker
+//! shape; a line carries a few markers at positions staggered per series, so two curves that lie
+//! on top of each other both stay visible (docs/outputs.md "Plots", docs/decisions.md).
+//!
 //! ```no_run
 //! use sinterdem::plot::{Plot, Series};
-//! let mut p = Plot::new("Neck growth").labels("time t [s]", "y1/R [1]").log_x(true);
+//! let mut p = Plot::new("Neck growth").subtitle("copper, 2 × 50 µm").labels("time [s]", "neck radius / particle radius").log_x(true);
 //! p.add(Series::new("copper", vec![(1.0, 0.1), (10.0, 0.14), (100.0, 0.21)]));
 //! p.save_png(std::path::Path::new("neck.png")).unwrap(); // neck.png and neck.svg
 //! ```
@@ -14,30 +20,103 @@
 use crate::error::IoError;
 use plotters::coord::Shift;
 use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 use std::path::Path;
 
-/// One named curve.
+/// How a series' line is drawn. Patterns are on/off lengths in pixels at the 640-pixel reference
+/// height, drawn with round caps (a dot is a dash of almost zero length).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LineStyle {
+    Solid,
+    Dashed,
+    Dotted,
+    DashDot,
+}
+
+impl LineStyle {
+    /// The order in which series receive styles.
+    pub const CYCLE: [LineStyle; 4] = [LineStyle::Solid, LineStyle::Dashed, LineStyle::Dotted, LineStyle::DashDot];
+
+    /// On/off lengths [px at 640 px height]; empty: solid.
+    pub fn pattern(self) -> &'static [f64] {
+        match self {
+            LineStyle::Solid => &[],
+            LineStyle::Dashed => &[10.0, 9.0],
+            LineStyle::Dotted => &[0.5, 7.0],
+            LineStyle::DashDot => &[12.0, 8.0, 0.5, 8.0],
+        }
+    }
+
+    /// The SVG `stroke-dasharray` value at `scale` (None: solid).
+    pub fn svg_dasharray(self, scale: f64) -> Option<String> {
+        let p = self.pattern();
+        (!p.is_empty()).then(|| p.iter().map(|v| tick_label((v * scale * 10.0).round() / 10.0)).collect::<Vec<_>>().join(","))
+    }
+}
+
+/// A marker shape; `Open*` shapes are white inside with a coloured outline.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Marker {
+    Circle,
+    Square,
+    Triangle,
+    Diamond,
+    OpenCircle,
+    OpenSquare,
+    OpenTriangle,
+    OpenDiamond,
+}
+
+impl Marker {
+    /// The order in which series receive marker shapes.
+    pub const CYCLE: [Marker; 8] =
+        [Marker::Circle, Marker::Square, Marker::Triangle, Marker::Diamond, Marker::OpenCircle, Marker::OpenSquare, Marker::OpenTriangle, Marker::OpenDiamond];
+}
+
+/// Where a series' markers sit.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MarkerPlacement {
+    /// No markers.
+    None,
+    /// At every data point.
+    Every,
+    /// `count` markers along the drawn line at arc-length fractions (j + phase)/count,
+    /// j = 0…count−1: series sharing a plot get different phases, so overlapping curves show all
+    /// their markers.
+    Staggered { phase: f64, count: usize },
+}
+
+/// One named curve, as the caller describes it ([`Plot::spec`] turns it into a [`SeriesSpec`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Series {
     pub name: String,
     /// (x, y) points in drawing order; non-finite points (and non-positive ones on a log axis) are
     /// skipped and break the line.
     pub points: Vec<(f64, f64)>,
-    /// Draw a marker at every point.
+    /// Draw a marker at every point (otherwise a line gets a few staggered markers).
     pub markers: bool,
     /// Connect the points with a line.
     pub line: bool,
     /// Half-widths of vertical error bars, one per point (empty: none).
     pub error_bars: Vec<f64>,
+    /// Line style (None: from the series' place, [`LineStyle::CYCLE`]).
+    pub style: Option<LineStyle>,
+    /// Marker shape (None: from the series' place, [`Marker::CYCLE`]).
+    pub marker: Option<Marker>,
+    /// No markers at all (a histogram).
+    pub plain: bool,
+    /// A reference line (a band, a ±2σ limit): dark grey, dashed, no markers; does not take a
+    /// colour, style or marker from the cycles.
+    pub reference: bool,
 }
 
 impl Series {
-    /// A line without markers.
+    /// A line (with a few staggered markers).
     pub fn new(name: impl Into<String>, points: Vec<(f64, f64)>) -> Series {
-        Series { name: name.into(), points, markers: false, line: true, error_bars: Vec::new() }
+        Series { name: name.into(), points, markers: false, line: true, error_bars: Vec::new(), style: None, marker: None, plain: false, reference: false }
     }
 
-    /// Also draw markers.
+    /// A marker at every point.
     pub fn with_markers(mut self) -> Series {
         self.markers = true;
         self
@@ -56,20 +135,94 @@ impl Series {
         self.markers = true;
         self
     }
+
+    /// A chosen line style.
+    pub fn style(mut self, s: LineStyle) -> Series {
+        self.style = Some(s);
+        self
+    }
+
+    /// A chosen marker shape.
+    pub fn marker(mut self, m: Marker) -> Series {
+        self.marker = Some(m);
+        self
+    }
+
+    /// No markers (a histogram outline).
+    pub fn plain(mut self) -> Series {
+        self.plain = true;
+        self.markers = false;
+        self
+    }
+
+    /// A reference line: dark grey, dashed, no markers.
+    pub fn reference(mut self) -> Series {
+        self.reference = true;
+        self.plain = true;
+        self.markers = false;
+        self
+    }
 }
 
-/// A line plot.
+/// A line plot as the caller builds it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Plot {
     pub title: String,
+    /// The second line under the title (the case and its key settings).
+    pub subtitle: String,
     pub x_label: String,
     pub y_label: String,
     pub log_x: bool,
     pub log_y: bool,
+    /// The axis range includes zero (a linear axis whose honest scale starts at zero).
+    pub x_zero: bool,
+    pub y_zero: bool,
+    /// Named tick positions on x (experiment ids); empty: numeric ticks.
+    pub x_ticks: Vec<(f64, String)>,
     /// Image size in pixels.
     pub width: u32,
     pub height: u32,
     pub series: Vec<Series>,
+}
+
+/// One axis of a [`PlotSpec`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct AxisSpec {
+    /// The label with its unit, `temperature [K]`.
+    pub label: String,
+    pub log: bool,
+    /// The drawn range (data, padding and zero included).
+    pub range: (f64, f64),
+    /// Named ticks (empty: numeric ticks from [`tick_label`]).
+    pub ticks: Vec<(f64, String)>,
+}
+
+/// One series of a [`PlotSpec`]: every drawing decision made.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SeriesSpec {
+    pub name: String,
+    pub colour: [u8; 3],
+    /// None: no line.
+    pub line: Option<LineStyle>,
+    /// None: no markers.
+    pub marker: Option<Marker>,
+    pub placement: MarkerPlacement,
+    pub points: Vec<(f64, f64)>,
+    pub error_bars: Vec<f64>,
+}
+
+/// Everything a plot shows, decided; [`render_spec`] draws it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlotSpec {
+    pub title: String,
+    pub subtitle: String,
+    pub x: AxisSpec,
+    pub y: AxisSpec,
+    pub series: Vec<SeriesSpec>,
+    /// A legend (two or more named series).
+    pub legend: bool,
+    pub width: u32,
+    pub height: u32,
 }
 
 type Rgb = [u8; 3];
@@ -87,6 +240,20 @@ const PALETTE: [Rgb; 10] = [
     [23, 190, 207],
 ];
 
+/// The colour of reference lines (not in the palette).
+const REFERENCE: Rgb = [80, 80, 80];
+
+/// Markers along a line (staggered placement).
+const STAGGERED_MARKERS: usize = 8;
+
+/// The colour of the k-th series: the palette, darkened on each further pass, so every series of
+/// a plot has its own colour (the SVG dash arrays are keyed by it).
+fn colour(k: usize) -> Rgb {
+    let c = PALETTE[k % PALETTE.len()];
+    let f = 1.0 - 0.25 * (k / PALETTE.len()).min(3) as f64;
+    c.map(|v| (v as f64 * f).round() as u8)
+}
+
 /// The embedded font, registered once as plotters' "sans-serif".
 fn font() {
     static ONCE: std::sync::Once = std::sync::Once::new();
@@ -94,6 +261,71 @@ fn font() {
         let bytes: &'static [u8] = include_bytes!("../assets/fonts/DejaVuSans.ttf");
         let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, bytes);
     });
+}
+
+/// A display unit: a value in it is the SI value / `factor`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Unit {
+    pub name: &'static str,
+    pub factor: f64,
+}
+
+impl Unit {
+    /// The SI value `v` in this unit.
+    pub fn of(&self, v: f64) -> f64 {
+        v / self.factor
+    }
+
+    /// `(x, y)` points with x [SI] converted to this unit.
+    pub fn x(&self, pts: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
+        pts.into_iter().map(|(x, y)| (x / self.factor, y)).collect()
+    }
+}
+
+/// The unit a time axis reads best in, from the largest time shown `span` [s]: µs below 1 ms,
+/// ms below 1 s, s below 5 min, min below 5 h, else h. A log axis spans decades and stays in s.
+pub fn time_unit(span: f64, log: bool) -> Unit {
+    let a = span.abs();
+    if log || !a.is_finite() {
+        Unit { name: "s", factor: 1.0 }
+    } else if a < 1e-3 {
+        Unit { name: "µs", factor: 1e-6 }
+    } else if a < 1.0 {
+        Unit { name: "ms", factor: 1e-3 }
+    } else if a < 300.0 {
+        Unit { name: "s", factor: 1.0 }
+    } else if a < 5.0 * 3600.0 {
+        Unit { name: "min", factor: 60.0 }
+    } else {
+        Unit { name: "h", factor: 3600.0 }
+    }
+}
+
+/// The unit a length axis reads best in, from the largest length shown `span` [m]: nm below
+/// 1 µm, µm below 1 mm, mm below 1 m, else m.
+pub fn length_unit(span: f64) -> Unit {
+    let a = span.abs();
+    if !a.is_finite() || a >= 1.0 {
+        Unit { name: "m", factor: 1.0 }
+    } else if a < 1e-6 {
+        Unit { name: "nm", factor: 1e-9 }
+    } else if a < 1e-3 {
+        Unit { name: "µm", factor: 1e-6 }
+    } else {
+        Unit { name: "mm", factor: 1e-3 }
+    }
+}
+
+/// A time as it reads in a title: `45 s`, `83.3 min`, `3.5 h`.
+pub fn fmt_time(t: f64) -> String {
+    let u = time_unit(t, false);
+    format!("{} {}", tick_label((u.of(t) * 10.0).round() / 10.0), u.name)
+}
+
+/// A length as it reads in a title: `33.3 µm`.
+pub fn fmt_length(l: f64) -> String {
+    let u = length_unit(l);
+    format!("{} {}", tick_label((u.of(l) * 10.0).round() / 10.0), u.name)
 }
 
 /// A tick label: at most 4 significant digits, plain for 1e-3 ≤ |v| < 1e5, else `2.5e-5`.
@@ -140,7 +372,26 @@ type DrawResult<E> = Result<(), DrawingAreaErrorKind<E>>;
 impl Plot {
     /// An empty 960×640 plot with linear axes.
     pub fn new(title: impl Into<String>) -> Plot {
-        Plot { title: title.into(), x_label: String::new(), y_label: String::new(), log_x: false, log_y: false, width: 960, height: 640, series: Vec::new() }
+        Plot {
+            title: title.into(),
+            subtitle: String::new(),
+            x_label: String::new(),
+            y_label: String::new(),
+            log_x: false,
+            log_y: false,
+            x_zero: false,
+            y_zero: false,
+            x_ticks: Vec::new(),
+            width: 960,
+            height: 640,
+            series: Vec::new(),
+        }
+    }
+
+    /// The subtitle (the case and its key settings).
+    pub fn subtitle(mut self, s: impl Into<String>) -> Plot {
+        self.subtitle = s.into();
+        self
     }
 
     /// Axis labels.
@@ -162,6 +413,24 @@ impl Plot {
         self
     }
 
+    /// The y axis includes zero (ignored on a log axis).
+    pub fn y_zero(mut self, on: bool) -> Plot {
+        self.y_zero = on;
+        self
+    }
+
+    /// The x axis includes zero (ignored on a log axis).
+    pub fn x_zero(mut self, on: bool) -> Plot {
+        self.x_zero = on;
+        self
+    }
+
+    /// Named ticks on x: the label of each position (experiment ids instead of run numbers).
+    pub fn x_ticks(mut self, ticks: Vec<(f64, String)>) -> Plot {
+        self.x_ticks = ticks;
+        self
+    }
+
     /// Adds a series.
     pub fn add(&mut self, s: Series) {
         self.series.push(s);
@@ -171,12 +440,60 @@ impl Plot {
         x.is_finite() && y.is_finite() && (!self.log_x || x > 0.0) && (!self.log_y || y > 0.0)
     }
 
-    /// Data ranges (x exact, y padded; error bars included).
-    fn ranges(&self) -> ((f64, f64), (f64, f64)) {
+    /// Every decision of the plot: styles, markers, colours, ranges and ticks.
+    pub fn spec(&self) -> PlotSpec {
+        let styled: Vec<usize> = (0..self.series.len()).filter(|&i| !self.series[i].reference).collect();
+        let staggered: Vec<usize> = styled.iter().copied().filter(|&i| self.series[i].line && !self.series[i].markers && !self.series[i].plain).collect();
+        let series: Vec<SeriesSpec> = self
+            .series
+            .iter()
+            .enumerate()
+            .map(|(i, s)| {
+                let k = styled.iter().position(|&j| j == i);
+                let (col, line, marker) = match k {
+                    Some(k) => (
+                        colour(k),
+                        s.line.then(|| s.style.unwrap_or(LineStyle::CYCLE[k % LineStyle::CYCLE.len()])),
+                        (!s.plain).then(|| s.marker.unwrap_or(Marker::CYCLE[k % Marker::CYCLE.len()])),
+                    ),
+                    None => (REFERENCE, s.line.then(|| s.style.unwrap_or(LineStyle::Dashed)), None),
+                };
+                let placement = match (marker, s.markers) {
+                    (None, _) => MarkerPlacement::None,
+                    (Some(_), true) => MarkerPlacement::Every,
+                    (Some(_), false) => {
+                        let j = staggered.iter().position(|&j| j == i).unwrap_or(0);
+                        MarkerPlacement::Staggered { phase: (j as f64 + 0.5) / staggered.len().max(1) as f64, count: STAGGERED_MARKERS }
+                    }
+                };
+                SeriesSpec { name: s.name.clone(), colour: col, line, marker, placement, points: s.points.clone(), error_bars: s.error_bars.clone() }
+            })
+            .collect();
+        let (xr, yr) = self.ranges(&series);
+        let legend = series.iter().filter(|s| !s.name.is_empty()).count() >= 2;
+        let (w, h) = (self.width.max(200), self.height.max(150));
+        PlotSpec {
+            title: self.title.clone(),
+            subtitle: self.subtitle.clone(),
+            x: AxisSpec { label: self.x_label.clone(), log: self.log_x, range: xr, ticks: self.x_ticks.clone() },
+            y: AxisSpec { label: self.y_label.clone(), log: self.log_y, range: yr, ticks: Vec::new() },
+            series,
+            legend,
+            width: w,
+            height: h,
+        }
+    }
+
+    /// Axis ranges: x exactly the data unless markers sit on data points (then 3 % padding, so
+    /// no marker is cut at an axis) or ticks are named (half a slot either side); y padded by
+    /// 4 %; zero included where asked (an axis starting at zero is not padded below it).
+    fn ranges(&self, series: &[SeriesSpec]) -> ((f64, f64), (f64, f64)) {
         let (mut xlo, mut xhi, mut ylo, mut yhi) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
-        for s in &self.series {
+        let mut every = false;
+        for s in series {
             for (k, &(x, y)) in s.points.iter().enumerate() {
                 if self.ok(x, y) {
+                    every |= s.placement == MarkerPlacement::Every;
                     let e = s.error_bars.get(k).copied().filter(|e| e.is_finite()).unwrap_or(0.0).abs();
                     xlo = xlo.min(x);
                     xhi = xhi.max(x);
@@ -189,215 +506,47 @@ impl Plot {
                 }
             }
         }
-        (range(xlo, xhi, self.log_x, 0.0), range(ylo, yhi, self.log_y, 0.04))
-    }
-
-    fn size(&self) -> (u32, u32) {
-        (self.width.max(200), self.height.max(150))
-    }
-
-    /// Draws onto any plotters backend.
-    fn draw<DB: DrawingBackend>(&self, root: DrawingArea<DB, Shift>, raster: bool) -> DrawResult<DB::ErrorType> {
-        font();
-        root.fill(&WHITE)?;
-        let ((x0, x1), (y0, y1)) = self.ranges();
-        match (self.log_x, self.log_y) {
-            (false, false) => self.chart(&root, x0..x1, y0..y1, raster),
-            (true, false) => self.chart(&root, (x0..x1).log_scale(), y0..y1, raster),
-            (false, true) => self.chart(&root, x0..x1, (y0..y1).log_scale(), raster),
-            (true, true) => self.chart(&root, (x0..x1).log_scale(), (y0..y1).log_scale(), raster),
-        }?;
-        root.present()
-    }
-
-    fn chart<DB, X, Y>(&self, root: &DrawingArea<DB, Shift>, xr: X, yr: Y, raster: bool) -> DrawResult<DB::ErrorType>
-    where
-        DB: DrawingBackend,
-        X: plotters::coord::ranged1d::AsRangedCoord<Value = f64>,
-        Y: plotters::coord::ranged1d::AsRangedCoord<Value = f64>,
-        X::CoordDescType: plotters::coord::ranged1d::ValueFormatter<f64>,
-        Y::CoordDescType: plotters::coord::ranged1d::ValueFormatter<f64>,
-    {
-        let (w, h) = self.size();
-        let scale = (h as f64 / 640.0).clamp(0.5, 3.0);
-        let px = |v: f64| (v * scale).round() as u32;
-        let tick_font = ("sans-serif", px(17.0) as f64);
-        let label_font = ("sans-serif", px(20.0) as f64);
-        // room for the widest y tick label (≈ 0.6 em per character) plus the rotated axis title
-        let ((_, _), (ylo, yhi)) = self.ranges();
-        let widest = [ylo, yhi, 0.5 * (ylo + yhi), -ylo.abs().max(yhi.abs())].iter().map(|&v| tick_label(v).chars().count()).max().unwrap_or(4).max(4);
-        let y_area = px(17.0 * 0.62 * widest as f64 + 44.0);
-        let mut chart = ChartBuilder::on(root)
-            .caption(&self.title, ("sans-serif", px(24.0) as f64))
-            .margin_top(px(10.0))
-            .margin_left(px(10.0))
-            .margin_right(px(28.0))
-            .margin_bottom(px(10.0))
-            .x_label_area_size(px(62.0))
-            .y_label_area_size(y_area)
-            .build_cartesian_2d(xr, yr)?;
-        let fmt = |v: &f64| tick_label(*v);
-        chart
-            .configure_mesh()
-            .x_desc(self.x_label.as_str())
-            .y_desc(self.y_label.as_str())
-            .axis_desc_style(label_font)
-            .label_style(tick_font)
-            .x_label_formatter(&fmt)
-            .y_label_formatter(&fmt)
-            .x_labels(if w >= 700 { 9 } else { 5 })
-            .y_labels(8)
-            .light_line_style(RGBColor(240, 240, 240))
-            .bold_line_style(RGBColor(215, 215, 215))
-            .draw()?;
-        let lw = px(2.5).max(1);
-        let named = self.series.iter().filter(|s| !s.name.is_empty()).count();
-        for (k, s) in self.series.iter().enumerate() {
-            let c = PALETTE[k % PALETTE.len()];
-            let col = RGBColor(c[0], c[1], c[2]);
-            let style = ShapeStyle::from(&col).stroke_width(lw);
-            // runs of drawable points: a skipped point breaks the line
-            let mut runs: Vec<Vec<(f64, f64)>> = vec![Vec::new()];
-            for &(x, y) in &s.points {
-                if self.ok(x, y) {
-                    runs.last_mut().expect("one run").push((x, y));
-                } else if !runs.last().expect("one run").is_empty() {
-                    runs.push(Vec::new());
-                }
-            }
-            let mut first = true;
-            if s.line {
-                for run in runs.iter().filter(|r| !r.is_empty()) {
-                    let run = self.thin(run, w, h);
-                    let a = if raster {
-                        // plotters' bitmap polygonisation of a wide polyline breaks at sharp turns
-                        // (histogram steps): segments with round joints instead
-                        let r = (lw / 2).max(1);
-                        let joints: Vec<(f64, f64)> = if lw > 1 { run.clone() } else { Vec::new() };
-                        chart.draw_series(joints.into_iter().map(|p| Circle::new(p, r, col.filled())))?;
-                        chart.draw_series(run.windows(2).map(|q| PathElement::new(vec![q[0], q[1]], style)))?
-                    } else {
-                        chart.draw_series(LineSeries::new(run.iter().copied(), style))?
-                    };
-                    if first && !s.name.is_empty() && named >= 2 {
-                        let mk = s.markers;
-                        a.label(s.name.as_str()).legend(move |(x, y)| {
-                            let l = PathElement::new(vec![(x, y), (x + 24, y)], style);
-                            let m = Circle::new((x + 12, y), if mk { 4 } else { 0 }, col.filled());
-                            EmptyElement::at((0, 0)) + l + m
-                        });
-                        first = false;
-                    }
-                }
-            }
-            if s.markers {
-                let r = px(4.0).max(2);
-                let a = chart.draw_series(runs.iter().flatten().map(|&(x, y)| Circle::new((x, y), r, col.filled())))?;
-                if first && !s.name.is_empty() && named >= 2 {
-                    a.label(s.name.as_str()).legend(move |(x, y)| Circle::new((x + 12, y), 4, col.filled()));
-                }
-            }
-            if !s.error_bars.is_empty() {
-                let bars: Vec<(f64, f64, f64, f64)> = s
-                    .points
-                    .iter()
-                    .zip(&s.error_bars)
-                    .filter(|&(&(x, y), e)| self.ok(x, y) && e.is_finite())
-                    .map(|(&(x, y), &e)| {
-                        let lo = if self.log_y && y - e.abs() <= 0.0 { y } else { y - e.abs() };
-                        (x, lo, y, y + e.abs())
-                    })
-                    .collect();
-                chart.draw_series(bars.into_iter().map(|(x, lo, y, hi)| ErrorBar::new_vertical(x, lo, y, hi, style, px(10.0))))?;
-            }
+        for &(x, _) in &self.x_ticks {
+            xlo = xlo.min(x - 0.5);
+            xhi = xhi.max(x + 0.5);
         }
-        if named >= 2 {
-            chart
-                .configure_series_labels()
-                .position(self.legend_corner())
-                .margin(px(12.0))
-                .label_font(("sans-serif", px(16.0) as f64))
-                .background_style(RGBColor(252, 252, 252).mix(0.9))
-                .border_style(RGBColor(160, 160, 160))
-                .draw()?;
-        }
-        Ok(())
-    }
-
-    /// Drops points closer than about half a pixel to the last kept one (a plot of 10⁵ rows draws
-    /// as fast and small as one of 10³).
-    fn thin(&self, run: &[(f64, f64)], w: u32, h: u32) -> Vec<(f64, f64)> {
-        let ((x0, x1), (y0, y1)) = self.ranges();
-        let f = |v: f64, a: f64, b: f64, log: bool| if log { (v.ln() - a.ln()) / (b.ln() - a.ln()) } else { (v - a) / (b - a) };
-        let (sx, sy) = (w as f64, h as f64);
-        let mut out: Vec<(f64, f64)> = Vec::with_capacity(run.len());
-        let mut last = (f64::NAN, f64::NAN);
-        for (k, &(x, y)) in run.iter().enumerate() {
-            let p = (f(x, x0, x1, self.log_x) * sx, f(y, y0, y1, self.log_y) * sy);
-            if k == 0 || k + 1 == run.len() || (p.0 - last.0).hypot(p.1 - last.1) >= 0.5 {
-                out.push((x, y));
-                last = p;
+        let zero = |lo: &mut f64, hi: &mut f64, on: bool, log: bool| {
+            let from_zero = on && !log && lo.is_finite() && *lo >= 0.0;
+            let to_zero = on && !log && hi.is_finite() && *hi <= 0.0;
+            if from_zero {
+                *lo = 0.0;
             }
-        }
-        out
-    }
-
-    /// The corner of the plot area that hides the fewest points.
-    fn legend_corner(&self) -> SeriesLabelPosition {
-        let ((x0, x1), (y0, y1)) = self.ranges();
-        let f = |v: f64, a: f64, b: f64, log: bool| if log { (v.ln() - a.ln()) / (b.ln() - a.ln()) } else { (v - a) / (b - a) };
-        let named = self.series.iter().filter(|s| !s.name.is_empty()).count() as f64;
-        let (lw, lh) = (0.35, (0.06 * named + 0.04).min(0.6));
-        let corners = [
-            (SeriesLabelPosition::UpperRight, 1.0 - lw, 1.0 - lh),
-            (SeriesLabelPosition::UpperLeft, 0.0, 1.0 - lh),
-            (SeriesLabelPosition::LowerRight, 1.0 - lw, 0.0),
-            (SeriesLabelPosition::LowerLeft, 0.0, 0.0),
-        ];
-        let pts: Vec<(f64, f64)> = self
-            .series
-            .iter()
-            .flat_map(|s| s.points.iter())
-            .filter(|&&(x, y)| self.ok(x, y))
-            .map(|&(x, y)| (f(x, x0, x1, self.log_x), f(y, y0, y1, self.log_y)))
-            .collect();
-        let mut best = (usize::MAX, SeriesLabelPosition::UpperRight);
-        for (pos, cx, cy) in corners {
-            let hidden = pts.iter().filter(|&&(u, v)| u >= cx - 0.02 && u <= cx + lw + 0.02 && v >= cy - 0.02 && v <= cy + lh + 0.02).count();
-            if hidden < best.0 {
-                best = (hidden, pos);
+            if to_zero {
+                *hi = 0.0;
             }
-        }
-        best.1
+            (from_zero, to_zero)
+        };
+        let zx = zero(&mut xlo, &mut xhi, self.x_zero, self.log_x);
+        let zy = zero(&mut ylo, &mut yhi, self.y_zero, self.log_y);
+        let xpad = if every && self.x_ticks.is_empty() { 0.03 } else { 0.0 };
+        let clamp = |(a, b): (f64, f64), (z0, z1): (bool, bool)| (if z0 && a < 0.0 { 0.0 } else { a }, if z1 && b > 0.0 { 0.0 } else { b });
+        let xr = clamp(range(xlo, xhi, self.log_x, xpad), if every { (false, false) } else { zx });
+        let yr = clamp(range(ylo, yhi, self.log_y, 0.04), zy);
+        (xr, yr)
     }
 
     /// Renders to an RGB buffer (row-major, 3 bytes per pixel).
     pub fn render(&self) -> Vec<u8> {
-        let (w, h) = self.size();
-        let mut buf = vec![255u8; (w * h * 3) as usize];
-        {
-            let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
-            // drawing into memory cannot fail for I/O reasons; a failure leaves a partial image
-            let _ = self.draw(root, true);
-        }
-        buf
+        render_spec(&self.spec())
     }
 
-    /// Renders as an SVG document (text as text, in the "sans-serif" family).
+    /// Renders as an SVG document (text as text, in the "sans-serif" family; dashed lines as
+    /// `stroke-dasharray`).
     pub fn render_svg(&self) -> String {
-        let mut s = String::new();
-        {
-            let root = SVGBackend::with_string(&mut s, self.size()).into_drawing_area();
-            let _ = self.draw(root, false);
-        }
-        s
+        render_spec_svg(&self.spec())
     }
 
     /// Writes the plot as an 8-bit RGB PNG at `path` and as SVG next to it (`path` with the
     /// extension `svg`).
     pub fn save_png(&self, path: &Path) -> Result<(), IoError> {
-        let data = self.render();
-        let (w, h) = self.size();
+        let spec = self.spec();
+        let data = render_spec(&spec);
+        let (w, h) = (spec.width, spec.height);
         // encoded in memory, then written atomically (io::write_atomic_bytes): a full disk leaves
         // no truncated PNG under its final name (issue 26, class 10)
         let mut bytes = Vec::new();
@@ -408,13 +557,459 @@ impl Plot {
         wr.write_image_data(&data).map_err(|e| IoError::new(path, e))?;
         wr.finish().map_err(|e| IoError::new(path, e))?;
         crate::io::write_atomic_bytes(path, &bytes)?;
-        self.save_svg(&path.with_extension("svg"))
+        crate::io::write_atomic(&path.with_extension("svg"), &render_spec_svg(&spec))
     }
 
     /// Writes the plot as SVG (atomically).
     pub fn save_svg(&self, path: &Path) -> Result<(), IoError> {
         crate::io::write_atomic(path, &self.render_svg())
     }
+}
+
+/// Renders a spec to an RGB buffer (row-major, 3 bytes per pixel).
+pub fn render_spec(spec: &PlotSpec) -> Vec<u8> {
+    let (w, h) = (spec.width, spec.height);
+    let mut buf = vec![255u8; (w * h * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        // drawing into memory cannot fail for I/O reasons; a failure leaves a partial image
+        let _ = draw(spec, root, true);
+    }
+    buf
+}
+
+/// Renders a spec as an SVG document.
+pub fn render_spec_svg(spec: &PlotSpec) -> String {
+    let mut s = String::new();
+    {
+        let root = SVGBackend::with_string(&mut s, (spec.width, spec.height)).into_drawing_area();
+        let _ = draw(spec, root, false);
+    }
+    // plotters writes every path as a solid polyline: the series lines (the only polylines of
+    // their colour and line width) get their dash array here
+    let lw = Layout::new(spec).lw;
+    for sp in &spec.series {
+        let Some(style) = sp.line else { continue };
+        let [r, g, b] = sp.colour;
+        let key = format!("stroke=\"#{r:02X}{g:02X}{b:02X}\" stroke-width=\"{lw}\" points=");
+        let dash = style.svg_dasharray(Layout::new(spec).scale).map(|d| format!(" stroke-dasharray=\"{d}\"")).unwrap_or_default();
+        let with = format!("stroke=\"#{r:02X}{g:02X}{b:02X}\" stroke-width=\"{lw}\"{dash} stroke-linecap=\"round\" stroke-linejoin=\"round\" points=");
+        s = s.replace(&key, &with);
+    }
+    s
+}
+
+/// Sizes in pixels for a spec.
+struct Layout {
+    scale: f64,
+    /// Line width, marker outline width (never equal: the SVG dash arrays are keyed by the line
+    /// width), marker radius.
+    lw: u32,
+    mw: u32,
+    r: i32,
+}
+
+impl Layout {
+    fn new(spec: &PlotSpec) -> Layout {
+        let scale = (spec.height as f64 / 640.0).clamp(0.5, 3.0);
+        let lw = ((2.5 * scale).round() as u32).max(1);
+        let mw = if lw >= 3 { lw - 1 } else { lw + 1 };
+        Layout { scale, lw, mw, r: ((5.5 * scale).round() as i32).max(3) }
+    }
+
+    fn px(&self, v: f64) -> u32 {
+        (v * self.scale).round() as u32
+    }
+}
+
+/// Splits a pixel polyline into the drawn pieces of a dash `pattern` (on/off lengths [px]; empty:
+/// the whole line).
+pub fn dash(run: &[(f64, f64)], pattern: &[f64]) -> Vec<Vec<(f64, f64)>> {
+    if pattern.is_empty() || run.len() < 2 || pattern.iter().sum::<f64>() <= 0.0 {
+        return vec![run.to_vec()];
+    }
+    let mut out = Vec::new();
+    let mut cur = vec![run[0]];
+    let (mut k, mut on) = (0usize, true);
+    let mut left = pattern[0];
+    for w in run.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        let len = (b.0 - a.0).hypot(b.1 - a.1);
+        let mut pos = 0.0;
+        while len - pos > left {
+            pos += left;
+            let f = pos / len;
+            let p = (a.0 + f * (b.0 - a.0), a.1 + f * (b.1 - a.1));
+            if on {
+                cur.push(p);
+                out.push(std::mem::take(&mut cur));
+            } else {
+                cur = vec![p];
+            }
+            on = !on;
+            k = (k + 1) % pattern.len();
+            left = pattern[k];
+        }
+        left -= len - pos;
+        if on {
+            cur.push(b);
+        }
+    }
+    if on && cur.len() >= 2 {
+        out.push(cur);
+    }
+    out
+}
+
+/// Points at arc-length fractions `fractions` (each in [0, 1]) along pixel polylines taken as
+/// one path (the gaps between them not counted).
+fn along(runs: &[Vec<(f64, f64)>], fractions: &[f64]) -> Vec<(f64, f64)> {
+    let seg = |p: &[(f64, f64)]| p.windows(2).map(|w| (w[1].0 - w[0].0).hypot(w[1].1 - w[0].1)).sum::<f64>();
+    let total: f64 = runs.iter().map(|r| seg(r)).sum();
+    let mut out = Vec::new();
+    if total <= 0.0 {
+        return runs.iter().flatten().take(1).copied().collect();
+    }
+    for &f in fractions {
+        let mut s = f.clamp(0.0, 1.0) * total;
+        'find: for r in runs {
+            for w in r.windows(2) {
+                let l = (w[1].0 - w[0].0).hypot(w[1].1 - w[0].1);
+                if s <= l && l > 0.0 {
+                    let t = s / l;
+                    out.push((w[0].0 + t * (w[1].0 - w[0].0), w[0].1 + t * (w[1].1 - w[0].1)));
+                    break 'find;
+                }
+                s -= l;
+            }
+        }
+    }
+    out
+}
+
+/// Maps data to backend pixels within the plot area.
+struct Map {
+    x: (f64, f64, bool),
+    y: (f64, f64, bool),
+    px: (f64, f64),
+    py: (f64, f64),
+}
+
+impl Map {
+    fn u(v: f64, log: bool) -> f64 {
+        if log { v.ln() } else { v }
+    }
+
+    fn at(&self, x: f64, y: f64) -> (f64, f64) {
+        let fx = (Map::u(x, self.x.2) - Map::u(self.x.0, self.x.2)) / (Map::u(self.x.1, self.x.2) - Map::u(self.x.0, self.x.2));
+        let fy = (Map::u(y, self.y.2) - Map::u(self.y.0, self.y.2)) / (Map::u(self.y.1, self.y.2) - Map::u(self.y.0, self.y.2));
+        (self.px.0 + fx * (self.px.1 - self.px.0), self.py.1 - fy * (self.py.1 - self.py.0))
+    }
+}
+
+fn ok(spec: &PlotSpec, x: f64, y: f64) -> bool {
+    x.is_finite() && y.is_finite() && (!spec.x.log || x > 0.0) && (!spec.y.log || y > 0.0)
+}
+
+/// Drops points closer than half a pixel to the last kept one (a plot of 10⁵ rows draws as fast
+/// and small as one of 10³).
+fn thin(run: &[(f64, f64)]) -> Vec<(f64, f64)> {
+    let mut out: Vec<(f64, f64)> = Vec::with_capacity(run.len());
+    for (k, &p) in run.iter().enumerate() {
+        let last = out.last().copied().unwrap_or((f64::NAN, f64::NAN));
+        if k == 0 || k + 1 == run.len() || (p.0 - last.0).hypot(p.1 - last.1) >= 0.5 {
+            out.push(p);
+        }
+    }
+    out
+}
+
+fn ipt(p: (f64, f64)) -> (i32, i32) {
+    (p.0.round() as i32, p.1.round() as i32)
+}
+
+/// Draws a pixel polyline in a style: pieces of the dash pattern with round caps on a bitmap,
+/// one polyline on SVG (its dash array is added afterwards, [`render_spec_svg`]).
+fn draw_line<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    run: &[(f64, f64)],
+    style: LineStyle,
+    col: RGBColor,
+    lay: &Layout,
+    raster: bool,
+) -> DrawResult<DB::ErrorType> {
+    let st = ShapeStyle::from(&col).stroke_width(lay.lw);
+    if !raster {
+        return root.draw(&PathElement::new(run.iter().map(|&p| ipt(p)).collect::<Vec<_>>(), st));
+    }
+    let pattern: Vec<f64> = style.pattern().iter().map(|v| v * lay.scale).collect();
+    let rad = (lay.lw as f64 / 2.0).round().max(1.0) as i32;
+    for piece in dash(run, &pattern) {
+        // plotters' bitmap polygonisation of a wide polyline breaks at sharp turns (histogram
+        // steps): segments with round joints and caps instead
+        for q in piece.windows(2) {
+            root.draw(&PathElement::new(vec![ipt(q[0]), ipt(q[1])], st))?;
+        }
+        if lay.lw > 1 {
+            for &p in &piece {
+                root.draw(&Circle::new(ipt(p), rad, col.filled()))?;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Draws a marker centred at pixel `p`.
+fn draw_marker<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, p: (f64, f64), m: Marker, col: RGBColor, lay: &Layout) -> DrawResult<DB::ErrorType> {
+    let r = lay.r as f64;
+    let (cx, cy) = p;
+    let poly = |pts: &[(f64, f64)]| pts.iter().map(|&(x, y)| ipt((cx + x * r, cy + y * r))).collect::<Vec<_>>();
+    let square = [(-0.85, -0.85), (0.85, -0.85), (0.85, 0.85), (-0.85, 0.85)];
+    let triangle = [(0.0, -1.2), (1.1, 0.75), (-1.1, 0.75)];
+    let diamond = [(0.0, -1.25), (1.1, 0.0), (0.0, 1.25), (-1.1, 0.0)];
+    let outline = ShapeStyle::from(&col).stroke_width(lay.mw);
+    let open = |pts: &[(f64, f64)]| -> DrawResult<DB::ErrorType> {
+        let v = poly(pts);
+        root.draw(&Polygon::new(v.clone(), WHITE.filled()))?;
+        let mut closed = v.clone();
+        closed.push(v[0]);
+        root.draw(&PathElement::new(closed, outline))
+    };
+    match m {
+        Marker::Circle => root.draw(&Circle::new(ipt(p), lay.r, col.filled())),
+        Marker::Square => root.draw(&Polygon::new(poly(&square), col.filled())),
+        Marker::Triangle => root.draw(&Polygon::new(poly(&triangle), col.filled())),
+        Marker::Diamond => root.draw(&Polygon::new(poly(&diamond), col.filled())),
+        Marker::OpenCircle => {
+            root.draw(&Circle::new(ipt(p), lay.r, WHITE.filled()))?;
+            root.draw(&Circle::new(ipt(p), lay.r, outline))
+        }
+        Marker::OpenSquare => open(&square),
+        Marker::OpenTriangle => open(&triangle),
+        Marker::OpenDiamond => open(&diamond),
+    }
+}
+
+/// The subtitle as drawn: one line, or two split at the "; " (else ", ") nearest its middle when
+/// one line would need a font below 80 % of `size` [px] in the width `w` [px].
+fn subtitle_lines(sub: &str, w: f64, size: f64) -> Vec<String> {
+    let n = sub.chars().count();
+    if sub.is_empty() {
+        return Vec::new();
+    }
+    if 0.56 * size * 0.8 * n as f64 <= 0.95 * w {
+        return vec![sub.to_string()];
+    }
+    let mid = sub.len() / 2;
+    let split = ["; ", ", "].iter().find_map(|sep| sub.match_indices(sep).map(|(i, _)| i).min_by_key(|&i| i.abs_diff(mid)).map(|i| (i, sep.len())));
+    match split {
+        Some((i, l)) => vec![sub[..i + l.min(1)].trim_end().to_string(), sub[i + l..].to_string()],
+        None => vec![sub.to_string()],
+    }
+}
+
+/// The title, subtitle, axes and series of a spec.
+fn draw<DB: DrawingBackend>(spec: &PlotSpec, root: DrawingArea<DB, Shift>, raster: bool) -> DrawResult<DB::ErrorType> {
+    font();
+    root.fill(&WHITE)?;
+    let lay = Layout::new(spec);
+    let w = spec.width;
+    // title and subtitle, each shrunk to fit the width
+    let fit = |text: &str, size: f64| -> f64 { size.min(0.95 * w as f64 / (0.56 * text.chars().count().max(1) as f64)) };
+    let title_size = fit(&spec.title, lay.scale * 24.0);
+    let sub_lines = subtitle_lines(&spec.subtitle, w as f64, lay.scale * 17.0);
+    let mut head = lay.px(8.0) as i32;
+    if !spec.title.is_empty() {
+        let st = TextStyle::from(("sans-serif", title_size).into_font()).pos(Pos::new(HPos::Center, VPos::Top));
+        root.draw_text(&spec.title, &st, (w as i32 / 2, head))?;
+        head += (title_size * 1.3) as i32;
+    }
+    for line in &sub_lines {
+        let size = fit(line, lay.scale * 17.0);
+        let st = TextStyle::from(("sans-serif", size).into_font()).color(&RGBColor(70, 70, 70)).pos(Pos::new(HPos::Center, VPos::Top));
+        root.draw_text(line, &st, (w as i32 / 2, head))?;
+        head += (size * 1.35) as i32;
+    }
+    let (_, body) = root.split_vertically(head + lay.px(4.0) as i32);
+    let ((x0, x1), (y0, y1)) = (spec.x.range, spec.y.range);
+    match (spec.x.log, spec.y.log) {
+        (false, false) => chart(spec, &root, &body, x0..x1, y0..y1, raster, &lay),
+        (true, false) => chart(spec, &root, &body, (x0..x1).log_scale(), y0..y1, raster, &lay),
+        (false, true) => chart(spec, &root, &body, x0..x1, (y0..y1).log_scale(), raster, &lay),
+        (true, true) => chart(spec, &root, &body, (x0..x1).log_scale(), (y0..y1).log_scale(), raster, &lay),
+    }?;
+    root.present()
+}
+
+/// Rows of named x ticks so that neighbours do not overlap (1 to 3), given the slot width [px].
+fn tick_rows(ticks: &[(f64, String)], slot: f64, char_px: f64) -> usize {
+    let widest = ticks.iter().map(|t| t.1.chars().count()).max().unwrap_or(1) as f64 * char_px + char_px;
+    ((widest / slot.max(1.0)).ceil() as usize).clamp(1, 3)
+}
+
+#[allow(clippy::too_many_arguments)]
+fn chart<DB, X, Y>(
+    spec: &PlotSpec,
+    root: &DrawingArea<DB, Shift>,
+    body: &DrawingArea<DB, Shift>,
+    xr: X,
+    yr: Y,
+    raster: bool,
+    lay: &Layout,
+) -> DrawResult<DB::ErrorType>
+where
+    DB: DrawingBackend,
+    X: plotters::coord::ranged1d::AsRangedCoord<Value = f64>,
+    Y: plotters::coord::ranged1d::AsRangedCoord<Value = f64>,
+    X::CoordDescType: plotters::coord::ranged1d::ValueFormatter<f64>,
+    Y::CoordDescType: plotters::coord::ranged1d::ValueFormatter<f64>,
+{
+    let w = spec.width;
+    let px = |v: f64| lay.px(v);
+    let tick_font = ("sans-serif", px(17.0) as f64);
+    let label_font = ("sans-serif", px(20.0) as f64);
+    // room for the widest y tick label (≈ 0.6 em per character) plus the rotated axis title
+    let (ylo, yhi) = spec.y.range;
+    let widest = [ylo, yhi, 0.5 * (ylo + yhi), -ylo.abs().max(yhi.abs())].iter().map(|&v| tick_label(v).chars().count()).max().unwrap_or(4).max(4);
+    let y_area = px(17.0 * 0.62 * widest as f64 + 44.0);
+    let named = !spec.x.ticks.is_empty();
+    // named ticks: one row per level of staggering
+    let approx_plot_w = w as f64 - y_area as f64 - px(38.0) as f64;
+    let slot = approx_plot_w / (spec.x.range.1 - spec.x.range.0).max(1.0);
+    let rows = if named { tick_rows(&spec.x.ticks, slot, 15.0 * lay.scale * 0.6) } else { 1 };
+    let x_area = px(62.0) + if named { px(20.0) * (rows as u32 - 1) } else { 0 };
+    let mut chart = ChartBuilder::on(body)
+        .margin_top(px(6.0))
+        .margin_left(px(10.0))
+        .margin_right(px(28.0))
+        .margin_bottom(px(10.0))
+        .x_label_area_size(x_area)
+        .y_label_area_size(y_area)
+        .build_cartesian_2d(xr, yr)?;
+    let fmt = |v: &f64| tick_label(*v);
+    let blank = |_: &f64| String::new();
+    let mut mesh = chart.configure_mesh();
+    mesh.x_desc(spec.x.label.as_str())
+        .y_desc(spec.y.label.as_str())
+        .axis_desc_style(label_font)
+        .label_style(tick_font)
+        .y_label_formatter(&fmt)
+        .y_labels(8)
+        .light_line_style(RGBColor(240, 240, 240))
+        .bold_line_style(RGBColor(215, 215, 215));
+    if named {
+        mesh.x_label_formatter(&blank).x_labels(0);
+    } else {
+        mesh.x_label_formatter(&fmt).x_labels(if w >= 700 { 9 } else { 5 });
+    }
+    mesh.draw()?;
+    let (xpix, ypix) = chart.plotting_area().get_pixel_range();
+    let map = Map {
+        x: (spec.x.range.0, spec.x.range.1, spec.x.log),
+        y: (spec.y.range.0, spec.y.range.1, spec.y.log),
+        px: (xpix.start as f64, (xpix.end - 1) as f64),
+        py: (ypix.start as f64, (ypix.end - 1) as f64),
+    };
+    if named {
+        let f = px(15.0) as f64;
+        let st = TextStyle::from(("sans-serif", f).into_font()).pos(Pos::new(HPos::Center, VPos::Top));
+        for (k, (x, name)) in spec.x.ticks.iter().enumerate() {
+            let (tx, _) = map.at(*x, spec.y.range.0.max(if spec.y.log { f64::MIN_POSITIVE } else { f64::NEG_INFINITY }));
+            let base = ypix.end;
+            let row = (k % rows) as i32;
+            root.draw(&PathElement::new(
+                vec![(tx.round() as i32, base), (tx.round() as i32, base + px(5.0) as i32 + row * px(20.0) as i32)],
+                ShapeStyle::from(&RGBColor(120, 120, 120)).stroke_width(1),
+            ))?;
+            root.draw_text(name, &st, (tx.round() as i32, base + px(7.0) as i32 + row * px(20.0) as i32))?;
+        }
+    }
+    for s in &spec.series {
+        let col = RGBColor(s.colour[0], s.colour[1], s.colour[2]);
+        // runs of drawable points in pixels: a skipped point breaks the line
+        let mut runs: Vec<Vec<(f64, f64)>> = vec![Vec::new()];
+        for &(x, y) in &s.points {
+            if ok(spec, x, y) {
+                runs.last_mut().expect("one run").push(map.at(x, y));
+            } else if !runs.last().expect("one run").is_empty() {
+                runs.push(Vec::new());
+            }
+        }
+        let runs: Vec<Vec<(f64, f64)>> = runs.into_iter().filter(|r| !r.is_empty()).map(|r| thin(&r)).collect();
+        if let Some(style) = s.line {
+            for run in &runs {
+                draw_line(root, run, style, col, lay, raster)?;
+            }
+        }
+        if !s.error_bars.is_empty() {
+            let st = ShapeStyle::from(&col).stroke_width(lay.mw);
+            let cap = px(6.0) as i32;
+            for (&(x, y), &e) in s.points.iter().zip(&s.error_bars) {
+                if !ok(spec, x, y) || !e.is_finite() {
+                    continue;
+                }
+                let lo = if spec.y.log && y - e.abs() <= 0.0 { y } else { y - e.abs() };
+                let (a, b) = (ipt(map.at(x, lo)), ipt(map.at(x, y + e.abs())));
+                root.draw(&PathElement::new(vec![a, b], st))?;
+                for q in [a, b] {
+                    root.draw(&PathElement::new(vec![(q.0 - cap, q.1), (q.0 + cap, q.1)], st))?;
+                }
+            }
+        }
+        if let Some(m) = s.marker {
+            let at: Vec<(f64, f64)> = match s.placement {
+                MarkerPlacement::None => Vec::new(),
+                MarkerPlacement::Every => s.points.iter().filter(|&&(x, y)| ok(spec, x, y)).map(|&(x, y)| map.at(x, y)).collect(),
+                MarkerPlacement::Staggered { phase, count } => along(&runs, &(0..count).map(|j| (j as f64 + phase) / count as f64).collect::<Vec<_>>()),
+            };
+            for p in at {
+                draw_marker(root, p, m, col, lay)?;
+            }
+        }
+    }
+    if spec.legend {
+        legend(spec, root, &map, lay, raster)?;
+    }
+    Ok(())
+}
+
+/// The legend box in the corner of the plot area that hides the fewest points: per named series
+/// a line sample in its style with its marker, and the name.
+fn legend<DB: DrawingBackend>(spec: &PlotSpec, root: &DrawingArea<DB, Shift>, map: &Map, lay: &Layout, raster: bool) -> DrawResult<DB::ErrorType> {
+    let entries: Vec<&SeriesSpec> = spec.series.iter().filter(|s| !s.name.is_empty()).collect();
+    let fsize = lay.px(16.0) as f64;
+    let st = TextStyle::from(("sans-serif", fsize).into_font()).pos(Pos::new(HPos::Left, VPos::Center));
+    let mut text_w = 0u32;
+    for e in &entries {
+        text_w = text_w.max(root.estimate_text_size(&e.name, &st)?.0);
+    }
+    let (sample, pad, row) = (lay.px(44.0) as f64, lay.px(10.0) as f64, (fsize * 1.45).round());
+    let bw = pad * 3.0 + sample + text_w as f64;
+    let bh = pad * 2.0 + row * entries.len() as f64;
+    let (l, r, t, b) = (map.px.0, map.px.1, map.py.0, map.py.1);
+    let m = lay.px(12.0) as f64;
+    let corners = [(r - m - bw, t + m), (l + m, t + m), (r - m - bw, b - m - bh), (l + m, b - m - bh)];
+    let pts: Vec<(f64, f64)> = spec.series.iter().flat_map(|s| s.points.iter()).filter(|&&(x, y)| ok(spec, x, y)).map(|&(x, y)| map.at(x, y)).collect();
+    let (bx, by) = corners
+        .iter()
+        .copied()
+        .min_by_key(|&(cx, cy)| pts.iter().filter(|&&(u, v)| u >= cx - 6.0 && u <= cx + bw + 6.0 && v >= cy - 6.0 && v <= cy + bh + 6.0).count())
+        .unwrap_or(corners[0]);
+    root.draw(&Rectangle::new([ipt((bx, by)), ipt((bx + bw, by + bh))], RGBColor(252, 252, 252).filled()))?;
+    root.draw(&Rectangle::new([ipt((bx, by)), ipt((bx + bw, by + bh))], ShapeStyle::from(&RGBColor(160, 160, 160)).stroke_width(1)))?;
+    for (k, e) in entries.iter().enumerate() {
+        let col = RGBColor(e.colour[0], e.colour[1], e.colour[2]);
+        let y = by + pad + row * (k as f64 + 0.5);
+        let (x0, x1) = (bx + pad, bx + pad + sample);
+        if let Some(style) = e.line {
+            draw_line(root, &[(x0, y), (x1, y)], style, col, lay, raster)?;
+        }
+        if let Some(mk) = e.marker {
+            draw_marker(root, (0.5 * (x0 + x1), y), mk, col, lay)?;
+        }
+        root.draw_text(&e.name, &st, ipt((x1 + pad, y)))?;
+    }
+    Ok(())
 }
 
 #[cfg(test)]
@@ -443,6 +1038,11 @@ mod tests {
         std::fs::remove_dir_all(&dir).ok();
     }
 
+    /// The texts of an SVG, trimmed.
+    fn texts(svg: &str) -> Vec<String> {
+        svg.split("<text").skip(1).filter_map(|t| Some(t.split_once('>')?.1.split('<').next()?.trim().to_string())).collect()
+    }
+
     #[test]
     fn tick_labels_and_ranges() {
         assert_eq!(tick_label(1e-3), "0.001");
@@ -454,5 +1054,171 @@ mod tests {
         assert_eq!(range(0.013, 0.41, false, 0.0), (0.013, 0.41));
         let (a, b) = range(6e-8, 5000.0, true, 0.0);
         assert!((a / 6e-8 - 1.0).abs() < 1e-9 && (b / 5000.0 - 1.0).abs() < 1e-9);
+    }
+
+    /// Issue 25: every series has its own colour, line style and marker shape, and the markers
+    /// of lines sit at different places along each.
+    #[test]
+    fn series_get_distinct_styles_markers_and_staggered_markers() {
+        let mut p = Plot::new("t");
+        for name in ["x", "y", "z", "w"] {
+            p.add(Series::new(name, vec![(0.0, 0.0), (1.0, 1.0)]));
+        }
+        let s = p.spec();
+        let styles: Vec<_> = s.series.iter().map(|x| x.line).collect();
+        assert_eq!(styles, LineStyle::CYCLE.map(Some).to_vec());
+        let markers: Vec<_> = s.series.iter().map(|x| x.marker.unwrap()).collect();
+        assert_eq!(markers, Marker::CYCLE[..4].to_vec());
+        let mut colours: Vec<_> = s.series.iter().map(|x| x.colour).collect();
+        colours.dedup();
+        assert_eq!(colours.len(), 4);
+        let phases: Vec<f64> = s
+            .series
+            .iter()
+            .map(|x| match x.placement {
+                MarkerPlacement::Staggered { phase, count } => {
+                    assert_eq!(count, STAGGERED_MARKERS);
+                    phase
+                }
+                other => panic!("{other:?}"),
+            })
+            .collect();
+        assert_eq!(phases, vec![0.125, 0.375, 0.625, 0.875]);
+        // 25 series: still every colour its own
+        let mut p = Plot::new("t");
+        for k in 0..25 {
+            p.add(Series::new(format!("{k}"), vec![(0.0, k as f64)]));
+        }
+        let mut c: Vec<_> = p.spec().series.iter().map(|x| x.colour).collect();
+        c.sort();
+        c.dedup();
+        assert_eq!(c.len(), 25);
+        // a reference line takes no place in the cycles
+        let mut p = Plot::new("t");
+        p.add(Series::new("band", vec![(0.0, 1.0), (1.0, 1.0)]).reference());
+        p.add(Series::new("data", vec![(0.0, 0.0), (1.0, 2.0)]));
+        let s = p.spec();
+        assert_eq!((s.series[0].colour, s.series[0].line, s.series[0].marker), (REFERENCE, Some(LineStyle::Dashed), None));
+        assert_eq!((s.series[1].colour, s.series[1].line), (PALETTE[0], Some(LineStyle::Solid)));
+    }
+
+    /// Issue 25: x shrinkage was hidden under y (same data, drawn last): now both colours show.
+    #[test]
+    fn two_identical_curves_both_stay_visible() {
+        let pts: Vec<(f64, f64)> = (0..200).map(|i| (i as f64, (i as f64 / 40.0).sqrt())).collect();
+        let mut p = Plot::new("");
+        p.add(Series::new("", pts.clone()));
+        p.add(Series::new("", pts));
+        let px = p.render();
+        let count = |c: Rgb| px.chunks(3).filter(|q| *q == c).count();
+        let (first, second) = (count(colour(0)), count(colour(1)));
+        // the first curve's markers and the gaps of the second's dashes show it
+        assert!(first > 300 && second > 300, "{first} {second}");
+    }
+
+    /// Issue 25: layer_profile.png stretched 0.0191–0.0198 to the full axis; an axis that asks for
+    /// zero starts at zero (and is not padded below it); markers at every point pad x.
+    #[test]
+    fn honest_axes_include_zero_and_never_cut_markers() {
+        let mut p = Plot::new("t").y_zero(true);
+        p.add(Series::new("layers", vec![(10e-6, 0.0191), (50e-6, 0.0198), (90e-6, 0.0194)]).with_markers());
+        let s = p.spec();
+        assert_eq!(s.y.range.0, 0.0);
+        assert!(s.y.range.1 > 0.0198 && s.y.range.1 < 0.0198 * 1.05);
+        assert!(s.x.range.0 < 10e-6 && s.x.range.1 > 90e-6, "{:?}", s.x.range);
+        // without zero: the data range (padded) as before
+        let mut p = Plot::new("t");
+        p.add(Series::new("layers", vec![(0.0, 0.0191), (1.0, 0.0198)]));
+        let s = p.spec();
+        assert!(s.y.range.0 > 0.019 && s.x.range == (0.0, 1.0));
+        // negative data and zero: the axis ends at zero
+        let mut p = Plot::new("t").y_zero(true);
+        p.add(Series::new("f", vec![(0.0, -3.0), (1.0, -1.0)]));
+        assert_eq!(p.spec().y.range.1, 0.0);
+        // a log axis ignores zero
+        let mut p = Plot::new("t").y_zero(true).log_y(true);
+        p.add(Series::new("f", vec![(1.0, 1e-3), (2.0, 1e-1)]));
+        assert!(p.spec().y.range.0 > 0.0);
+    }
+
+    /// Named ticks: the experiment ids, the axis half a slot wider than the first and last.
+    #[test]
+    fn named_ticks_label_the_runs() {
+        let ticks: Vec<(f64, String)> = (1..=28).map(|k| (k as f64, format!("E{k}B"))).collect();
+        let mut p = Plot::new("titanium").x_ticks(ticks.clone());
+        p.add(Series::new("runs", (1..=28).map(|k| (k as f64, 0.01 * k as f64)).collect()).points_only());
+        let s = p.spec();
+        assert_eq!(s.x.range, (0.5, 28.5));
+        assert_eq!(s.x.ticks, ticks);
+        let t = texts(&p.render_svg());
+        for id in ["E1B", "E14B", "E28B"] {
+            assert!(t.contains(&id.to_string()), "{id} missing: {t:?}");
+        }
+        // 28 ids of 4 characters do not fit one row in 960 px: staggered rows
+        assert!(tick_rows(&ticks, 30.0, 9.0) >= 2);
+        assert_eq!(tick_rows(&ticks[..5], 150.0, 9.0), 1);
+    }
+
+    #[test]
+    fn a_long_subtitle_is_split_in_two_lines() {
+        let long = "28 two-particle runs, heating counted from 793 K, each experiment's own particle diameter; one line per peak temperature and heating rate";
+        assert_eq!(
+            subtitle_lines(long, 960.0, 17.0),
+            ["28 two-particle runs, heating counted from 793 K, each experiment's own particle diameter;", "one line per peak temperature and heating rate"]
+        );
+        assert_eq!(subtitle_lines("805 particles of copper", 960.0, 17.0), ["805 particles of copper"]);
+        assert!(subtitle_lines("", 960.0, 17.0).is_empty());
+    }
+
+    #[test]
+    fn units_follow_the_span() {
+        assert_eq!(time_unit(5000.0, false).name, "min");
+        assert_eq!(time_unit(100.0, false).name, "s");
+        assert_eq!(time_unit(20.0 * 3600.0, false).name, "h");
+        assert_eq!(time_unit(0.5, false).name, "ms");
+        assert_eq!(time_unit(2e-4, false).name, "µs");
+        assert_eq!(time_unit(5000.0, true).name, "s");
+        assert_eq!(length_unit(1.5e-4).name, "µm");
+        assert!((length_unit(1.5e-4).of(1.5e-4) - 150.0).abs() < 1e-9);
+        assert_eq!(length_unit(2e-3).name, "mm");
+        assert_eq!(length_unit(5e-8).name, "nm");
+        assert_eq!(fmt_time(5000.0), "83.3 min");
+        assert_eq!(fmt_length(25e-6), "25 µm");
+    }
+
+    #[test]
+    fn dashes_cut_a_line_into_pattern_pieces() {
+        let line = [(0.0, 0.0), (60.0, 0.0), (60.0, 40.0)];
+        let pieces = dash(&line, &[10.0, 5.0]);
+        // 100 px of 15 px periods: 7 dashes, each 10 px long, the one round the corner included
+        assert_eq!(pieces.len(), 7);
+        for p in &pieces {
+            let l: f64 = p.windows(2).map(|w| (w[1].0 - w[0].0).hypot(w[1].1 - w[0].1)).sum();
+            assert!((l - 10.0).abs() < 1e-9, "{p:?}");
+        }
+        assert_eq!(pieces[4], vec![(60.0, 0.0), (60.0, 10.0)]);
+        assert_eq!(dash(&line, &[]), vec![line.to_vec()]);
+        // markers along: the middle of the path
+        let m = along(&[line.to_vec()], &[0.5, 1.0]);
+        assert_eq!(m, vec![(50.0, 0.0), (60.0, 40.0)]);
+    }
+
+    /// The SVG draws each series' line with its own dash array, and title and subtitle as text.
+    #[test]
+    fn svg_has_one_dash_array_per_style_and_the_subtitle() {
+        let mut p = Plot::new("copper compact: shrinkage").subtitle("805 particles of copper, mean radius 25 µm");
+        for name in ["x", "y", "z", "w"] {
+            p.add(Series::new(name, (0..50).map(|i| (i as f64, i as f64 * 0.01)).collect()));
+        }
+        let svg = p.render_svg();
+        let t = texts(&svg);
+        assert!(t.contains(&"copper compact: shrinkage".to_string()) && t.contains(&"805 particles of copper, mean radius 25 µm".to_string()), "{t:?}");
+        let arrays: Vec<&str> = svg.match_indices("stroke-dasharray=\"").map(|(i, _)| svg[i + 18..].split('"').next().unwrap()).collect();
+        let mut distinct = arrays.clone();
+        distinct.sort();
+        distinct.dedup();
+        assert_eq!(distinct, vec!["0.5,7", "10,9", "12,8,0.5,8"], "{arrays:?}");
+        // each dashed series: its line and its legend sample
+        assert_eq!(arrays.len(), 6);
     }
 }

@@ -472,7 +472,18 @@ pub fn run(setup: Setup, out: &Path, log: &mut dyn FnMut(&str)) -> Result<report
     crate::io::write_atomic(&json_path, &(text + "\n"))?;
     let m_out = write_fitted_material(out, &rep, pb, &m_fit, &f_fit, &values, &data_path)?;
     report::write_residuals(&out.join("residuals.csv"), &pb.experiments, &res)?;
-    report::write_plots(out, &pb.experiments, &res)?;
+    let header = (
+        rep.title.clone(),
+        format!(
+            "calibration of {}: {} model, {} experiments, {} fitted parameters, chi2 per degree of freedom {:.3}",
+            rep.material,
+            rep.model,
+            pb.experiments.len(),
+            rep.parameter_order.len(),
+            rep.reduced_chi2
+        ),
+    );
+    report::write_plots(out, &pb.experiments, &res, &header)?;
     log(&format!(
         "chi2 = {chi2:.6}, dof = {dof}, chi2/dof = {reduced:.4}; {evaluations} evaluations in {} batches ({} {} runs, {} run now) in {:.2} s; results in {}",
         rep.batches.len(),

@@ -335,54 +335,88 @@ pub fn write_residuals(path: &Path, experiments: &[Experiment], res: &[Residual]
     Ok(())
 }
 
-/// Writes the PNGs.
-pub fn write_plots(dir: &Path, experiments: &[Experiment], res: &[Residual]) -> Result<(), Error> {
-    for (q, file, label) in [(Quantity::NeckRatio, "neck_ratio.png", "neck ratio y1/R [1]"), (Quantity::Shrinkage, "shrinkage.png", "shrinkage dL/L0 [1]")] {
+/// Writes the PNGs ([`calibration_plots`]); `header`: the title and the subtitle of the run.
+pub fn write_plots(dir: &Path, experiments: &[Experiment], res: &[Residual], header: &(String, String)) -> Result<(), Error> {
+    for (file, p) in calibration_plots(experiments, res, header) {
+        p.save_png(&dir.join(file))?;
+    }
+    Ok(())
+}
+
+/// The plain name and axis label of a fitted quantity.
+fn quantity_label(q: Quantity) -> &'static str {
+    match q {
+        Quantity::NeckRatio => "neck radius / particle radius",
+        Quantity::Shrinkage => "shrinkage (approach / initial centre distance)",
+    }
+}
+
+/// The plots of a calibration (file name, plot): measured (± σ) and fitted values at the end of
+/// each schedule with the experiment ids as tick labels, the normalised residuals with the ±2
+/// band, and each experiment's series against time (in the unit its span reads best in).
+pub fn calibration_plots(experiments: &[Experiment], res: &[Residual], header: &(String, String)) -> Vec<(String, Plot)> {
+    let ticks: Vec<(f64, String)> = experiments.iter().enumerate().map(|(i, e)| ((i + 1) as f64, e.id.clone())).collect();
+    let mut out = Vec::new();
+    for (q, file) in [(Quantity::NeckRatio, "neck_ratio.png"), (Quantity::Shrinkage, "shrinkage.png")] {
         let ends: Vec<&Residual> = res.iter().filter(|r| r.end && r.quantity == q).collect();
         if ends.is_empty() {
             continue;
         }
         let x = |r: &Residual| (r.experiment + 1) as f64;
-        let mut p = Plot::new(format!("{}: measured (+- sigma) and fitted, end of schedule", q.name())).labels("experiment (row of the data file)", label);
+        let short = if q == Quantity::NeckRatio { "neck size" } else { "shrinkage" };
+        let mut p = Plot::new(format!("{}: {short} at the end of each schedule", header.0))
+            .subtitle(header.1.clone())
+            .labels("experiment", quantity_label(q))
+            .x_ticks(ticks.clone())
+            .y_zero(q == Quantity::Shrinkage);
         p.add(
-            Series::new("measured", ends.iter().map(|r| (x(r), r.measured.value)).collect())
+            Series::new("measured (± σ)", ends.iter().map(|r| (x(r), r.measured.value)).collect())
                 .points_only()
                 .with_error_bars(ends.iter().map(|r| r.measured.sigma).collect()),
         );
         p.add(Series::new("fitted", ends.iter().map(|r| (x(r), r.fitted)).collect()).points_only());
-        p.save_png(&dir.join(file))?;
+        out.push((file.to_string(), p));
     }
-    let mut p = Plot::new("normalised residuals (fitted - measured)/sigma").labels("experiment (row of the data file)", "residual [1]");
+    let mut p = Plot::new(format!("{}: residuals (fitted − measured) / σ", header.0))
+        .subtitle(header.1.clone())
+        .labels("experiment", "residual in units of σ")
+        .x_ticks(ticks.clone())
+        .y_zero(true);
     for q in [Quantity::NeckRatio, Quantity::Shrinkage] {
         let pts: Vec<(f64, f64)> = res.iter().filter(|r| r.quantity == q).map(|r| ((r.experiment + 1) as f64, r.residual)).collect();
         if !pts.is_empty() {
-            p.add(Series::new(q.name(), pts).points_only());
+            p.add(Series::new(quantity_label(q), pts).points_only());
         }
     }
-    let n = experiments.len() as f64 + 1.0;
-    p.add(Series::new("+-2", vec![(0.0, 2.0), (n, 2.0), (f64::NAN, f64::NAN), (0.0, -2.0), (n, -2.0)]));
-    p.save_png(&dir.join("residuals.png"))?;
+    let n = experiments.len() as f64 + 0.5;
+    p.add(Series::new("±2 σ", vec![(0.5, 2.0), (n, 2.0), (f64::NAN, f64::NAN), (0.5, -2.0), (n, -2.0)]).reference());
+    out.push(("residuals.png".to_string(), p));
     for (i, e) in experiments.iter().enumerate() {
         if e.series.is_empty() {
             continue;
         }
-        let mut p = Plot::new(format!("{}: measured (+- sigma) and fitted", e.id)).labels("time t [s]", "y1/R, dL/L0 [1]");
+        let mine_all: Vec<&Residual> = res.iter().filter(|r| r.experiment == i).collect();
+        let tu = crate::plot::time_unit(mine_all.iter().map(|r| r.time).fold(0.0, f64::max), false);
+        let mut p = Plot::new(format!("{}: experiment {}, measured and fitted", header.0, e.id))
+            .subtitle(header.1.clone())
+            .labels(format!("time [{}]", tu.name), "ratio")
+            .y_zero(true);
         for q in [Quantity::NeckRatio, Quantity::Shrinkage] {
-            let mine: Vec<&Residual> = res.iter().filter(|r| r.experiment == i && r.quantity == q).collect();
+            let mine: Vec<&Residual> = mine_all.iter().copied().filter(|r| r.quantity == q).collect();
             if mine.is_empty() {
                 continue;
             }
             p.add(
-                Series::new(format!("{} measured", q.name()), mine.iter().map(|r| (r.time, r.measured.value)).collect())
+                Series::new(format!("{}, measured (± σ)", quantity_label(q)), mine.iter().map(|r| (tu.of(r.time), r.measured.value)).collect())
                     .points_only()
                     .with_error_bars(mine.iter().map(|r| r.measured.sigma).collect()),
             );
-            p.add(Series::new(format!("{} fitted", q.name()), mine.iter().map(|r| (r.time, r.fitted)).collect()).with_markers());
+            p.add(Series::new(format!("{}, fitted", quantity_label(q)), mine.iter().map(|r| (tu.of(r.time), r.fitted)).collect()).with_markers());
         }
         let safe: String = e.id.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '_' }).collect();
-        p.save_png(&dir.join(format!("series_{safe}.png")))?;
+        out.push((format!("series_{safe}.png"), p));
     }
-    Ok(())
+    out
 }
 
 #[cfg(test)]

@@ -509,11 +509,42 @@ fn write_series(spec: &PairSpec, run: &PairRun, path: &Path) -> Result<(), Error
     Ok(())
 }
 
+/// The key settings of a pair run for its plots' subtitle: materials, radii, peak temperature,
+/// simulated time and load.
+pub fn plot_subtitle(spec: &PairSpec, peak_temperature: f64) -> String {
+    use crate::plot::{fmt_length, fmt_time};
+    let mat = if spec.material_a.name == spec.material_b.name {
+        spec.material_a.name.clone()
+    } else {
+        format!("{} and {}", spec.material_a.name, spec.material_b.name)
+    };
+    let radii = if spec.radius_a == spec.radius_b {
+        format!("two spheres of radius {}", fmt_length(spec.radius_a))
+    } else {
+        format!("radii {} and {}", fmt_length(spec.radius_a), fmt_length(spec.radius_b))
+    };
+    let mut s = format!("{mat}, {radii}, up to {peak_temperature:.0} K, {}", fmt_time(spec.end_time));
+    if spec.normal_force != 0.0 {
+        s.push_str(&format!(", load {:.3e} N", spec.normal_force));
+    }
+    s
+}
+
+/// The neck-and-shrinkage plot of a pair run: both on log axes against time [s] (the neck grows
+/// by decades), in plain words.
 fn plot_run(spec: &PairSpec, run: &PairRun) -> Plot {
     let rmin = spec.radius_a.min(spec.radius_b);
     let l0 = run.contact.l0;
-    let mut p = Plot::new(format!("{}: neck ratio and shrinkage", spec.title)).labels("time t [s]", "y1/R, dL/L0 [1]").log_x(true).log_y(true);
-    p.add(Series::new("neck ratio y1/R", run.times.iter().zip(&run.states).map(|(t, y)| (*t, y[0] / rmin)).collect()));
-    p.add(Series::new("shrinkage dL/L0", run.times.iter().zip(&run.states).map(|(t, y)| (*t, (l0 - y[3] - y[6]) / l0)).collect()));
+    let peak = run.temperatures.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let mut p = Plot::new(format!("{}: neck growth and shrinkage", spec.title))
+        .subtitle(plot_subtitle(spec, peak))
+        .labels("time [s] (log scale)", "ratio (log scale)")
+        .log_x(true)
+        .log_y(true);
+    p.add(Series::new("neck radius / smaller particle radius", run.times.iter().zip(&run.states).map(|(t, y)| (*t, y[0] / rmin)).collect()));
+    p.add(Series::new(
+        "shrinkage: approach / initial centre distance",
+        run.times.iter().zip(&run.states).map(|(t, y)| (*t, (l0 - y[3] - y[6]) / l0)).collect(),
+    ));
     p
 }

@@ -184,7 +184,12 @@ pub fn run_all_titanium(out_dir: &Path, start_temperature: f64, common_diameter:
         .map_err(io)?;
     }
     w.flush().map_err(io)?;
-    let mut p = Plot::new("titanium pairs: final shrinkage").labels("hold time [min]", "dL/L0 [1]");
+    let start = if start_temperature > FULL_START + 1.0 { format!("heating counted from {start_temperature:.0} K") } else { "full heating curve".to_string() };
+    let size = common_diameter.map_or("each experiment's own particle diameter".to_string(), |d| format!("all particles {}", crate::plot::fmt_length(d)));
+    let mut p = Plot::new("Titanium pairs of Ivannikov et al. 2022 (Table 3): final shrinkage")
+        .subtitle(format!("28 two-particle runs, {start}, {size}; one line per peak temperature and heating rate"))
+        .labels("hold time at the peak temperature [min]", "final shrinkage: approach / initial centre distance")
+        .y_zero(true);
     for (t, r) in [(1203.0, R20), (1203.0, R50), (1373.0, R20), (1373.0, R50), (1573.0, R20), (1573.0, R50)] {
         let pts =
             out.iter().filter(|x| x.experiment.peak_temperature == t && x.experiment.rate == r).map(|x| (x.experiment.hold_time / 60.0, x.shrinkage)).collect();

@@ -155,12 +155,14 @@ pub fn write_vtu(
 /// The laminae plot (eq. 48) through the shared plot facility: relative density against the
 /// normalised position s/L for the three axes, with `mean` ± `band` drawn as two lines.
 pub fn write_laminae_plot(path: &Path, title: &str, series: &[(&str, Vec<(f64, f64)>)], mean: f64, band: f64) -> Result<(), Error> {
-    let mut plot = crate::plot::Plot::new(title).labels("position s/L [1]", "relative density [1]");
+    let mut plot = crate::plot::Plot::new(title)
+        .subtitle(format!("solid fraction of thin layers across the box along each axis; band: interior mean ± {band}"))
+        .labels("position across the box / box length", "relative density (solid volume fraction)");
     for (name, pts) in series {
-        plot.add(crate::plot::Series::new(*name, pts.clone()).with_markers());
+        plot.add(crate::plot::Series::new(format!("along {name}"), pts.clone()).with_markers());
     }
-    for (name, y) in [(format!("interior mean + {band}"), mean + band), (format!("interior mean - {band}"), mean - band)] {
-        plot.add(crate::plot::Series::new(name, vec![(0.0, y), (1.0, y)]));
+    for (name, y) in [(format!("interior mean ± {band}"), mean + band), (String::new(), mean - band)] {
+        plot.add(crate::plot::Series::new(name, vec![(0.0, y), (1.0, y)]).reference());
     }
     plot.save_png(path).map_err(Error::from)
 }

@@ -176,38 +176,211 @@ pub fn write(study: &Study, dir: &Path, rows: &[Row], plots: bool) -> Result<Cou
     Ok(c)
 }
 
-/// A PNG per numeric output against each numeric parameter (against the run index when the study
-/// has none, e.g. a `cases` study).
+/// A PNG per numeric output against each numeric parameter ([`study_plots`]).
 fn write_plots(study: &Study, dir: &Path, rows: &[Row]) -> Result<(), Error> {
     let pdir = dir.join("plots");
     crate::io::ensure_dir(&pdir)?;
-    let ok: Vec<&Row> = rows.iter().filter(|r| r.record.as_ref().is_some_and(RunRecord::ok)).collect();
-    let Some(first) = ok.first() else { return Ok(()) };
-    let numeric = |s: &str| s.parse::<f64>().ok().filter(|x| x.is_finite());
-    let mut axes: Vec<(String, bool, Box<dyn Fn(&Row) -> Option<f64>>)> = Vec::new();
-    for (i, p) in study.parameters.iter().enumerate() {
-        if ok.iter().all(|r| numeric(&r.run.parameters[i].1).is_some()) {
-            let log = matches!(p.values, Values::Range { log: true, .. } | Values::Bounds { log: true, .. });
-            axes.push((p.name.clone(), log, Box::new(move |r: &Row| numeric(&r.run.parameters[i].1))));
-        }
-    }
-    if axes.is_empty() {
-        axes.push(("run".into(), false, Box::new(|r: &Row| Some(r.run.index as f64))));
-    }
-    for (k, (name, _)) in first.outputs.iter().enumerate() {
-        let pts_of = |f: &dyn Fn(&Row) -> Option<f64>| -> Vec<(f64, f64)> { ok.iter().filter_map(|r| Some((f(r)?, numeric(&r.outputs[k].1)?))).collect() };
-        for (pname, log, f) in &axes {
-            let pts = pts_of(f.as_ref());
-            if pts.is_empty() {
-                continue;
-            }
-            let mut p = Plot::new(format!("{}: {name} against {pname}", study.title)).labels(pname.clone(), name.clone()).log_x(*log);
-            p.add(Series::new(format!("{} runs", pts.len()), pts).points_only());
-            let file = format!("{}_vs_{}.png", sanitize(name), sanitize(pname));
-            p.save_png(&pdir.join(file))?;
-        }
+    for (file, p) in study_plots(study, rows) {
+        p.save_png(&pdir.join(file))?;
     }
     Ok(())
+}
+
+/// A plain-language axis label of a study column or parameter: a name a reader knows and the
+/// unit, from a short dictionary of the summary keys and series columns, the unit suffix of the
+/// name (`_K`, `_s`, `_m`, `_Pa`, …) or the parameter's key (`…q_gb` in J/mol, `…d0_surface` in
+/// m²/s); `neck_ratio_at_1800s` reads "neck radius / smaller particle radius at t = 30 min".
+/// Returns (name, unit; empty: dimensionless).
+pub fn plain_name(column: &str, key: Option<&str>) -> (String, String) {
+    if let Some((col, t)) = column.rsplit_once("_at_").and_then(|(c, t)| Some((c, t.strip_suffix('s')?.parse::<f64>().ok()?))) {
+        let (n, u) = plain_name(col, None);
+        return (format!("{n} at t = {}", crate::plot::fmt_time(t)), u);
+    }
+    let known: &[(&str, &str, &str)] = &[
+        ("neck_ratio", "neck radius / smaller particle radius", ""),
+        ("neck_ratio_mean", "mean neck radius / smaller particle radius", ""),
+        ("shrinkage", "shrinkage", ""),
+        ("shrinkage_x", "shrinkage along x", ""),
+        ("shrinkage_y", "shrinkage along y", ""),
+        ("shrinkage_z", "shrinkage along z", ""),
+        ("relative_density", "relative density", ""),
+        ("coordination_mean", "mean contacts per particle", ""),
+        ("contacts", "contacts", ""),
+        ("steps", "time steps", ""),
+        ("rhs_evaluations", "model evaluations", ""),
+        ("volume_drift_rel", "relative volume drift", ""),
+        ("wall_seconds", "wall time", "s"),
+        ("detect_new", "new-contact detection", ""),
+        ("final_time_s", "simulated time", "s"),
+    ];
+    let last = column.rsplit('.').next().unwrap_or(column);
+    if let Some(&(_, n, u)) = known.iter().find(|k| k.0 == column || k.0 == last) {
+        return (n.to_string(), u.to_string());
+    }
+    let suffixes: &[(&str, &str)] = &[("_W_per_mK", "W/(m K)"), ("_K", "K"), ("_s", "s"), ("_m", "m"), ("_Pa", "Pa"), ("_N", "N"), ("_J", "J")];
+    let (stem, mut unit) = suffixes.iter().find_map(|(s, u)| column.strip_suffix(s).map(|st| (st, u.to_string()))).unwrap_or((column, String::new()));
+    let k = key.map(|k| k.rsplit('.').next().unwrap_or(k)).unwrap_or(stem);
+    let what = |w: &str| match w {
+        "gb" => "grain-boundary",
+        "surface" => "surface",
+        "lattice" => "lattice",
+        _ => "",
+    };
+    let mut words: Vec<String> = stem.rsplit('.').next().unwrap_or(stem).split('_').map(str::to_string).collect();
+    if let Some((kind, path)) = k.split_once('_') {
+        let path = what(path);
+        let named = match kind {
+            "d0" if !path.is_empty() => Some((format!("{path} diffusion D0"), "m²/s")),
+            "q" if !path.is_empty() => Some((format!("{path} activation energy"), "J/mol")),
+            "delta" if !path.is_empty() => Some((format!("{path} layer thickness"), "m")),
+            "gamma" if !path.is_empty() => Some((format!("{path} energy"), "J/m²")),
+            _ => None,
+        };
+        if let Some((n, u)) = named {
+            // a prefix of the column name before the key's own words (`beta_`) names the phase
+            let prefix = stem.strip_suffix(k).map(|p| p.trim_end_matches('_')).filter(|p| !p.is_empty());
+            words = match prefix {
+                Some(p) => vec![format!("{}-phase {n}", p.replace('_', " "))],
+                None => vec![n],
+            };
+            unit = u.to_string();
+        }
+    }
+    if unit.is_empty() && (k.ends_with("temperature") || k == "constant") {
+        unit = "K".into();
+    }
+    if unit.is_empty() && (k == "radius" || k.ends_with("_radius")) {
+        unit = "m".into();
+    }
+    (words.join(" "), unit)
+}
+
+/// A label with its unit: `temperature [K]`, `shrinkage`.
+fn with_unit(name: &str, unit: &str) -> String {
+    if unit.is_empty() { name.to_string() } else { format!("{name} [{unit}]") }
+}
+
+/// Values in metres read in µm (or mm, nm): the converted points and the label's unit.
+fn readable(pts: Vec<(f64, f64)>, unit: &str, x: bool) -> (Vec<(f64, f64)>, String) {
+    if unit != "m" {
+        return (pts, unit.to_string());
+    }
+    let span = pts.iter().map(|p| if x { p.0.abs() } else { p.1.abs() }).fold(0.0, f64::max);
+    let u = crate::plot::length_unit(span);
+    (pts.into_iter().map(|(a, b)| if x { (u.of(a), b) } else { (a, u.of(b)) }).collect(), u.name.to_string())
+}
+
+/// The plots of a gathered study (file name, plot): each numeric output against each numeric
+/// parameter, one line per value of a second factor when the study has one with 2 to 8 values
+/// (a grid), markers at every run and the axes padded so none is cut; without a numeric
+/// parameter (a `cases` study) against the runs, the case names (E1B … E28B) as tick labels.
+/// Axis labels in plain words with units ([`plain_name`]).
+pub fn study_plots(study: &Study, rows: &[Row]) -> Vec<(String, Plot)> {
+    let ok: Vec<&Row> = rows.iter().filter(|r| r.record.as_ref().is_some_and(RunRecord::ok)).collect();
+    let Some(first) = ok.first() else { return Vec::new() };
+    let numeric = |s: &str| s.parse::<f64>().ok().filter(|x| x.is_finite());
+    let distinct = |i: usize| -> Vec<String> {
+        let mut v: Vec<String> = Vec::new();
+        for r in &ok {
+            let s = &r.run.parameters[i].1;
+            if !v.contains(s) {
+                v.push(s.clone());
+            }
+        }
+        v
+    };
+    let np = study.parameters.len();
+    let mut out = Vec::new();
+    let n_ok = ok.len();
+    // x axes: numeric parameters, else the runs by name
+    let mut axes: Vec<Option<usize>> = (0..np).filter(|&i| ok.iter().all(|r| numeric(&r.run.parameters[i].1).is_some())).map(Some).collect();
+    if axes.is_empty() {
+        axes.push(None);
+    }
+    for (k, (name, _)) in first.outputs.iter().enumerate() {
+        let (yname, yunit) = plain_name(name, None);
+        for &axis in &axes {
+            let y_of = |r: &Row| numeric(&r.outputs[k].1);
+            let (mut p, groups, xfile): (Plot, Vec<(String, Vec<(f64, f64)>)>, String) = match axis {
+                Some(i) => {
+                    let par = &study.parameters[i];
+                    let log = matches!(par.values, Values::Range { log: true, .. } | Values::Bounds { log: true, .. });
+                    let (xname, xunit) = plain_name(&par.name, Some(&par.key));
+                    let grid = distinct(i).len() < n_ok;
+                    let g = (0..np).find(|&j| j != i && grid && (2..=8).contains(&distinct(j).len()));
+                    let pts_of = |filter: &dyn Fn(&Row) -> bool| -> Vec<(f64, f64)> {
+                        let mut v: Vec<(f64, f64)> =
+                            ok.iter().filter(|r| filter(r)).filter_map(|r| Some((numeric(&r.run.parameters[i].1)?, y_of(r)?))).collect();
+                        v.sort_by(|a, b| a.0.total_cmp(&b.0));
+                        v
+                    };
+                    let groups: Vec<(String, Vec<(f64, f64)>)> = match g {
+                        Some(j) => {
+                            let (gname, gunit) = plain_name(&study.parameters[j].name, Some(&study.parameters[j].key));
+                            distinct(j)
+                                .into_iter()
+                                .map(|v| {
+                                    let label = match (gunit.as_str(), numeric(&v)) {
+                                        ("", _) => format!("{gname}: {v}"),
+                                        ("m", Some(x)) => format!("{gname} = {}", crate::plot::fmt_length(x)),
+                                        (u, _) => format!("{gname} = {v} {u}"),
+                                    };
+                                    (label, pts_of(&|r: &Row| r.run.parameters[j].1 == v))
+                                })
+                                .collect()
+                        }
+                        None => vec![(format!("{} runs", n_ok), pts_of(&|_: &Row| true))],
+                    };
+                    let (groups, xunit) = {
+                        let mut unit = xunit.clone();
+                        let gs = groups
+                            .into_iter()
+                            .map(|(l, pts)| {
+                                let (pts, u) = readable(pts, &xunit, true);
+                                unit = u;
+                                (l, pts)
+                            })
+                            .collect();
+                        (gs, unit)
+                    };
+                    let by =
+                        g.map(|j| format!("; one line per {}", plain_name(&study.parameters[j].name, Some(&study.parameters[j].key)).0)).unwrap_or_default();
+                    let p = Plot::new(format!("{}: {yname} against {xname}", study.title))
+                        .subtitle(format!("{} runs of {}{by}", n_ok, rows.len()))
+                        .labels(with_unit(&xname, &xunit) + if log { " (log scale)" } else { "" }, "")
+                        .log_x(log);
+                    (p, groups, sanitize(&par.name))
+                }
+                None => {
+                    let ticks: Vec<(f64, String)> = rows
+                        .iter()
+                        .map(|r| ((r.run.index + 1) as f64, if study.case_column { r.run.case_label.clone() } else { format!("run {}", r.run.index) }))
+                        .collect();
+                    let pts: Vec<(f64, f64)> = ok.iter().filter_map(|r| Some(((r.run.index + 1) as f64, y_of(r)?))).collect();
+                    let p = Plot::new(format!("{}: {yname}", study.title))
+                        .subtitle(format!("{} runs of {}, in study order", n_ok, rows.len()))
+                        .labels(if study.case_column { "case" } else { "run" }, "")
+                        .x_ticks(ticks);
+                    (p, vec![(format!("{n_ok} runs"), pts)], "run".to_string())
+                }
+            };
+            let all: Vec<(f64, f64)> = groups.iter().flat_map(|g| g.1.iter().copied()).collect();
+            if all.is_empty() {
+                continue;
+            }
+            let (_, yunit_shown) = readable(all, &yunit, false);
+            p.y_label = with_unit(&yname, &yunit_shown);
+            // a grid connects the runs of a group; scattered samples stay points
+            let connect = axis.is_some_and(|i| distinct(i).len() < n_ok);
+            for (label, pts) in groups {
+                let (pts, _) = readable(pts, &yunit, false);
+                let s = Series::new(label, pts);
+                p.add(if connect { s.with_markers() } else { s.points_only() });
+            }
+            out.push((format!("{}_vs_{}.png", sanitize(name), xfile), p));
+        }
+    }
+    out
 }
 
 fn sanitize(s: &str) -> String {

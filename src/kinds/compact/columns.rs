@@ -69,8 +69,3 @@ impl<'a> Row<'a> {
 pub(crate) fn header() -> Vec<&'static str> {
     crate::io::header(Row::COLUMNS)
 }
-
-/// The plot label of the series column `name` (`name [unit]`); the name itself if unknown.
-pub(crate) fn label(name: &str) -> String {
-    crate::io::label(Row::COLUMNS, name).unwrap_or_else(|| name.to_string())
-}

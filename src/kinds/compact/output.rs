@@ -163,81 +163,232 @@ pub fn write_correction_histogram(out: &Path, sim: &Simulation, tag: &str) -> Re
 /// The histogram PNG of [`write_correction_histogram`] from ΔL̄/L0 per contact `dl`; returns their
 /// mean and standard deviation.
 fn plot_correction_histogram(out: &Path, sim: &Simulation, tag: &str, dl: &[f64]) -> Result<(f64, f64), IoError> {
-    use crate::plot::{Plot, Series as Line};
     let n = dl.len().max(1) as f64;
     let mean = dl.iter().sum::<f64>() / n;
     let std = (dl.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n).sqrt();
     if !dl.is_empty() {
-        let (lo, hi) = dl.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
-        let bins = 30usize;
-        let w = ((hi - lo) / bins as f64).max(f64::MIN_POSITIVE);
-        let mut count = vec![0usize; bins];
-        for v in dl {
-            count[(((v - lo) / w) as usize).min(bins - 1)] += 1;
-        }
-        let mut pts = Vec::new();
-        for (k, &c) in count.iter().enumerate() {
-            let (a, b) = (lo + k as f64 * w, lo + (k + 1) as f64 * w);
-            pts.push((a, 0.0));
-            pts.push((a, c as f64));
-            pts.push((b, c as f64));
-            pts.push((b, 0.0));
-        }
-        let mut p = Plot::new(format!("y4/y7 corrections at t = {:.0} s (paper Fig. 20)", sim.t)).labels("dL_bar / L0 [1]", "contacts");
-        p.add(Line::new("histogram", pts));
         let name = if tag == "end" { "dl_bar_histogram.png".to_string() } else { format!("dl_bar_histogram_{tag}.png") };
-        p.save_png(&out.join(name))?;
+        histogram_plot(&plot_header(sim), sim.t, dl).save_png(&out.join(name))?;
     }
     Ok((mean, std))
 }
 
-/// PNG plots of a compact run from its series.csv (axis labels from the series columns,
-/// [`super::columns`]), the ΔL̄ histogram (Ivannikov et al. 2022 Fig. 20) and the layer profile
-/// along z.
-pub fn write_plots(out: &Path, sim: &Simulation) -> Result<(), IoError> {
-    use super::columns::label;
+/// The case title (its `title` key, else "compact") and the key settings of a compact run, for
+/// the title and subtitle of its plots: particles, material, mean radius, temperature span of the
+/// particles and the simulated time.
+pub(crate) fn plot_header(sim: &Simulation) -> (String, String) {
+    let title =
+        sim.source.0.parse::<toml::Table>().ok().and_then(|t| t.get("title").and_then(|v| v.as_str()).map(str::to_string)).unwrap_or_else(|| "compact".into());
+    let p = &sim.prep.scene.particles;
+    let mut names: Vec<&str> = sim.d7_materials.iter().map(|m| m.name.as_str()).collect();
+    names.dedup();
+    let material = if names.is_empty() { String::new() } else { format!(" of {}", names.join(", ")) };
+    let mut sub = format!("{} particles{material}, mean radius {}", p.radius.len(), crate::plot::fmt_length(p.mean_radius()));
+    if sim.settings.detect_new {
+        sub.push_str(", new contacts detected");
+    }
+    sub.push_str(&format!(", to t = {}", crate::plot::fmt_time(sim.t)));
+    if sim.load.is_some() {
+        sub.push_str(", under load");
+    }
+    (title, sub)
+}
+
+/// The histogram plot of the contact length corrections ΔL̄/L0 (Ivannikov et al. 2022 eq. 44,
+/// Fig. 20; 30 bins) at time `t` [s]: counts from zero.
+pub(crate) fn histogram_plot(header: &(String, String), t: f64, dl: &[f64]) -> crate::plot::Plot {
     use crate::plot::{Plot, Series as Line};
+    let (lo, hi) = dl.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+    let bins = 30usize;
+    let w = ((hi - lo) / bins as f64).max(f64::MIN_POSITIVE);
+    let mut count = vec![0usize; bins];
+    for v in dl {
+        count[(((v - lo) / w) as usize).min(bins - 1)] += 1;
+    }
+    let mut pts = Vec::new();
+    for (k, &c) in count.iter().enumerate() {
+        let (a, b) = (lo + k as f64 * w, lo + (k + 1) as f64 * w);
+        pts.push((a, 0.0));
+        pts.push((a, c as f64));
+        pts.push((b, c as f64));
+        pts.push((b, 0.0));
+    }
+    let mut p = Plot::new(format!("{}: contact length corrections at t = {}", header.0, crate::plot::fmt_time(t)))
+        .subtitle(header.1.clone())
+        .labels("length correction / initial contact length", "number of contacts")
+        .y_zero(true);
+    p.add(Line::new("contacts", pts).plain());
+    p
+}
+
+/// The plots of a compact run from its series.csv (`header`, `rows`), with the layer profile
+/// `prof` (height [m], mean contact shrinkage): (file name, plot). Plain-language labels, time in
+/// the unit its span reads best in ([`crate::plot::time_unit`]), heights in µm; shrinkage and
+/// the layer profile from zero, relative density and coordination over their data.
+pub(crate) fn series_plots(
+    header: &(String, String),
+    columns: &[&str],
+    rows: &[Vec<f64>],
+    expansion: bool,
+    prof: &[(f64, f64)],
+) -> Vec<(&'static str, crate::plot::Plot)> {
+    use crate::plot::{Plot, Series as Line, time_unit};
+    let col = |name: &str| -> Option<Vec<(f64, f64)>> {
+        let k = columns.iter().position(|h| *h == name)?;
+        Some(rows.iter().filter(|r| r[0] > 0.0).map(|r| (r[0], r.get(k).copied().unwrap_or(f64::NAN))).collect())
+    };
+    let t_end = rows.iter().map(|r| r[0]).fold(0.0, f64::max);
+    let tu = time_unit(t_end, false);
+    let time = format!("time [{}]", tu.name);
+    let (title, sub) = header;
+    // a linear time axis starts at the start of the run
+    let new = |what: &str, y: &str| Plot::new(format!("{title}: {what}")).subtitle(sub.clone()).labels(&time, y).x_zero(true);
+    let mut out = Vec::new();
+    let mut p = new("shrinkage along each axis", "shrinkage 1 − L/L0").y_zero(true);
+    let mut keys = vec![("x", "shrinkage_x"), ("y", "shrinkage_y"), ("z", "shrinkage_z")];
+    if expansion {
+        // (X11): net of the thermal strain
+        keys.extend([
+            ("x, sintering only", "sintering_shrinkage_x"),
+            ("y, sintering only", "sintering_shrinkage_y"),
+            ("z, sintering only", "sintering_shrinkage_z"),
+        ]);
+    }
+    for (name, key) in keys {
+        if let Some(pts) = col(key) {
+            p.add(Line::new(name, tu.x(pts)));
+        }
+    }
+    out.push(("shrinkage.png", p));
+    let mut p = new("relative density", "relative density (solid volume fraction)");
+    if let Some(pts) = col("relative_density") {
+        p.add(Line::new("relative density", tu.x(pts)));
+    }
+    out.push(("relative_density.png", p));
+    let mut p = new("contacts per particle", "mean contacts per particle");
+    if let Some(pts) = col("coordination_mean") {
+        p.add(Line::new("contacts per particle", tu.x(pts)));
+    }
+    out.push(("coordination.png", p));
+    let tl = time_unit(t_end, true);
+    let mut p = Plot::new(format!("{title}: neck growth"))
+        .subtitle(sub.clone())
+        .labels(format!("time [{}] (log scale)", tl.name), "mean neck radius / smaller particle radius")
+        .log_x(true);
+    if let Some(pts) = col("neck_ratio_mean") {
+        p.add(Line::new("neck size", tl.x(pts)));
+    }
+    out.push(("neck_ratio.png", p));
+    let mut p = new("particle temperatures", "temperature [K]");
+    for (name, key) in [("hottest particle", "max_temperature_K"), ("mean", "mean_temperature_K"), ("coldest particle", "min_temperature_K")] {
+        if let Some(pts) = col(key) {
+            p.add(Line::new(name, tu.x(pts)));
+        }
+    }
+    out.push(("temperature.png", p));
+    let lu = crate::plot::length_unit(prof.iter().map(|l| l.0.abs()).fold(0.0, f64::max));
+    let mut p = Plot::new(format!("{title}: shrinkage through the height"))
+        .subtitle(sub.clone())
+        .labels(format!("height above the bottom of the compact [{}]", lu.name), "mean contact shrinkage (approach / initial length)")
+        .y_zero(true);
+    p.add(Line::new("contacts by layer", lu.x(prof.to_vec())).with_markers());
+    out.push(("layer_profile.png", p));
+    out
+}
+
+/// PNG and SVG plots of a compact run from its series.csv ([`series_plots`]), the ΔL̄ histogram
+/// (Ivannikov et al. 2022 Fig. 20) and the layer profile along z.
+pub fn write_plots(out: &Path, sim: &Simulation) -> Result<(), IoError> {
     let path = out.join("series.csv");
     let text = std::fs::read_to_string(&path).map_err(|e| IoError::new(&path, e))?;
     let mut lines = text.lines();
     let header: Vec<&str> = lines.next().unwrap_or("").split(',').collect();
     let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|v| v.parse().unwrap_or(f64::NAN)).collect()).collect();
-    let col = |name: &str| -> Vec<(f64, f64)> {
-        let k = header.iter().position(|h| *h == name).unwrap_or(0);
-        rows.iter().filter(|r| r[0] > 0.0).map(|r| (r[0], r[k])).collect()
-    };
-    let time = label("time_s");
-    let mut p = Plot::new("shrinkage along each axis (1 - L/L0)").labels(&time, "shrinkage [1]");
-    for (name, key) in [("x", "shrinkage_x"), ("y", "shrinkage_y"), ("z", "shrinkage_z")] {
-        p.add(Line::new(name, col(key)));
+    let head = plot_header(sim);
+    let prof: Vec<(f64, f64)> = sim.layer_profile(5).iter().map(|l| (l.0 - sim.planes.z, l.1)).collect();
+    for (name, p) in series_plots(&head, &header, &rows, sim.expansion.is_some(), &prof) {
+        p.save_png(&out.join(name))?;
     }
-    if sim.expansion.is_some() {
-        // (X11): net of the thermal strain
-        for (name, key) in [("x, sintering", "sintering_shrinkage_x"), ("y, sintering", "sintering_shrinkage_y"), ("z, sintering", "sintering_shrinkage_z")] {
-            p.add(Line::new(name, col(key)));
-        }
-    }
-    p.save_png(&out.join("shrinkage.png"))?;
-    let mut p = Plot::new("relative density (eq. 49)").labels(&time, label("relative_density"));
-    p.add(Line::new("relative density", col("relative_density")));
-    p.save_png(&out.join("relative_density.png"))?;
-    let mut p = Plot::new("mean coordination number").labels(&time, label("coordination_mean"));
-    p.add(Line::new("2 contacts / particles", col("coordination_mean")));
-    p.save_png(&out.join("coordination.png"))?;
-    let mut p = Plot::new("mean neck ratio y1/R_min").labels(&time, label("neck_ratio_mean")).log_x(true);
-    p.add(Line::new("neck ratio", col("neck_ratio_mean")));
-    p.save_png(&out.join("neck_ratio.png"))?;
-    let mut p = Plot::new("particle temperatures").labels(&time, label("mean_temperature_K"));
-    for (name, key) in [("mean", "mean_temperature_K"), ("min", "min_temperature_K"), ("max", "max_temperature_K")] {
-        p.add(Line::new(name, col(key)));
-    }
-    p.save_png(&out.join("temperature.png"))?;
     // dl_bar_end.csv itself is data, written before summary.json (driver::finish)
     let dl: Vec<f64> = sim.contacts.dl_bar.iter().zip(&sim.contacts.state).map(|(d, c)| d / c.l0).collect();
     plot_correction_histogram(out, sim, "end", &dl)?;
-    let prof = sim.layer_profile(5);
-    let mut p = Plot::new("densification through the height").labels("height z [m]", "mean contact shrinkage dL/L0 [1]");
-    p.add(Line::new("contacts by layer", prof.iter().map(|l| (l.0, l.1)).collect()).with_markers());
-    p.save_png(&out.join("layer_profile.png"))?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rows() -> (Vec<&'static str>, Vec<Vec<f64>>) {
+        let cols = vec![
+            "time_s",
+            "shrinkage_x",
+            "shrinkage_y",
+            "shrinkage_z",
+            "relative_density",
+            "coordination_mean",
+            "neck_ratio_mean",
+            "mean_temperature_K",
+            "min_temperature_K",
+            "max_temperature_K",
+        ];
+        let rows = (0..=50)
+            .map(|k| {
+                let t = 100.0 * k as f64;
+                let s = 0.01 * (t / 5000.0).sqrt();
+                vec![t, s, s, 0.9 * s, 0.6 + s, 6.0 + s, 0.1 + s, 1200.0, 1190.0, 1210.0]
+            })
+            .collect();
+        (cols, rows)
+    }
+
+    /// Issue 25 on the compact plots: the case title and settings on each, time in min for a
+    /// 5000 s run, no equation numbers or symbols in titles and labels, heights in µm, the layer
+    /// profile and shrinkage from zero, x shrinkage and y shrinkage in different styles.
+    #[test]
+    fn compact_plots_are_titled_plain_and_honest() {
+        let (cols, rows) = rows();
+        let head = ("copper compact, 1293 K, 5000 s".to_string(), "805 particles of copper, mean radius 25 µm".to_string());
+        let prof = vec![(15e-6, 0.0191), (45e-6, 0.0198), (75e-6, 0.0195), (105e-6, 0.0193), (135e-6, 0.0192)];
+        let plots = series_plots(&head, &cols, &rows, false, &prof);
+        let names: Vec<&str> = plots.iter().map(|p| p.0).collect();
+        assert_eq!(names, ["shrinkage.png", "relative_density.png", "coordination.png", "neck_ratio.png", "temperature.png", "layer_profile.png"]);
+        for (name, p) in &plots {
+            let s = p.spec();
+            assert!(s.title.starts_with("copper compact, 1293 K, 5000 s: "), "{name}: {}", s.title);
+            assert_eq!(s.subtitle, head.1, "{name}");
+            for text in [&s.title, &s.x.label, &s.y.label] {
+                for jargon in ["eq.", "y1/R", "R_min", "dL", "Fig.", "_"] {
+                    assert!(!text.contains(jargon), "{name}: {text:?} has {jargon:?}");
+                }
+            }
+            if *name != "layer_profile.png" && *name != "neck_ratio.png" {
+                assert_eq!(s.x.label, "time [min]", "{name}");
+                assert!(s.x.range.0 == 0.0 && (s.x.range.1 - 5000.0 / 60.0).abs() < 1e-9, "{name}: {:?}", s.x.range);
+            }
+        }
+        let spec = |n: &str| plots.iter().find(|p| p.0 == n).unwrap().1.spec();
+        let shr = spec("shrinkage.png");
+        assert_eq!(shr.y.range.0, 0.0);
+        assert_ne!(shr.series[0].line, shr.series[1].line);
+        assert_ne!(shr.series[0].marker, shr.series[1].marker);
+        let lp = spec("layer_profile.png");
+        assert_eq!(lp.y.range.0, 0.0, "the layer spread is not stretched over the axis");
+        assert!(lp.x.label.contains("[µm]"), "{}", lp.x.label);
+        assert!(lp.series[0].points.iter().all(|p| p.0 >= 15.0 - 1e-9 && p.0 <= 135.0 + 1e-9));
+        let temp = spec("temperature.png");
+        assert_eq!(temp.y.label, "temperature [K]");
+        assert_eq!(temp.series.len(), 3);
+        let rd = spec("relative_density.png");
+        assert!(rd.title.ends_with("relative density"), "{}", rd.title);
+        // a series column another version renamed or dropped: the plot without it, no panic
+        let plots = series_plots(&head, &cols[..4], &rows.iter().map(|r| r[..4].to_vec()).collect::<Vec<_>>(), false, &prof);
+        assert_eq!(plots[0].1.series.len(), 3);
+        assert!(plots[1].1.series.is_empty());
+        // the histogram counts from zero, in plain words
+        let h = histogram_plot(&head, 1800.0, &[1e-4, 2e-4, 2e-4, 3e-4]).spec();
+        assert_eq!(h.y.range.0, 0.0);
+        assert!(h.title.ends_with("contact length corrections at t = 30 min"), "{}", h.title);
+        assert_eq!(h.series[0].marker, None);
+    }
 }

@@ -116,7 +116,8 @@ fn tag(b: &Branch) -> String {
 }
 
 fn label(b: &Branch, pressures: usize) -> String {
-    if pressures > 1 { format!("p={:.0e} Pa, ts={} s", b.pressure, b.t_sinter) } else { format!("ts={} s", b.t_sinter) }
+    let ts = crate::plot::fmt_time(b.t_sinter);
+    if pressures > 1 { format!("pressure {:.0e} Pa, sintered {ts}", b.pressure) } else { format!("sintered {ts}") }
 }
 
 /// Probability density of `f/⟨|f|⟩` in `bins` bins over [−3, 5].
@@ -164,48 +165,76 @@ pub fn write_outputs(case: &ExplicitSinterCase, run: &ExplicitSinterRun, out_dir
             csv.row(&[1.0, f])?;
         }
     }
-    let np = case.walls.pressures.len();
-    let mk = |title: &str, x: &str, y: &str, f: &dyn Fn(&Branch) -> Vec<(f64, f64)>| {
-        let mut pl = Plot::new(title).labels(x, y);
-        for b in &run.branches {
-            pl.add(Series::new(label(b, np), f(b)));
-        }
-        pl
-    };
-    // axis labels of series columns from the column list; the derived quantities (σ_zz/p, the
-    // force pdf) name themselves
-    let lab = |name: &str| crate::io::label(&cols, name).expect("a column of the series");
-    let (t, eps) = (lab("time_s"), lab("strain_zz"));
-    let history = |f: fn(&Row) -> f64| move |b: &Branch| -> Vec<(f64, f64)> { b.history.iter().map(|r| (r.time, f(r))).collect() };
-    let plots = [
-        ("density.png", mk("Density during the sample history", &t, &lab("density"), &history(|r| r.density))),
-        ("coordination.png", mk("Coordination number", &t, &lab("coordination"), &history(|r| r.coordination))),
-        (
-            "wall_stress.png",
-            mk("Top-wall stress / confining pressure", &t, "sigma_zz / p [1]", &|b: &Branch| {
-                b.history.iter().map(|r| (r.time, r.stress[2] / b.pressure)).collect()
-            }),
-        ),
-        ("temperature.png", mk("Mean temperature", &t, &lab("temperature_K"), &history(|r| r.temperature))),
-        ("state.png", mk(state.title, &t, &lab(state.name), &history(|r| r.state_mean))),
-        ("force_extremes.png", mk("Smallest contact normal force (negative: attractive)", &t, &lab("force_min_N"), &history(|r| r.force_min))),
-        ("force_pdf_sintered.png", mk("Normal-force pdf after sintering", "f / <|f|> [1]", "P [1]", &|b: &Branch| force_pdf(&b.forces_sintered))),
-        ("force_pdf_cooled.png", mk("Normal-force pdf after cool-down and relaxation", "f / <|f|> [1]", "P [1]", &|b: &Branch| force_pdf(&b.forces_cooled))),
-        (
-            "compression_stress.png",
-            mk("Compression test: vertical stress", &eps, &lab("sigma_zz_Pa"), &|b: &Branch| b.compression.iter().map(|r| (r.strain, r.stress[2])).collect()),
-        ),
-        (
-            "compression_density.png",
-            mk("Compression test: density", &eps, &lab("density"), &|b: &Branch| b.compression.iter().map(|r| (r.strain, r.density)).collect()),
-        ),
-    ];
-    for (name, pl) in plots.iter() {
+    for (name, pl) in plots(case, run) {
         pl.save_png(&out_dir.join(name))?;
     }
     let summary = summary_json(run);
     crate::io::write_json(&out_dir.join("summary.json"), &summary)?;
     Ok(summary)
+}
+
+/// The plots of a run (file name, plot): one line per branch, the case title and its key settings
+/// on each, plain-language labels, time in the unit its span reads best in.
+pub fn plots(case: &ExplicitSinterCase, run: &ExplicitSinterRun) -> Vec<(&'static str, Plot)> {
+    let np = case.walls.pressures.len();
+    let t_end = run.branches.iter().flat_map(|b| b.history.iter().map(|r| r.time)).fold(0.0, f64::max);
+    let tu = crate::plot::time_unit(t_end, false);
+    let sub = format!(
+        "{} particles, {} law, {} branch{}, time step {:.2e} s",
+        run.particles,
+        run.model,
+        run.branches.len(),
+        if run.branches.len() == 1 { "" } else { "es" },
+        run.dt
+    );
+    let mk = |what: &str, x: &str, y: &str, zero: bool, f: &dyn Fn(&Branch) -> Vec<(f64, f64)>| {
+        let mut pl = Plot::new(format!("{}: {what}", case.title)).subtitle(sub.clone()).labels(x, y).y_zero(zero);
+        for b in &run.branches {
+            pl.add(Series::new(label(b, np), f(b)));
+        }
+        pl
+    };
+    let t = format!("time [{}]", tu.name);
+    let history = |f: fn(&Row) -> f64| move |b: &Branch| -> Vec<(f64, f64)> { b.history.iter().map(|r| (tu.of(r.time), f(r))).collect() };
+    let state = case.law.state();
+    let state_label = crate::io::label(&columns(state), state.name).unwrap_or_else(|| state.name.to_string());
+    vec![
+        ("density.png", mk("density during the sample history", &t, "density (solid volume fraction)", false, &history(|r| r.density))),
+        ("coordination.png", mk("contacts per particle", &t, "mean contacts per particle", false, &history(|r| r.coordination))),
+        (
+            "wall_stress.png",
+            mk("top-wall stress over the confining pressure", &t, "vertical wall stress / confining pressure", true, &|b: &Branch| {
+                b.history.iter().map(|r| (tu.of(r.time), r.stress[2] / b.pressure)).collect()
+            }),
+        ),
+        ("temperature.png", mk("mean temperature", &t, "temperature [K]", false, &history(|r| r.temperature))),
+        ("state.png", mk(state.title, &t, &state_label, false, &history(|r| r.state_mean))),
+        ("force_extremes.png", mk("smallest contact normal force (negative: attractive)", &t, "smallest normal force [N]", true, &history(|r| r.force_min))),
+        (
+            "force_pdf_sintered.png",
+            mk("normal-force distribution after sintering", "normal force / mean |normal force|", "probability density", true, &|b: &Branch| {
+                force_pdf(&b.forces_sintered)
+            }),
+        ),
+        (
+            "force_pdf_cooled.png",
+            mk("normal-force distribution after cool-down and relaxation", "normal force / mean |normal force|", "probability density", true, &|b: &Branch| {
+                force_pdf(&b.forces_cooled)
+            }),
+        ),
+        (
+            "compression_stress.png",
+            mk("compression test: vertical stress", "vertical strain", "vertical stress [Pa]", true, &|b: &Branch| {
+                b.compression.iter().map(|r| (r.strain, r.stress[2])).collect()
+            }),
+        ),
+        (
+            "compression_density.png",
+            mk("compression test: density", "vertical strain", "density (solid volume fraction)", false, &|b: &Branch| {
+                b.compression.iter().map(|r| (r.strain, r.density)).collect()
+            }),
+        ),
+    ]
 }
 
 /// The `summary.json` value of a run.

@@ -188,7 +188,7 @@ pub fn write_outputs(case: &GenerateCase, packing: &Packing, summary: &GenerateS
         series.push((["x", "y", "z"][a], l.centres.iter().zip(&l.density).map(|(c, d)| (c / packing.box_size[a], *d)).collect::<Vec<_>>()));
     }
     report::write_text(&out_dir.join("laminae.csv"), &lam)?;
-    let title = format!("Laminae (eq. 48), {} particles", packing.radii.len());
+    let title = format!("Layer densities across the box, {} particles", packing.radii.len());
     // the band: ± 0.05 around the mean of the interior laminae (the acceptance criterion)
     let interior_mean = summary.laminae_mean.iter().sum::<f64>() / 3.0;
     report::write_laminae_plot(&out_dir.join("laminae.png"), &title, &series, interior_mean, 0.05)?;

@@ -197,13 +197,13 @@ pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunPar
         points.push(point);
     }
     while stepper.step()? {}
-    let r0 = {
+    let (r0, header) = {
         let sim = stepper.compact_simulation().ok_or_else(|| ConfigError::invalid("sinterdem rve: kind must be \"compact\""))?;
-        sim.prep.scene.particles.mean_radius()
+        (sim.prep.scene.particles.mean_radius(), crate::kinds::compact::plot_header(sim))
     };
     let mut summary = stepper.finish()?;
     let fit = output::fit_rows(&points, r0, rve.fit_temperature);
-    output::write(out, &points, &fit, params.plots)?;
+    output::write(out, &points, &fit, params.plots.then_some(&header))?;
     summary.summary["kind"] = serde_json::json!("rve");
     summary.summary["rve"] = output::summary_block(&rve, &points, &fit);
     crate::io::write_json(&out.join("summary.json"), &summary.summary)?;

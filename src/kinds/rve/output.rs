@@ -79,8 +79,9 @@ pub fn fit_rows(points: &[Point], r0: f64, temperature: Option<f64>) -> Result<L
     fit_skorohod_olevsky(&rows, r0).map_err(|e| format!("no fit at {t} K: {e}"))
 }
 
-/// Writes `constitutive.csv`, `fit.json` and (with `plots`) the two plots into `out`.
-pub fn write(out: &Path, points: &[Point], fit: &Result<LawFit, String>, plots: bool) -> Result<(), IoError> {
+/// Writes `constitutive.csv`, `fit.json` and (with `plots`: the case title and key settings of the
+/// run, [`crate::kinds::compact::plot_header`]) the two plots into `out`.
+pub fn write(out: &Path, points: &[Point], fit: &Result<LawFit, String>, plots: Option<&(String, String)>) -> Result<(), IoError> {
     let mut text = COLUMNS.join(",") + "\n";
     for p in points {
         text += &values(p).iter().map(|v| format!("{v:e}")).collect::<Vec<_>>().join(",");
@@ -88,29 +89,44 @@ pub fn write(out: &Path, points: &[Point], fit: &Result<LawFit, String>, plots: 
     }
     crate::io::write_atomic(&out.join("constitutive.csv"), &text)?;
     crate::io::write_json(&out.join("fit.json"), &fit_json(fit))?;
-    if plots && !points.is_empty() {
-        let rho: Vec<f64> = points.iter().map(|p| p.relative_density).collect();
-        let line = |f: &dyn Fn(&Point) -> f64| points.iter().zip(&rho).map(|(p, &r)| (r, f(p))).collect::<Vec<_>>();
-        let mut plot = Plot::new("viscosities of the periodic cell (docs/rve.md (R3)-(R6))").labels("relative density [1]", "viscosity [Pa s]").log_y(true);
-        plot.add(Series::new("bulk K (R3)", line(&|p| p.bulk_viscosity)).points_only());
-        plot.add(Series::new("uniaxial E_p (R4)", line(&|p| p.uniaxial_viscosity)).points_only());
-        plot.add(Series::new("shear G (R6)", line(&|p| p.shear_viscosity)).points_only());
-        if let Ok(f) = fit {
-            let fine = law_grid(&rho);
-            plot.add(Series::new("Skorohod-Olevsky K = 2 eta0 psi", fine.iter().map(|&r| (r, 2.0 * f.eta0 * phi_psi(r).1)).collect()));
-            plot.add(Series::new("Skorohod-Olevsky G = eta0 phi", fine.iter().map(|&r| (r, f.eta0 * phi_psi(r).0)).collect()));
+    if let Some(header) = plots.filter(|_| !points.is_empty()) {
+        for (name, plot) in rve_plots(header, points, fit) {
+            plot.save_png(&out.join(name))?;
         }
-        plot.save_png(&out.join("constitutive.png"))?;
-        let mut plot = Plot::new("sintering stress (tension positive)").labels("relative density [1]", "sintering stress [Pa]");
-        plot.add(Series::new("-K eps_v,free (R7)", line(&|p| p.sintering_stress)).points_only());
-        plot.add(Series::new("cell measure (B23)", line(&|p| p.sintering_stress_b23)).points_only());
-        if let Ok(f) = fit {
-            let fine = law_grid(&rho);
-            plot.add(Series::new("P_L = 3 alpha rho^2 / r0 (R11)", fine.iter().map(|&r| (r, 3.0 * f.alpha * r * r / f.r0_m)).collect()));
-        }
-        plot.save_png(&out.join("sintering_stress.png"))?;
     }
     Ok(())
+}
+
+/// The two plots of the constitutive data (file name, plot): measured viscosities and sintering
+/// stress against relative density, with the fitted Skorohod–Olevsky law (docs/rve.md (R3)–(R11))
+/// where the fit succeeded; the stress axis from zero.
+pub fn rve_plots(header: &(String, String), points: &[Point], fit: &Result<LawFit, String>) -> Vec<(&'static str, Plot)> {
+    let rho: Vec<f64> = points.iter().map(|p| p.relative_density).collect();
+    let line = |f: &dyn Fn(&Point) -> f64| points.iter().zip(&rho).map(|(p, &r)| (r, f(p))).collect::<Vec<_>>();
+    let sub = format!("{}; periodic cell measured at {} times", header.1, points.len());
+    let mut plot = Plot::new(format!("{}: viscosities of the periodic cell", header.0))
+        .subtitle(sub.clone())
+        .labels("relative density (solid volume fraction)", "viscosity [Pa s] (log scale)")
+        .log_y(true);
+    plot.add(Series::new("bulk viscosity K, measured", line(&|p| p.bulk_viscosity)).points_only());
+    plot.add(Series::new("uniaxial viscosity, measured", line(&|p| p.uniaxial_viscosity)).points_only());
+    plot.add(Series::new("shear viscosity G, measured", line(&|p| p.shear_viscosity)).points_only());
+    if let Ok(f) = fit {
+        let fine = law_grid(&rho);
+        plot.add(Series::new("bulk, Skorohod-Olevsky fit", fine.iter().map(|&r| (r, 2.0 * f.eta0 * phi_psi(r).1)).collect()));
+        plot.add(Series::new("shear, Skorohod-Olevsky fit", fine.iter().map(|&r| (r, f.eta0 * phi_psi(r).0)).collect()));
+    }
+    let mut stress = Plot::new(format!("{}: sintering stress (tension positive)", header.0))
+        .subtitle(sub)
+        .labels("relative density (solid volume fraction)", "sintering stress [Pa]")
+        .y_zero(true);
+    stress.add(Series::new("from the free shrinkage rate", line(&|p| p.sintering_stress)).points_only());
+    stress.add(Series::new("from the cell's contact forces", line(&|p| p.sintering_stress_b23)).points_only());
+    if let Ok(f) = fit {
+        let fine = law_grid(&rho);
+        stress.add(Series::new("Skorohod-Olevsky fit", fine.iter().map(|&r| (r, 3.0 * f.alpha * r * r / f.r0_m)).collect()));
+    }
+    vec![("constitutive.png", plot), ("sintering_stress.png", stress)]
 }
 
 fn law_grid(rho: &[f64]) -> Vec<f64> {
