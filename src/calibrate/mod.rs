@@ -429,7 +429,6 @@ pub fn run(setup: Setup, out: &Path, log: &mut dyn FnMut(&str)) -> Result<report
     if !failed.is_empty() {
         warnings.push(format!("the runs of {} fail at the optimum (penalty residuals): see experiments[].error", failed.join(", ")));
     }
-    let (m_fit, f_fit) = pb.configured(&values);
     let experiments_report = report::experiment_reports(&pb.experiments, &preds, &res);
     let evaluations = ev.evaluations();
     let batches = ev.batches();
@@ -467,23 +466,7 @@ pub fn run(setup: Setup, out: &Path, log: &mut dyn FnMut(&str)) -> Result<report
         experiments: experiments_report,
         warnings,
     };
-    let json_path = out.join("calibration.json");
-    let text = serde_json::to_string_pretty(&rep).map_err(|e| IoError::new(&json_path, e))?;
-    crate::io::write_atomic(&json_path, &(text + "\n"))?;
-    let m_out = write_fitted_material(out, &rep, pb, &m_fit, &f_fit, &values, &data_path)?;
-    report::write_residuals(&out.join("residuals.csv"), &pb.experiments, &res)?;
-    let header = (
-        rep.title.clone(),
-        format!(
-            "calibration of {}: {} model, {} experiments, {} fitted parameters, chi2 per degree of freedom {:.3}",
-            rep.material,
-            rep.model,
-            pb.experiments.len(),
-            rep.parameter_order.len(),
-            rep.reduced_chi2
-        ),
-    );
-    report::write_plots(out, &pb.experiments, &res, &header)?;
+    let (m_out, f_fit) = write_outputs(out, &rep, pb, &res, &values, &data_path)?;
     log(&format!(
         "chi2 = {chi2:.6}, dof = {dof}, chi2/dof = {reduced:.4}; {evaluations} evaluations in {} batches ({} {} runs, {} run now) in {:.2} s; results in {}",
         rep.batches.len(),
@@ -501,6 +484,37 @@ pub fn run(setup: Setup, out: &Path, log: &mut dyn FnMut(&str)) -> Result<report
         log(&format!("compact validation: {}", path.display()));
     }
     Ok(rep)
+}
+
+/// The files of a finished calibration in `out`: `calibration.json`, the fitted material,
+/// `residuals.csv` and the plots; returns the fitted material (as written) and path factors.
+fn write_outputs(
+    out: &Path,
+    rep: &report::CalibrationReport,
+    pb: &Problem,
+    res: &[loss::Residual],
+    values: &[f64],
+    data_path: &Path,
+) -> Result<(crate::models::diffusion7::Material, crate::models::diffusion7::PathFactors), Error> {
+    let (m_fit, f_fit) = pb.configured(values);
+    let json_path = out.join("calibration.json");
+    let text = serde_json::to_string_pretty(rep).map_err(|e| IoError::new(&json_path, e))?;
+    crate::io::write_atomic(&json_path, &(text + "\n"))?;
+    let m_out = write_fitted_material(out, rep, pb, &m_fit, &f_fit, values, data_path)?;
+    report::write_residuals(&out.join("residuals.csv"), &pb.experiments, res)?;
+    let header = (
+        rep.title.clone(),
+        format!(
+            "calibration of {}: {} model, {} experiments, {} fitted parameters, chi2 per degree of freedom {:.3}",
+            rep.material,
+            rep.model,
+            pb.experiments.len(),
+            rep.parameter_order.len(),
+            rep.reduced_chi2
+        ),
+    );
+    report::write_plots(out, &pb.experiments, res, &header)?;
+    Ok((m_out, f_fit))
 }
 
 /// A fit in which every run fails has no result (an error, not a report of penalties), and a
