@@ -289,6 +289,10 @@ enum Bench {
         /// Particle counts of the per-step measurement (repeatable).
         #[arg(long = "particles", default_values_t = vec![1000usize, 10000, 100000])]
         particles: Vec<usize>,
+        /// Packing files (packing.csv of `generate`) run with the copper compact's schedule and
+        /// timed per step like the lattices (repeatable; docs/coupled.md "Scaling").
+        #[arg(long = "packing")]
+        packing: Vec<PathBuf>,
         /// Steps timed per size.
         #[arg(long, default_value_t = 3)]
         steps: u64,
@@ -585,9 +589,9 @@ fn run_bench(which: Bench) -> Result<(), Error> {
             println!("{}", crate::bench::mechanics::bench_mechanics_with(&particles, cholesky_max)?);
             Ok(())
         }
-        Bench::Coupled { case, particles, steps, set } => {
+        Bench::Coupled { case, particles, packing, steps, set } => {
             let c = (case != "none").then(|| PathBuf::from(&case));
-            println!("{}", crate::bench::bench_coupled(c.as_deref(), &particles, steps, &set)?);
+            println!("{}", crate::bench::bench_coupled(c.as_deref(), &particles, &packing, steps, &set)?);
             Ok(())
         }
         Bench::Precision { copper, e14b, corner_edge, out } => {

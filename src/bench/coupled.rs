@@ -6,9 +6,16 @@ use std::path::Path;
 use std::time::Instant;
 
 /// `sinterdem bench coupled`: the bundled copper compact run whole (wall time and the share of
-/// each stage), then the cost per step of isothermal FCC compacts of about `sizes` particles;
-/// `overrides` (`KEY=VALUE`) apply to every run.
-pub fn bench_coupled(copper_case: Option<&Path>, sizes: &[usize], steps: u64, overrides: &[String]) -> Result<String, Error> {
+/// each stage), then the cost per step of isothermal FCC compacts of about `sizes` particles and
+/// of the copper-compact schedule on each packing file of `packings` (random packings: new
+/// contacts every fifth step from the start); `overrides` (`KEY=VALUE`) apply to every run.
+pub fn bench_coupled(
+    copper_case: Option<&Path>,
+    sizes: &[usize],
+    packings: &[std::path::PathBuf],
+    steps: u64,
+    overrides: &[String],
+) -> Result<String, Error> {
     use std::fmt::Write as _;
     let mut out = String::new();
     let _ = writeln!(out, "# sinterdem bench coupled ({} rayon threads)", rayon::current_num_threads());
@@ -54,50 +61,110 @@ pub fn bench_coupled(copper_case: Option<&Path>, sizes: &[usize], steps: u64, ov
     }
     let _ = writeln!(
         out,
-        "{:>9} {:>9} {:>12} {:>12} {:>12} {:>12} {:>12} {:>12} {:>12} {:>12} {:>12} {:>9}",
-        "particles", "contacts", "s/step", "detection", "diffusion", "mechanics", "correction", "newton/step", "cg/step", "rhs/contact", "rhs/s", "in lanes"
+        "{:>9} {:>9} {:>10} {:>12} {:>12} {:>12} {:>12} {:>12} {:>12} {:>12} {:>9} {:>12} {:>12} {:>9} {:>10}",
+        "particles",
+        "contacts",
+        "first s",
+        "s/step",
+        "detection",
+        "diffusion",
+        "mechanics",
+        "correction",
+        "newton/step",
+        "cg/step",
+        "new/step",
+        "rhs/contact",
+        "rhs/s",
+        "in lanes",
+        "peak kB/p"
     );
     for &n in sizes {
         let cells = ((n as f64 / 4.0).cbrt().round() as u32).max(2);
         let text = format!(
             "kind = \"compact\"\n[time]\nend = {end}\ndt = 1.0\ndt_max = 1.0\n[output]\nsnapshots = 0\nvtu = false\nhdf5 = false\n[[materials]]\nname = \"copper\"\npreset = \"copper\"\n[particles]\nsource = \"lattice\"\nlattice = \"fcc\"\ncells = [{cells}, {cells}, {cells}]\nradius = 25e-6\noverlap = 0.0\n[thermal]\nmode = \"isothermal\"\nfurnace = {{ profile = {{ constant = 1293.0 }} }}\n[contacts]\ndetect_new = true\n",
-            end = steps as f64
+            end = steps as f64 + 1.0
         );
-        let mut value = toml::Value::Table(text.parse::<toml::Table>().map_err(|e| ConfigError::invalid(e.to_string()))?);
-        for o in overrides {
-            crate::config::apply_override(&mut value, o)?;
-        }
-        let mut sim = prepare(value, Path::new("."), &mut |_| {})?;
-        // the first step of a new contact is the stiff start; time the later steps
-        sim.advance_step(&mut |_| {})?;
-        let t0 = sim.timing;
-        let (n0, c0, r0, l0) = (sim.mechanics.newton_iterations, sim.mechanics.profile.cg_iterations, sim.ode.rhs, sim.contacts_in_lanes);
-        let w = Instant::now();
-        let mut k = 0;
-        while sim.t < sim.settings.end && k < steps {
-            sim.advance_step(&mut |_| {})?;
-            k += 1;
-        }
-        let per = w.elapsed().as_secs_f64() / k.max(1) as f64;
-        let lanes_share = (sim.contacts_in_lanes - l0) as f64 / (k.max(1) as f64 * sim.contacts.len().max(1) as f64);
-        let tm = sim.timing;
-        let d = |a: f64, b: f64| (a - b) / k.max(1) as f64;
-        let _ = writeln!(
-            out,
-            "{:>9} {:>9} {:>12.4} {:>12.4} {:>12.4} {:>12.4} {:>12.4} {:>12.1} {:>12.1} {:>12.2} {:>12.3e} {:>8.1}%",
-            sim.prep.scene.particles.len(),
-            sim.contacts.len(),
-            per,
-            d(tm.detection, t0.detection),
-            d(tm.diffusion, t0.diffusion),
-            d(tm.mechanics, t0.mechanics),
-            d(tm.correction, t0.correction),
-            d(sim.mechanics.newton_iterations as f64, n0 as f64),
-            d(sim.mechanics.profile.cg_iterations as f64, c0 as f64),
-            d(sim.ode.rhs as f64, r0 as f64) / sim.contacts.len().max(1) as f64,
-            (sim.ode.rhs - r0) as f64 / (tm.diffusion - t0.diffusion).max(1e-300),
-            100.0 * lanes_share
-        );
+        let _ = writeln!(out, "{}", time_steps(&text, Path::new("."), steps, overrides)?);
     }
+    for file in packings {
+        let abs = std::fs::canonicalize(file).map_err(|e| ConfigError::invalid(format!("--packing {}: {e}", file.display())))?;
+        let text = format!("{PACKING_CASE}[particles]\nsource = \"file\"\nfile = {:?}\n", abs.display().to_string());
+        let _ = writeln!(out, "{}", time_steps(&text, Path::new("."), steps, overrides)?);
+    }
+    let _ = writeln!(
+        out,
+        "first s: the first step (topology analysis, first factorisation or AMG setup, stiff start of every contact); \
+         the other columns are means over the {steps} steps after it; new/step: contacts found per step; \
+         peak kB/p: the process's peak resident memory (VmHWM, so far in this bench) per particle"
+    );
     Ok(out)
+}
+
+/// The copper compact's settings (cases/large/copper-compact-100k.toml) without its packing: the
+/// per-step cost of a random packing under the schedule users run.
+const PACKING_CASE: &str = "kind = \"compact\"\n[time]\nend = 5000.0\ndt = 1.0e-6\nstrategy = 2\ndt_max = 10.0\nalpha = 1.5\n\
+[output]\nsnapshots = 0\nvtu = false\nhdf5 = false\n[[materials]]\nname = \"copper\"\npreset = \"copper\"\n\
+[thermal]\nmode = \"isothermal\"\nfurnace = { profile = { constant = 1293.0 } }\n\
+[contacts]\ndetect_new = true\ndetect_every = 5\ngap_tolerance = 1.0e-3\nneck = \"volume_conserving\"\n\
+[solver]\nmethod = \"dopri5\"\nrtol = 1.0e-5\n[mechanics]\nconstrain_planes = true\nplane_margin = 1.01\nsolver = \"auto\"\n";
+
+/// Peak resident memory of this process so far [bytes] (`VmHWM` of /proc/self/status; 0 where
+/// it is not known).
+fn peak_memory_bytes() -> f64 {
+    let text = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    text.lines()
+        .find(|l| l.starts_with("VmHWM:"))
+        .and_then(|l| l.split_whitespace().nth(1)?.parse::<f64>().ok())
+        .map_or(0.0, |kb| kb * 1024.0)
+}
+
+/// One row of the per-step table: prepares the case `text` (overrides applied), runs and times
+/// its first step, then `steps` more steps, per stage.
+fn time_steps(text: &str, base: &Path, steps: u64, overrides: &[String]) -> Result<String, Error> {
+    let mut value = toml::Value::Table(text.parse::<toml::Table>().map_err(|e| ConfigError::invalid(e.to_string()))?);
+    for o in overrides {
+        crate::config::apply_override(&mut value, o)?;
+    }
+    let mut sim = prepare(value, base, &mut |_| {})?;
+    // the first step of a new contact is the stiff start; time the later steps
+    let w0 = Instant::now();
+    sim.advance_step(&mut |_| {})?;
+    let first = w0.elapsed().as_secs_f64();
+    let t0 = sim.timing;
+    let (n0, c0, r0, l0, k0) = (
+        sim.mechanics.newton_iterations,
+        sim.mechanics.profile.cg_iterations,
+        sim.ode.rhs,
+        sim.contacts_in_lanes,
+        sim.contacts.len(),
+    );
+    let w = Instant::now();
+    let mut k = 0;
+    while sim.t < sim.settings.end && k < steps {
+        sim.advance_step(&mut |_| {})?;
+        k += 1;
+    }
+    let per = w.elapsed().as_secs_f64() / k.max(1) as f64;
+    let lanes_share = (sim.contacts_in_lanes - l0) as f64 / (k.max(1) as f64 * sim.contacts.len().max(1) as f64);
+    let tm = sim.timing;
+    let d = |a: f64, b: f64| (a - b) / k.max(1) as f64;
+    let particles = sim.prep.scene.particles.len();
+    Ok(format!(
+        "{:>9} {:>9} {:>10.3} {:>12.4} {:>12.4} {:>12.4} {:>12.4} {:>12.4} {:>12.1} {:>12.1} {:>9.1} {:>12.2} {:>12.3e} {:>8.1}% {:>10.2}",
+        particles,
+        sim.contacts.len(),
+        first,
+        per,
+        d(tm.detection, t0.detection),
+        d(tm.diffusion, t0.diffusion),
+        d(tm.mechanics, t0.mechanics),
+        d(tm.correction, t0.correction),
+        d(sim.mechanics.newton_iterations as f64, n0 as f64),
+        d(sim.mechanics.profile.cg_iterations as f64, c0 as f64),
+        d(sim.contacts.len() as f64, k0 as f64),
+        d(sim.ode.rhs as f64, r0 as f64) / sim.contacts.len().max(1) as f64,
+        (sim.ode.rhs - r0) as f64 / (tm.diffusion - t0.diffusion).max(1e-300),
+        100.0 * lanes_share,
+        peak_memory_bytes() / 1024.0 / particles.max(1) as f64
+    ))
 }
