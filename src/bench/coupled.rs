@@ -9,13 +9,7 @@ use std::time::Instant;
 /// each stage), then the cost per step of isothermal FCC compacts of about `sizes` particles and
 /// of the copper-compact schedule on each packing file of `packings` (random packings: new
 /// contacts every fifth step from the start); `overrides` (`KEY=VALUE`) apply to every run.
-pub fn bench_coupled(
-    copper_case: Option<&Path>,
-    sizes: &[usize],
-    packings: &[std::path::PathBuf],
-    steps: u64,
-    overrides: &[String],
-) -> Result<String, Error> {
+pub fn bench_coupled(copper_case: Option<&Path>, sizes: &[usize], packings: &[std::path::PathBuf], steps: u64, overrides: &[String]) -> Result<String, Error> {
     use std::fmt::Write as _;
     let mut out = String::new();
     let _ = writeln!(out, "# sinterdem bench coupled ({} rayon threads)", rayon::current_num_threads());
@@ -112,10 +106,7 @@ const PACKING_CASE: &str = "kind = \"compact\"\n[time]\nend = 5000.0\ndt = 1.0e-
 /// it is not known).
 fn peak_memory_bytes() -> f64 {
     let text = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
-    text.lines()
-        .find(|l| l.starts_with("VmHWM:"))
-        .and_then(|l| l.split_whitespace().nth(1)?.parse::<f64>().ok())
-        .map_or(0.0, |kb| kb * 1024.0)
+    text.lines().find(|l| l.starts_with("VmHWM:")).and_then(|l| l.split_whitespace().nth(1)?.parse::<f64>().ok()).map_or(0.0, |kb| kb * 1024.0)
 }
 
 /// One row of the per-step table: prepares the case `text` (overrides applied), runs and times
@@ -131,13 +122,7 @@ fn time_steps(text: &str, base: &Path, steps: u64, overrides: &[String]) -> Resu
     sim.advance_step(&mut |_| {})?;
     let first = w0.elapsed().as_secs_f64();
     let t0 = sim.timing;
-    let (n0, c0, r0, l0, k0) = (
-        sim.mechanics.newton_iterations,
-        sim.mechanics.profile.cg_iterations,
-        sim.ode.rhs,
-        sim.contacts_in_lanes,
-        sim.contacts.len(),
-    );
+    let (n0, c0, r0, l0, k0) = (sim.mechanics.newton_iterations, sim.mechanics.profile.cg_iterations, sim.ode.rhs, sim.contacts_in_lanes, sim.contacts.len());
     let w = Instant::now();
     let mut k = 0;
     while sim.t < sim.settings.end && k < steps {
