@@ -11,8 +11,12 @@ pub const MAX_STEPS: f64 = 1e9;
 /// Estimated memory per particle of a run [bytes] (particles, contacts ≈ 6 per particle, sparse
 /// matrices and their factors; measured on the bundled cases with a margin).
 pub const BYTES_PER_PARTICLE_HEAT: f64 = 4096.0;
-/// Compact runs add the 7-DOF contact states and the 6-DOF mechanics system.
-pub const BYTES_PER_PARTICLE_COMPACT: f64 = 32768.0;
+/// Compact runs add the 7-DOF contact states and the 6-DOF mechanics system: peak resident
+/// memory measured 7.9–8.2 kB per particle on random packings (2.6 contacts per particle, 10⁴–10⁶
+/// particles) and 11.2 kB on the touching FCC lattice (5.8 contacts per particle, AMG-PCG),
+/// `sinterdem bench coupled` (docs/coupled.md "Scaling"); 16 kB leaves a margin of 1.4 over
+/// the densest.
+pub const BYTES_PER_PARTICLE_COMPACT: f64 = 16384.0;
 /// Packing generation (explicit DEM: particles, cell list, contacts).
 pub const BYTES_PER_PARTICLE_GENERATE: f64 = 2048.0;
 
