@@ -416,8 +416,8 @@ where
     Ok(())
 }
 
-/// The legend box in the corner of the plot area that hides the fewest points: per named series
-/// a line sample in its style with its marker, and the name.
+/// The legend box at the spot of the plot area that hides the least ink (markers and lines, see
+/// [`legend_spot`]): per named series a line sample in its style with its marker, and the name.
 pub(super) fn legend<DB: DrawingBackend>(spec: &PlotSpec, root: &DrawingArea<DB, Shift>, map: &Map, lay: &Layout, raster: bool) -> DrawResult<DB::ErrorType> {
     let entries: Vec<&SeriesSpec> = spec.series.iter().filter(|s| !s.name.is_empty()).collect();
     let fsize = lay.px(16.0) as f64;
@@ -431,13 +431,9 @@ pub(super) fn legend<DB: DrawingBackend>(spec: &PlotSpec, root: &DrawingArea<DB,
     let bh = pad * 2.0 + row * entries.len() as f64;
     let (l, r, t, b) = (map.px.0, map.px.1, map.py.0, map.py.1);
     let m = lay.px(12.0) as f64;
-    let corners = [(r - m - bw, t + m), (l + m, t + m), (r - m - bw, b - m - bh), (l + m, b - m - bh)];
-    let pts: Vec<(f64, f64)> = spec.series.iter().flat_map(|s| s.points.iter()).filter(|&&(x, y)| ok(spec, x, y)).map(|&(x, y)| map.at(x, y)).collect();
-    let (bx, by) = corners
-        .iter()
-        .copied()
-        .min_by_key(|&(cx, cy)| pts.iter().filter(|&&(u, v)| u >= cx - 6.0 && u <= cx + bw + 6.0 && v >= cy - 6.0 && v <= cy + bh + 6.0).count())
-        .unwrap_or(corners[0]);
+    let lines: Vec<(bool, Vec<(f64, f64)>)> =
+        spec.series.iter().map(|s| (s.line.is_some(), s.points.iter().filter(|&&(x, y)| ok(spec, x, y)).map(|&(x, y)| map.at(x, y)).collect())).collect();
+    let (bx, by) = legend_spot(&ink(&lines, 3.0), (l, r, t, b), m, (bw, bh));
     root.draw(&Rectangle::new([ipt((bx, by)), ipt((bx + bw, by + bh))], RGBColor(252, 252, 252).filled()))?;
     root.draw(&Rectangle::new([ipt((bx, by)), ipt((bx + bw, by + bh))], ShapeStyle::from(&RGBColor(160, 160, 160)).stroke_width(1)))?;
     for (k, e) in entries.iter().enumerate() {
@@ -453,4 +449,57 @@ pub(super) fn legend<DB: DrawingBackend>(spec: &PlotSpec, root: &DrawingArea<DB,
         root.draw_text(&e.name, &st, ipt((x1 + pad, y)))?;
     }
     Ok(())
+}
+
+/// Pixels a plot inks: every point, and along a series drawn with a line one sample every `step`
+/// pixels of each segment (a legend placed by points alone could cover a line between them).
+pub(super) fn ink(series: &[(bool, Vec<(f64, f64)>)], step: f64) -> Vec<(f64, f64)> {
+    let mut out = Vec::new();
+    for (line, pts) in series {
+        out.extend_from_slice(pts);
+        if !line {
+            continue;
+        }
+        for w in pts.windows(2) {
+            let (d, e) = ((w[1].0 - w[0].0), (w[1].1 - w[0].1));
+            let n = ((d.hypot(e) / step).ceil() as usize).min(10_000);
+            out.extend((1..n).map(|k| (w[0].0 + d * k as f64 / n as f64, w[0].1 + e * k as f64 / n as f64)));
+        }
+    }
+    out
+}
+
+/// Where the legend box of `size` (w, h) [px] goes inside the plot area (l, r, t, b) [px] with
+/// margin `m`: of the four corners (top right first), then the top and bottom centres, the spot
+/// whose box (grown by 6 px) holds the fewest inked pixels; ties go to the earlier spot.
+pub(super) fn legend_spot(ink: &[(f64, f64)], (l, r, t, b): (f64, f64, f64, f64), m: f64, (bw, bh): (f64, f64)) -> (f64, f64) {
+    let cx = 0.5 * (l + r - bw);
+    let spots = [(r - m - bw, t + m), (l + m, t + m), (r - m - bw, b - m - bh), (l + m, b - m - bh), (cx, t + m), (cx, b - m - bh)];
+    let hidden = |&(x, y): &(f64, f64)| ink.iter().filter(|&&(u, v)| u >= x - 6.0 && u <= x + bw + 6.0 && v >= y - 6.0 && v <= y + bh + 6.0).count();
+    spots.iter().copied().min_by_key(hidden).unwrap_or(spots[0])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_legend_avoids_lines_not_only_points() {
+        // a plot area 0..600 x 0..400 px whose data fill all four corners with vertices and cross
+        // the bottom centre only with lines: the old rule (vertices only) picked a corner hiding a
+        // vertex; now the top centre, where nothing is drawn
+        let frame = (0.0, 600.0, 0.0, 400.0);
+        let corners = vec![(20.0, 20.0), (580.0, 20.0), (20.0, 380.0), (580.0, 380.0)];
+        // a line through the bottom centre from the bottom-left vertex to the bottom-right one
+        let series = vec![(true, vec![(20.0, 380.0), (300.0, 370.0), (580.0, 380.0)]), (false, corners)];
+        let spot = legend_spot(&ink(&series, 3.0), frame, 10.0, (150.0, 60.0));
+        assert_eq!(spot, (225.0, 10.0), "top centre");
+        // the bottom centre holds one vertex only, but its line samples count: 150 px of line at one
+        // sample per 3 px is about 50 inked pixels
+        let bottom = ink(&series, 3.0).iter().filter(|&&(u, v)| (219.0..=381.0).contains(&u) && (324.0..=396.0).contains(&v)).count();
+        assert!((50..=56).contains(&bottom), "{bottom}");
+        // without a line (markers only) the same vertices leave the bottom centre all but empty
+        let markers = vec![(false, vec![(20.0, 380.0), (300.0, 370.0), (580.0, 380.0)])];
+        assert_eq!(ink(&markers, 3.0).len(), 3);
+    }
 }
