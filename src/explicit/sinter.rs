@@ -78,6 +78,8 @@ pub struct StateColumn {
     pub unit: &'static str,
     /// Title of the plot of the column over time.
     pub title: &'static str,
+    /// The quantity in words for the plot's axis, without its unit (`mean plastic overlap`).
+    pub quantity: &'static str,
 }
 
 /// Luding's law in the driver.
@@ -147,7 +149,8 @@ impl ContactModel for LudingLaw {
 impl SinterLaw for LudingLaw {
     const NAME: &'static str = "luding";
     const RANGES: &'static [Range] = luding::RANGES;
-    const STATE: StateColumn = StateColumn { name: "k1_t_mean_N_per_m", unit: "N/m", title: "Mean k1(T,t) of the contacts" };
+    const STATE: StateColumn =
+        StateColumn { name: "k1_t_mean_N_per_m", unit: "N/m", title: "mean loading stiffness k1(T, t) of the contacts", quantity: "mean loading stiffness k1" };
     /// `[luding]` may be left out (the defaults of Luding et al. 2005, Table 1).
     fn from_case(section: Option<toml::Value>, case: &LawInputs) -> Result<Self, Error> {
         let v = section.unwrap_or_else(|| toml::Value::Table(toml::Table::new()));
@@ -233,7 +236,8 @@ impl ContactModel for FrenkelLaw {
 impl SinterLaw for FrenkelLaw {
     const NAME: &'static str = "frenkel";
     const RANGES: &'static [Range] = frenkel::RANGES;
-    const STATE: StateColumn = StateColumn { name: "delta_p_mean_m", unit: "m", title: "Mean plastic overlap of the contacts" };
+    const STATE: StateColumn =
+        StateColumn { name: "delta_p_mean_m", unit: "m", title: "mean plastic overlap of the contacts", quantity: "mean plastic overlap" };
     /// `[frenkel]` is required; `protocol.t0_sinter` (Luding's) is refused.
     fn from_case(section: Option<toml::Value>, case: &LawInputs) -> Result<Self, Error> {
         let v = section.ok_or_else(|| ConfigError::inconsistent("frenkel", "model = \"frenkel\" needs a [frenkel] section"))?;

@@ -330,12 +330,18 @@ pub fn fmt_length(l: f64) -> String {
 
 /// A tick label: at most 4 significant digits, plain for 1e-3 ≤ |v| < 1e5, else `2.5e-5`.
 pub fn tick_label(v: f64) -> String {
+    tick_label_on(v, v.abs())
+}
+
+/// A tick label on an axis whose largest |value| is `axis_max`: every tick of an axis that reaches
+/// 1e5 in the `2.5e5` form, so that 5e4 does not read `50000` beside `1e5` (as [`tick_label`] else).
+pub fn tick_label_on(v: f64, axis_max: f64) -> String {
     if v == 0.0 || !v.is_finite() {
         return if v == 0.0 { "0".into() } else { format!("{v}") };
     }
     let trim = |s: String| if s.contains('.') { s.trim_end_matches('0').trim_end_matches('.').to_string() } else { s };
     let a = v.abs();
-    if (1e-3..1e5).contains(&a) {
+    if (1e-3..1e5).contains(&a) && axis_max < 1e5 {
         let decimals = (3 - a.log10().floor() as i32).max(0) as usize;
         trim(format!("{v:.decimals$}"))
     } else {

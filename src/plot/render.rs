@@ -329,14 +329,19 @@ where
         .x_label_area_size(x_area)
         .y_label_area_size(y_area)
         .build_cartesian_2d(xr, yr)?;
-    let fmt = |v: &f64| tick_label(*v);
+    let span = |a: &AxisSpec| if a.log { 0.0 } else { (a.range.1 - a.range.0).abs() };
+    let (sx, sy) = (span(&spec.x), span(&spec.y));
+    let top = |a: &AxisSpec| if a.log { 0.0 } else { a.range.0.abs().max(a.range.1.abs()) };
+    let (mx, my) = (top(&spec.x), top(&spec.y));
+    let fmt_y = move |v: &f64| tick_label_on(snap_zero(*v, sy), my);
+    let fmt = move |v: &f64| tick_label_on(snap_zero(*v, sx), mx);
     let blank = |_: &f64| String::new();
     let mut mesh = chart.configure_mesh();
     mesh.x_desc(spec.x.label.as_str())
         .y_desc(spec.y.label.as_str())
         .axis_desc_style(label_font)
         .label_style(tick_font)
-        .y_label_formatter(&fmt)
+        .y_label_formatter(&fmt_y)
         .y_labels(8)
         .light_line_style(RGBColor(240, 240, 240))
         .bold_line_style(RGBColor(215, 215, 215));
@@ -451,6 +456,13 @@ pub(super) fn legend<DB: DrawingBackend>(spec: &PlotSpec, root: &DrawingArea<DB,
     Ok(())
 }
 
+/// A tick value of a linear axis of width `span` that is zero but for rounding in the tick
+/// arithmetic (plotters steps from the range's start: −2.2e-16 instead of 0) reads as 0;
+/// `span` = 0 (log axes) leaves `v` as it is.
+pub(super) fn snap_zero(v: f64, span: f64) -> f64 {
+    if v.abs() < 1e-9 * span { 0.0 } else { v }
+}
+
 /// Pixels a plot inks: every point, and along a series drawn with a line one sample every `step`
 /// pixels of each segment (a legend placed by points alone could cover a line between them).
 pub(super) fn ink(series: &[(bool, Vec<(f64, f64)>)], step: f64) -> Vec<(f64, f64)> {
@@ -482,6 +494,21 @@ pub(super) fn legend_spot(ink: &[(f64, f64)], (l, r, t, b): (f64, f64, f64, f64)
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_tick_at_zero_but_for_rounding_reads_0() {
+        // the smallest-force plot: y from -1.1 to 0.02 N, plotters' top tick -2.22e-16
+        assert_eq!(tick_label(snap_zero(-2.220446049250313e-16, 1.12)), "0");
+        assert_eq!(tick_label(snap_zero(-0.2, 1.12)), "-0.2");
+        // a log axis (span 0) keeps its small values
+        assert_eq!(tick_label(snap_zero(1e-20, 0.0)), "1e-20");
+        // a linear axis of tiny values keeps them: 1e-20 on a span of 1e-19
+        assert_eq!(tick_label(snap_zero(1e-20, 1e-19)), "1e-20");
+        // one form per axis: 5e4 beside 2.5e5 (the sintering-stress axis), plain below 1e5
+        assert_eq!(tick_label_on(50000.0, 2.9e5), "5e4");
+        assert_eq!(tick_label_on(250000.0, 2.9e5), "2.5e5");
+        assert_eq!(tick_label_on(50000.0, 9e4), "50000");
+    }
 
     #[test]
     fn the_legend_avoids_lines_not_only_points() {

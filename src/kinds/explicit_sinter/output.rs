@@ -197,7 +197,10 @@ pub fn plots(case: &ExplicitSinterCase, run: &ExplicitSinterRun) -> Vec<(&'stati
     let t = format!("time [{}]", tu.name);
     let history = |f: fn(&Row) -> f64| move |b: &Branch| -> Vec<(f64, f64)> { b.history.iter().map(|r| (tu.of(r.time), f(r))).collect() };
     let state = case.law.state();
-    let state_label = crate::io::label(&columns(state), state.name).unwrap_or_else(|| state.name.to_string());
+    // the state in words with its unit; a length in the unit its values read best in (µm)
+    let state_max = run.branches.iter().flat_map(|b| b.history.iter().map(|r| r.state_mean.abs())).fold(0.0, f64::max);
+    let su = if state.unit == "m" { crate::plot::length_unit(state_max) } else { crate::plot::Unit { name: state.unit, factor: 1.0 } };
+    let state_label = format!("{} [{}]", state.quantity, su.name);
     vec![
         ("density.png", mk("density during the sample history", &t, "density (solid volume fraction)", false, &history(|r| r.density))),
         ("coordination.png", mk("contacts per particle", &t, "mean contacts per particle", false, &history(|r| r.coordination))),
@@ -208,7 +211,7 @@ pub fn plots(case: &ExplicitSinterCase, run: &ExplicitSinterRun) -> Vec<(&'stati
             }),
         ),
         ("temperature.png", mk("mean temperature", &t, "temperature [K]", false, &history(|r| r.temperature))),
-        ("state.png", mk(state.title, &t, &state_label, false, &history(|r| r.state_mean))),
+        ("state.png", mk(state.title, &t, &state_label, false, &|b: &Branch| b.history.iter().map(|r| (tu.of(r.time), su.of(r.state_mean))).collect())),
         ("force_extremes.png", mk("smallest contact normal force (negative: attractive)", &t, "smallest normal force [N]", true, &history(|r| r.force_min))),
         (
             "force_pdf_sintered.png",

@@ -116,15 +116,18 @@ pub fn rve_plots(header: &(String, String), points: &[Point], fit: &Result<LawFi
         plot.add(Series::new("bulk, Skorohod-Olevsky fit", fine.iter().map(|&r| (r, 2.0 * f.eta0 * phi_psi(r).1)).collect()));
         plot.add(Series::new("shear, Skorohod-Olevsky fit", fine.iter().map(|&r| (r, f.eta0 * phi_psi(r).0)).collect()));
     }
+    // the stress in kPa or MPa, whichever its values read in
+    let top = points.iter().map(|p| p.sintering_stress.abs().max(p.sintering_stress_b23.abs())).fold(0.0, f64::max);
+    let (unit, k) = if top >= 1e6 { ("MPa", 1e-6) } else { ("kPa", 1e-3) };
     let mut stress = Plot::new(format!("{}: sintering stress (tension positive)", header.0))
         .subtitle(sub)
-        .labels("relative density (solid volume fraction)", "sintering stress [Pa]")
+        .labels("relative density (solid volume fraction)", format!("sintering stress [{unit}]"))
         .y_zero(true);
-    stress.add(Series::new("from the free shrinkage rate", line(&|p| p.sintering_stress)).points_only());
-    stress.add(Series::new("from the cell's contact forces", line(&|p| p.sintering_stress_b23)).points_only());
+    stress.add(Series::new("from the free shrinkage rate", line(&|p| k * p.sintering_stress)).points_only());
+    stress.add(Series::new("from the cell's contact forces", line(&|p| k * p.sintering_stress_b23)).points_only());
     if let Ok(f) = fit {
         let fine = law_grid(&rho);
-        stress.add(Series::new("Skorohod-Olevsky fit", fine.iter().map(|&r| (r, 3.0 * f.alpha * r * r / f.r0_m)).collect()));
+        stress.add(Series::new("Skorohod-Olevsky fit", fine.iter().map(|&r| (r, k * 3.0 * f.alpha * r * r / f.r0_m)).collect()));
     }
     vec![("constitutive.png", plot), ("sintering_stress.png", stress)]
 }
