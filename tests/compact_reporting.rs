@@ -124,3 +124,29 @@ fn shrinkage_without_constrained_planes_agrees_with_the_constrained_run() {
     let (rc, rf) = (c.f64("relative_density").unwrap(), f.f64("relative_density").unwrap());
     assert!((rf / rc - 1.0).abs() < 0.01, "relative density free {rf} vs constrained {rc}");
 }
+
+/// The dose accumulators are checkpointed: a run under a ramp through the lower end of copper's
+/// range (1100 → 1293 K), killed after its checkpoint and resumed, gives the uninterrupted run's
+/// verdict bit for bit (a share strictly between 0 and 1, so that both integrals matter).
+#[test]
+fn the_below_range_verdict_survives_a_resume_bit_for_bit() {
+    let dir = common::tmp_dir("verdict-resume");
+    let p = packing(&dir, 1.2e-4, "");
+    let text = common::compact_text(
+        &common::time_to(60.0),
+        &[common::COPPER],
+        &common::file_particles(&p),
+        "{ table = [[0.0, 1100.0], [40.0, 1293.0], [60.0, 1293.0]] }",
+    );
+    let case = common::case_value(&text, &["output.checkpoint_every=10"]);
+    let prep = |v: &toml::Value| sinterdem::coupled::prepare(v.clone(), Path::new("."), &mut |_| {}).unwrap();
+    let full = sinterdem::kinds::compact::run(prep(&case), &dir.join("full"), false, &mut |_| {}).unwrap();
+    let part = dir.join("part");
+    assert!(sinterdem::kinds::compact::run_from(prep(&case), &part, false, &mut |_| {}, None, Some(20)).unwrap().is_null());
+    let resumed = sinterdem::kinds::compact::resume(&part, false, &mut |_| {}).unwrap();
+    let v = &full["extrapolated_below_range"]["copper"];
+    let share = v["share"].as_f64().unwrap();
+    assert!(share > 1e-3 && share < 0.9, "{v}");
+    assert_eq!(full["extrapolated_below_range"], resumed["extrapolated_below_range"]);
+    assert_eq!(full["warnings"], resumed["warnings"]);
+}
