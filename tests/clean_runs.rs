@@ -4,7 +4,7 @@
 //! a furnace heat-up, the title from the file name, and the small things (empty case, `resume` of a finished run, `run --threads`,
 //! `titanium` from any directory, the `--set` help of generate and calibrate).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
 mod common;
