@@ -385,7 +385,7 @@ fn run_case(case: &CaseArgs, value: toml::Value, out: Option<PathBuf>, quiet: bo
     let mut sets = case.set.clone();
     sets.extend(extra);
     let params = crate::kinds::RunParams { base_dir: base_dir(&case.case), progress: !quiet, echo_log: true, plots: true, wall_limit: None, force };
-    crate::kinds::run(&value, &sets, &out, &params)?;
+    crate::kinds::run(&crate::kinds::title_from_file(value, &case.case), &sets, &out, &params)?;
     Ok(())
 }
 

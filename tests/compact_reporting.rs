@@ -25,17 +25,46 @@ fn params(dir: &Path) -> RunParams {
     RunParams { base_dir: dir.to_path_buf(), plots: false, ..Default::default() }
 }
 
+/// A compact held below its calibrated range sinters wholly on extrapolated data: the share of
+/// the dose below the range (docs/diffusion7.md (V3)) is 1 at every contact, and the end-of-run
+/// verdict warns once, naming the material, the share, a contact and the temperature; inside the
+/// range there is no verdict at all.
 #[test]
-fn leaving_the_calibrated_range_warns_once_per_material_and_side() {
+fn a_compact_held_below_the_calibrated_range_warns_at_the_end_with_share_one() {
     let dir = common::tmp_dir("range");
     let p = packing(&dir, 1.6e-4, "");
     // copper data are calibrated for 1193–1353 K
     let s = kinds::run(&isothermal(&p, "copper", 1100.0, 50.0), &[], &dir.join("cold"), &params(&dir)).unwrap();
     let w: Vec<String> = serde_json::from_value(s.summary["warnings"].clone()).unwrap();
     assert_eq!(w.len(), 1, "{w:?}");
-    assert!(w[0].contains("copper") && w[0].contains("below the calibrated range") && w[0].contains("1193.0–1353.0 K"), "{w:?}");
+    assert!(w[0].contains("copper") && w[0].contains("100.000 %") && w[0].contains("below the calibrated range 1193.0–1353.0 K"), "{w:?}");
+    assert!(w[0].contains("down to 1100.0 K") && w[0].contains("contact "), "{w:?}");
+    let v = &s.summary["extrapolated_below_range"]["copper"];
+    assert_eq!(v["share"].as_f64(), Some(1.0), "{v}");
+    assert_eq!(v["lowest_temperature_K"].as_f64(), Some(1100.0), "{v}");
+    let log = std::fs::read_to_string(dir.join("cold/log.txt")).unwrap();
+    // the first time below the range stays in log.txt (detail), the verdict is the warning
+    assert!(log.contains("material \"copper\": contact temperature below the calibrated range"), "{log}");
+    assert_eq!(log.matches("warning: material \"copper\"").count(), 1, "{log}");
     let s = kinds::run(&isothermal(&p, "copper", 1293.0, 50.0), &[], &dir.join("ok"), &params(&dir)).unwrap();
     assert_eq!(s.summary["warnings"].as_array().unwrap().len(), 0);
+    assert_eq!(s.summary["extrapolated_below_range"], serde_json::json!({}));
+}
+
+/// Two equal spheres of radius r with their centres d > 2r apart along x (no contact yet): the
+/// relative density is the solid volume over the box of their outer faces,
+/// 2·(4/3)πr³ / ((d + 2r)(2r)(2r)) = 2πr / (3(d + 2r)) (eq. 49 with the box of the particles).
+#[test]
+fn two_spheres_apart_have_the_density_of_their_bounding_box() {
+    let dir = common::tmp_dir("two");
+    let (r, d) = (2.5e-5, 6.0e-5);
+    let p = common::write_block(&dir, "two.csv", "x,y,z,r", [format!("0,0,0,{r:e}"), format!("{d:e},0,0,{r:e}")]);
+    let s = kinds::run(&isothermal(&p, "copper", 1293.0, 1.0e-3), &[], &dir.join("out"), &params(&dir)).unwrap();
+    let rho = 2.0 * std::f64::consts::PI * r / (3.0 * (d + 2.0 * r));
+    for key in ["relative_density", "relative_density_initial"] {
+        let v = s.f64(key).unwrap();
+        assert!((v / rho - 1.0).abs() < 1e-12, "{key}: {v} vs {rho}");
+    }
 }
 
 #[test]
@@ -94,4 +123,30 @@ fn shrinkage_without_constrained_planes_agrees_with_the_constrained_run() {
     }
     let (rc, rf) = (c.f64("relative_density").unwrap(), f.f64("relative_density").unwrap());
     assert!((rf / rc - 1.0).abs() < 0.01, "relative density free {rf} vs constrained {rc}");
+}
+
+/// The dose accumulators are checkpointed: a run under a ramp through the lower end of copper's
+/// range (1100 → 1293 K), killed after its checkpoint and resumed, gives the uninterrupted run's
+/// verdict bit for bit (a share strictly between 0 and 1, so that both integrals matter).
+#[test]
+fn the_below_range_verdict_survives_a_resume_bit_for_bit() {
+    let dir = common::tmp_dir("verdict-resume");
+    let p = packing(&dir, 1.2e-4, "");
+    let text = common::compact_text(
+        &common::time_to(60.0),
+        &[common::COPPER],
+        &common::file_particles(&p),
+        "{ table = [[0.0, 1100.0], [40.0, 1293.0], [60.0, 1293.0]] }",
+    );
+    let case = common::case_value(&text, &["output.checkpoint_every=10"]);
+    let prep = |v: &toml::Value| sinterdem::coupled::prepare(v.clone(), Path::new("."), &mut |_| {}).unwrap();
+    let full = sinterdem::kinds::compact::run(prep(&case), &dir.join("full"), false, &mut |_| {}).unwrap();
+    let part = dir.join("part");
+    assert!(sinterdem::kinds::compact::run_from(prep(&case), &part, false, &mut |_| {}, None, Some(20)).unwrap().is_null());
+    let resumed = sinterdem::kinds::compact::resume(&part, false, &mut |_| {}).unwrap();
+    let v = &full["extrapolated_below_range"]["copper"];
+    let share = v["share"].as_f64().unwrap();
+    assert!(share > 1e-3 && share < 0.9, "{v}");
+    assert_eq!(full["extrapolated_below_range"], resumed["extrapolated_below_range"]);
+    assert_eq!(full["warnings"], resumed["warnings"]);
 }

@@ -70,7 +70,7 @@ fn uniform_heating_without_sintering_expands_homogeneously_by_the_thermal_strain
     let profile = "{ table = [[0.0, 293.15], [10.0, 500.0], [100.0, 500.0]] }";
     for (name, particles) in [("fcc", common::fcc(2)), ("random", common::file_particles(&p))] {
         let sets = ["mechanics.rtol=1e-12"];
-        let (s0, _) = run(case(&particles, profile, 100.0, &sets), &dir.join(format!("{name}-0")));
+        let (s0, series0) = run(case(&particles, profile, 100.0, &sets), &dir.join(format!("{name}-0")));
         let v = case(&particles, profile, 100.0, &["mechanics.rtol=1e-12", &format!("materials.0.thermal_expansion={alpha:e}")]);
         let mut sim = coupled::prepare(v.clone(), Path::new("."), &mut |_| {}).unwrap();
         assert!(sim.contacts.len() > 50, "{name}");
@@ -78,7 +78,21 @@ fn uniform_heating_without_sintering_expands_homogeneously_by_the_thermal_strain
         while sim.t < sim.settings.end {
             sim.advance_step(&mut |_| {}).unwrap();
         }
-        let (s, _) = run(v, &dir.join(format!("{name}-exp")));
+        let (s, series) = run(v, &dir.join(format!("{name}-exp")));
+        // series.csv has the expansion columns only with expansion (without they would repeat
+        // shrinkage_* and be 0); the last row's sintering shrinkage is the run without's shrinkage
+        let head = |t: &str| t.lines().next().unwrap().split(',').map(str::to_string).collect::<Vec<_>>();
+        let (h, h0) = (head(&series), head(&series0));
+        assert!(!h0.iter().any(|c| c.starts_with("sintering_shrinkage") || c == "thermal_strain"), "{h0:?}");
+        let last: Vec<f64> = series.lines().last().unwrap().split(',').map(|x| x.parse().unwrap()).collect();
+        let last0: Vec<f64> = series0.lines().last().unwrap().split(',').map(|x| x.parse().unwrap()).collect();
+        for a in ["x", "y", "z"] {
+            let k = h.iter().position(|c| *c == format!("sintering_shrinkage_{a}")).unwrap();
+            let k0 = h0.iter().position(|c| *c == format!("shrinkage_{a}")).unwrap();
+            assert!((last[k] - last0[k0]).abs() < 1e-12, "{name} {a}: {} vs {}", last[k], last0[k0]);
+        }
+        let k = h.iter().position(|c| c == "thermal_strain").unwrap();
+        assert!((last[k] / eps - 1.0).abs() < 1e-13, "{name}: series thermal strain {}", last[k]);
         assert!((f(&s, "thermal_strain") / eps - 1.0).abs() < 1e-13, "{name}: thermal strain {} vs {eps}", f(&s, "thermal_strain"));
         assert!(f(&s0, "shrinkage_x").abs() < 1e-10, "{name}: no sintering at 500 K: {}", f(&s0, "shrinkage_x"));
         for a in ["x", "y", "z"] {

@@ -157,7 +157,12 @@ impl CaseCore {
         command: RunCommand,
     ) -> PyResult<(String, f64, bool)> {
         let params = sinterdem::kinds::RunParams { base_dir: self.base_dir.clone(), progress, echo_log: false, plots: true, wall_limit: None, force: PY_FORCE };
-        let (value, sets) = (&self.value, &self.sets);
+        // a compact case loaded from a file without a title is titled by the file's stem
+        let titled = match &self.path {
+            Some(p) => sinterdem::kinds::title_from_file(self.value.clone(), p),
+            None => self.value.clone(),
+        };
+        let (value, sets) = (&titled, &self.sets);
         let watch = Watch::new(poll);
         let res = watch.detached(py, || -> Result<sinterdem::kinds::RunSummary, Error> {
             match threads {

@@ -15,6 +15,9 @@ pub struct Contacts {
     pub dl_bar: Vec<f64>,
     /// Substeps of the last sweep.
     pub substeps: Vec<u32>,
+    /// Diffusion dose of each contact, total and below the calibrated range (docs/diffusion7.md
+    /// (V1)); zero for a new contact.
+    pub dose: Vec<super::dose::Dose>,
 }
 
 impl Contacts {

@@ -13,12 +13,13 @@
 //!
 //! Files: [`settings`](Settings) (the case read), `contacts` (the contact store), `simulation`
 //! (the state and its construction), `step` ([`Simulation::advance_step`], one call per stage of
-//! `stages/`), `bonded` (the mechanics adapter), `validity` (the checks after a step),
+//! `stages/`), `bonded` (the mechanics adapter), `validity` (the checks after a step), [`dose`] (the diffusion dose and the calibrated-range verdict),
 //! `observables` (what the outputs report), [`expansion`], [`load`].
 
 mod bonded;
 pub mod cell;
 mod contacts;
+pub mod dose;
 pub mod expansion;
 pub mod load;
 mod observables;

@@ -65,6 +65,9 @@ pub struct Simulation {
     pub warnings: Vec<String>,
     /// Notes logged once (a contact below the calibrated range where diffusion is negligible).
     pub notes: Vec<String>,
+    /// The lowest contact temperature after a step, per material [K] (f64::MAX before the first step;
+    /// the calibrated-range verdict, docs/diffusion7.md (V3)).
+    pub lowest_contact_temperature: Vec<f64>,
     /// Corrections (C4) that had to be limited to keep a contact admissible.
     pub limited_corrections: u64,
     /// Log of what was skipped, said once.
@@ -107,6 +110,11 @@ impl Simulation {
             touching[i as usize] = true;
             touching[j as usize] = true;
         }
+        // no pair touches at the start (two spheres apart, contacts to come): every particle
+        // counts, else the far layers are empty and the extents meaningless
+        if !touching.iter().any(|&t| t) {
+            touching.fill(true);
+        }
         // the far faces of the touching particles (a particle touching nothing beyond the body,
         // e.g. an isolated one, must not empty the far layer)
         let hi: Vector3<f64> = if touching.iter().any(|&t| t) {
@@ -145,6 +153,7 @@ impl Simulation {
             heat_scale: 0.0,
             warnings: Vec::new(),
             notes: Vec::new(),
+            lowest_contact_temperature: Vec::new(),
             limited_corrections: 0,
             skipped: Vec::new(),
             source: (String::new(), std::path::PathBuf::new()),

@@ -45,6 +45,9 @@ impl Simulation {
             self.timing.correction += tic.elapsed().as_secs_f64();
             // 6. step control
             stages::step_control(self, &w, &x_start, sweep.subdivided);
+            let tic = Instant::now();
+            self.accumulate_dose(&w, &temps_old);
+            self.timing.diffusion += tic.elapsed().as_secs_f64();
             self.check_state(log)?;
             return Ok(());
         }

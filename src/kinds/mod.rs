@@ -257,6 +257,17 @@ fn validate_before_run(kind: Kind, value: &toml::Value) -> Result<(), Error> {
 
 pub use crate::io::outdir::is_snapshot_file;
 
+/// A compact case read from `path` without a `title` gets the file's stem as its title (the
+/// plots' heading: "copper-compact", not a generic "compact"); other kinds and titled cases are
+/// returned as they are.
+pub fn title_from_file(mut case: toml::Value, path: &Path) -> toml::Value {
+    let compact = case.get("kind").and_then(|k| k.as_str()) == Some("compact");
+    if let (true, Some(t), Some(stem)) = (compact, case.as_table_mut(), path.file_stem()) {
+        t.entry("title").or_insert_with(|| toml::Value::String(stem.to_string_lossy().into_owned()));
+    }
+    case
+}
+
 /// The start of every run: includes expanded, overrides applied, the kind, the output directory
 /// and `log.txt` opened with the first lines (version, overrides, warnings about keys the kind
 /// ignores).

@@ -12,7 +12,7 @@ mod topology;
 
 pub(super) use control::{keep, reject, step_control};
 pub(super) use correction::correction;
-pub(super) use diffusion::diffusion;
+pub(super) use diffusion::{contact_temperature, diffusion};
 pub(super) use heat::heat;
 pub(super) use mechanics::mechanics;
 pub(super) use topology::topology;

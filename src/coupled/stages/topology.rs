@@ -64,6 +64,7 @@ impl Simulation {
             self.contacts.state.push(c);
             self.contacts.dl_bar.push(0.0);
             self.contacts.substeps.push(0);
+            self.contacts.dose.push(Default::default());
             added += 1;
         }
         if added > 0 && during_run {

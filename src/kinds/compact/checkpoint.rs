@@ -60,6 +60,12 @@ pub struct Checkpoint {
     pub contacts: Vec<Contact7>,
     pub dl_bar: Vec<f64>,
     pub substeps: Vec<u32>,
+    /// Each contact's diffusion dose (docs/diffusion7.md (V1)); absent in older checkpoints: zero.
+    #[serde(default)]
+    pub dose: Vec<crate::coupled::dose::Dose>,
+    /// The lowest contact temperature per material [K] (absent in older checkpoints).
+    #[serde(default)]
+    pub lowest_contact_temperature: Vec<f64>,
     /// The heat network's BDF2 history; absent for runs without a heat solve.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub heat_history: Option<(Vec<f64>, f64)>,
@@ -102,6 +108,8 @@ impl Simulation {
             contacts: self.contacts.state.clone(),
             dl_bar: self.contacts.dl_bar.clone(),
             substeps: self.contacts.substeps.clone(),
+            dose: self.contacts.dose.clone(),
+            lowest_contact_temperature: self.lowest_contact_temperature.clone(),
             heat_history: self.heat.as_ref().and_then(|h| h.history().cloned()),
             output,
             load: self.load.as_ref().map(|l| l.to_checkpoint()),
@@ -125,7 +133,10 @@ impl Simulation {
         sim.mechanics.rotation = ck.rotation.iter().map(|x| Vector3::new(x[0], x[1], x[2])).collect();
         (sim.mechanics.newton_iterations, sim.mechanics.factorizations, sim.mechanics.max_residual) = ck.mechanics_counters;
         (sim.mechanics.profile.topology_changes, sim.mechanics.profile.cg_iterations) = ck.mechanics_profile_counts;
-        sim.contacts = Contacts { pairs: ck.pairs.clone(), state: ck.contacts.clone(), dl_bar: ck.dl_bar.clone(), substeps: ck.substeps.clone() };
+        let mut dose = ck.dose.clone();
+        dose.resize(ck.pairs.len(), Default::default());
+        sim.contacts = Contacts { pairs: ck.pairs.clone(), state: ck.contacts.clone(), dl_bar: ck.dl_bar.clone(), substeps: ck.substeps.clone(), dose };
+        sim.lowest_contact_temperature = ck.lowest_contact_temperature.clone();
         if let Some(h) = sim.heat.as_mut() {
             h.set_history(ck.heat_history.clone());
         }

@@ -65,7 +65,47 @@ impl<'a> Row<'a> {
     ];
 }
 
-/// The names of the series columns, in order (the CSV header).
-pub(crate) fn header() -> Vec<&'static str> {
-    crate::io::header(Row::COLUMNS)
+/// Why a column is left out of a run whose physics lacks it (docs/outputs.md "series.csv"): the
+/// physics it needs and its absence in words; None for columns every run writes.
+fn needs(name: &str) -> Option<(fn(&Simulation) -> bool, &'static str)> {
+    let expansion: fn(&Simulation) -> bool = |s| s.expansion.is_some();
+    let stress: fn(&Simulation) -> bool = |s| s.load.is_some() || s.cell.is_some();
+    match name {
+        "thermal_strain" | "sintering_shrinkage_x" | "sintering_shrinkage_y" | "sintering_shrinkage_z" => {
+            Some((expansion, "no thermal expansion (thermal_strain is 0 and sintering_shrinkage_* repeats shrinkage_*)"))
+        }
+        "applied_stress_Pa" | "sigma_xx_Pa" | "sigma_yy_Pa" | "sigma_zz_Pa" | "sigma_yz_Pa" | "sigma_xz_Pa" | "sigma_xy_Pa" | "normal_force_mean_N" => {
+            Some((stress, "no applied load and no periodic cell (every stress and contact force is 0)"))
+        }
+        _ => None,
+    }
+}
+
+/// The indices into [`Row::COLUMNS`] a run writes: those whose physics is present (the same
+/// set for every row and after a resume: it follows from the case alone), and the log lines
+/// naming the others with the reason.
+pub(crate) fn present(sim: &Simulation) -> (Vec<usize>, Vec<String>) {
+    let mut keep = Vec::new();
+    let mut dropped: Vec<(&'static str, Vec<&'static str>)> = Vec::new();
+    for (k, c) in Row::COLUMNS.iter().enumerate() {
+        match needs(c.name) {
+            Some((on, why)) if !on(sim) => match dropped.iter_mut().find(|d| d.0 == why) {
+                Some(d) => d.1.push(c.name),
+                None => dropped.push((why, vec![c.name])),
+            },
+            _ => keep.push(k),
+        }
+    }
+    let lines = dropped.iter().map(|(why, names)| format!("series.csv without {}: {why}", names.join(", "))).collect();
+    (keep, lines)
+}
+
+/// The header of the series columns `keep` (indices into [`Row::COLUMNS`]).
+pub(crate) fn header(keep: &[usize]) -> Vec<&'static str> {
+    keep.iter().map(|&k| Row::COLUMNS[k].name).collect()
+}
+
+/// The row of the series columns `keep` of `row`.
+pub(crate) fn values(keep: &[usize], row: &Row) -> Vec<f64> {
+    keep.iter().map(|&k| (Row::COLUMNS[k].get)(row)).collect()
 }

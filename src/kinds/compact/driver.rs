@@ -295,6 +295,8 @@ struct Outputs {
     snaps: SnapshotWriter,
     /// Lines of series.csv so far (header included).
     series_lines: usize,
+    /// The series columns of the run (indices into `Row::COLUMNS`, [`columns::present`]).
+    cols: Vec<usize>,
     due: Due,
     wall_before: f64,
 }
@@ -305,15 +307,19 @@ impl Outputs {
     fn open(sim: &Simulation, out: &Path, state: Option<OutputState>, log: &mut dyn FnMut(&str)) -> Result<Outputs, Error> {
         let resumed = state.is_some();
         let st = state.unwrap_or_default();
+        let (cols, left_out) = columns::present(sim);
+        if !resumed {
+            left_out.iter().for_each(|l| log(&format!("{}{l}", crate::logging::DETAIL)));
+        }
         let (vtu_on, h5_on) = (sim.prep.case.output.vtu, sim.prep.case.output.hdf5);
         let (series, snaps, series_lines) = if resumed {
             (
-                Series::resume(&out.join("series.csv"), st.series_lines, Row::COLUMNS.len())?,
+                Series::resume(&out.join("series.csv"), st.series_lines, cols.len())?,
                 SnapshotWriter::resume(out, vtu_on, h5_on, st.snapshots, st.vtu_entries.clone(), log)?,
                 st.series_lines,
             )
         } else {
-            (Series::create(&out.join("series.csv"), &columns::header())?, SnapshotWriter::new(out, vtu_on, h5_on, log)?, 1)
+            (Series::create(&out.join("series.csv"), &columns::header(&cols))?, SnapshotWriter::new(out, vtu_on, h5_on, log)?, 1)
         };
         let end = sim.settings.end;
         let snap_times: Vec<f64> = match sim.settings.snapshots {
@@ -329,7 +335,7 @@ impl Outputs {
             next_hist: st.next_hist,
             hist_results: st.hist_results,
         };
-        let mut outputs = Outputs { series, snaps, series_lines, due, wall_before: st.wall_before };
+        let mut outputs = Outputs { series, snaps, series_lines, cols, due, wall_before: st.wall_before };
         if !resumed {
             outputs.row(sim, 0.0)?;
         }
@@ -338,7 +344,7 @@ impl Outputs {
 
     /// Appends the series row of the current state; `dt`: the step that led to it [s].
     fn row(&mut self, sim: &Simulation, dt: f64) -> Result<(), IoError> {
-        self.series.row(&io::values(Row::COLUMNS, &Row::new(sim, dt)))?;
+        self.series.row(&columns::values(&self.cols, &Row::new(sim, dt)))?;
         self.series_lines += 1;
         Ok(())
     }
@@ -398,6 +404,10 @@ fn finish(
     }
     // data files first (a failed write is the run's error), plots last (a failed plot a warning)
     super::output::write_correction_csv(out, sim, "end")?;
+    // the calibrated-range verdict on the run's diffusion dose (docs/diffusion7.md (V1)–(V3))
+    let (warn, notes) = sim.below_range_messages();
+    warn.iter().for_each(|w| log(&format!("warning: {w}")));
+    notes.iter().for_each(|n| log(&format!("{}{n}", crate::logging::DETAIL)));
     let summary = summary(sim, &outputs.due, stop_reason, outputs.wall_before + wall.elapsed().as_secs_f64());
     io::write_json(&out.join("summary.json"), &summary)?;
     // the series and summary also go into the HDF5 file (docs/outputs.md)
@@ -494,7 +504,8 @@ fn summary(sim: &Simulation, due: &Due, stop_reason: Option<String>, wall_second
         },
         "normal_force_mean_N": sim.mean_normal_force(),
         "skipped": sim.skipped,
-        "warnings": sim.warnings,
+        "warnings": sim.warnings.iter().cloned().chain(sim.below_range_messages().0).collect::<Vec<_>>(),
+        "extrapolated_below_range": sim.below_range_summary(),
         "threads": rayon::current_num_threads(),
         "completed": stop_reason.is_none(),
         "stop_reason": stop_reason.unwrap_or_else(|| "end time reached".into()),

@@ -173,7 +173,8 @@ fn plot_correction_histogram(out: &Path, sim: &Simulation, tag: &str, dl: &[f64]
     Ok((mean, std))
 }
 
-/// The case title (its `title` key, else "compact") and the key settings of a compact run, for
+/// The case title (its `title` key; the case file's stem when run from a file without one,
+/// [`crate::kinds::title_from_file`]; else "compact") and the key settings of a compact run, for
 /// the title and subtitle of its plots: particles, material, mean radius, temperature span of the
 /// particles and the simulated time.
 pub(crate) fn plot_header(sim: &Simulation) -> (String, String) {

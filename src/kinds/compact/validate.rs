@@ -69,6 +69,9 @@ impl Checkpoint {
         count("contacts", self.contacts.len(), m, "pairs (checkpoint.pairs)")?;
         count("dl_bar", self.dl_bar.len(), m, "pairs (checkpoint.pairs)")?;
         count("substeps", self.substeps.len(), m, "pairs (checkpoint.pairs)")?;
+        if !self.dose.is_empty() {
+            count("dose", self.dose.len(), m, "pairs (checkpoint.pairs)")?;
+        }
         let mut seen = std::collections::HashSet::with_capacity(m);
         for (k, &[i, j]) in self.pairs.iter().enumerate() {
             if !(i < j && (j as usize) < n) {
