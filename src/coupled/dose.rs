@@ -31,8 +31,11 @@ impl Dose {
 
     /// Adds a step of `dt` [s] at contact temperature `t` [K] (the step's midpoint) under `law`.
     pub fn add(&mut self, law: &DoseLaw, t: f64, dt: f64) {
-        let r = law.ratios(t);
-        let below = t < law.t_min;
+        self.add_ratios(law.ratios(t), t < law.t_min, dt);
+    }
+
+    /// Adds a step of `dt` [s] with the ratios (V2) `r` of its temperature, `below` the range or not.
+    fn add_ratios(&mut self, r: [f64; 3], below: bool, dt: f64) {
         for x in 0..3 {
             // saturating: a JSON checkpoint cannot hold ∞
             let d = (r[x] * dt) as f32;
@@ -111,29 +114,32 @@ impl Simulation {
     /// isothermal): three exponentials per contact and step (one per material when isothermal).
     pub(super) fn accumulate_dose(&mut self, w: &Window, temps_old: &[f64]) {
         let laws: Vec<DoseLaw> = self.d7_materials.iter().map(DoseLaw::new).collect();
-        let mats: Vec<usize> = self.contacts.pairs.iter().map(|&[i, j]| self.dose_material(i, j)).collect();
         let dt = w.t1 - w.t0;
         let p = &self.prep.scene.particles;
         let harmonic = self.settings.harmonic;
-        let c = &mut self.contacts;
-        c.dose.resize(c.pairs.len(), Dose::default());
-        if let Some(prof) = &self.prep.isothermal {
-            let t = prof.temperature(0.5 * (w.t0 + w.t1));
-            let steps: Vec<Dose> = laws.iter().map(|l| Dose { total: [0.0; 3], below: [0.0; 3] }.with(l, t, dt)).collect();
-            for (d, &m) in c.dose.iter_mut().zip(&mats) {
-                for x in 0..3 {
-                    d.total[x] = (d.total[x] + steps[m].total[x]).min(f32::MAX);
-                    d.below[x] = (d.below[x] + steps[m].below[x]).min(f32::MAX);
-                }
+        let mut dose = std::mem::take(&mut self.contacts.dose);
+        dose.resize(self.contacts.pairs.len(), Dose::default());
+        let this = &*self;
+        match &this.prep.isothermal {
+            // one temperature for every contact: the ratios once per material
+            Some(prof) => {
+                let t = prof.temperature(0.5 * (w.t0 + w.t1));
+                let ratios: Vec<[f64; 3]> = laws.iter().map(|l| l.ratios(t)).collect();
+                dose.par_iter_mut().zip(this.contacts.pairs.par_iter()).for_each(|(d, &[i, j])| {
+                    let m = this.dose_material(i, j);
+                    d.add_ratios(ratios[m], t < laws[m].t_min, dt);
+                });
             }
-            return;
+            None => {
+                let ct = |a: f64, b: f64| super::stages::contact_temperature(harmonic, a, b);
+                dose.par_iter_mut().zip(this.contacts.pairs.par_iter()).for_each(|(d, &[i, j])| {
+                    let (a, b) = (i as usize, j as usize);
+                    let t = 0.5 * (ct(temps_old[a], temps_old[b]) + ct(p.temperature[a], p.temperature[b]));
+                    d.add(&laws[this.dose_material(i, j)], t, dt);
+                });
+            }
         }
-        let ct = |a: f64, b: f64| super::stages::contact_temperature(harmonic, a, b);
-        c.dose.par_iter_mut().zip(c.pairs.par_iter()).zip(mats.par_iter()).for_each(|((d, &[i, j]), &m)| {
-            let (i, j) = (i as usize, j as usize);
-            let t = 0.5 * (ct(temps_old[i], temps_old[j]) + ct(p.temperature[i], p.temperature[j]));
-            d.add(&laws[m], t, dt);
-        });
+        self.contacts.dose = dose;
     }
 
     /// The verdict (V3) per material whose contacts went below its calibrated range: the largest
@@ -197,13 +203,6 @@ impl Simulation {
             );
         }
         serde_json::Value::Object(o)
-    }
-}
-
-impl Dose {
-    fn with(mut self, law: &DoseLaw, t: f64, dt: f64) -> Dose {
-        self.add(law, t, dt);
-        self
     }
 }
 

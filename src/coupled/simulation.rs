@@ -63,7 +63,7 @@ pub struct Simulation {
     pub heat_stored: f64,
     pub heat_scale: f64,
     pub warnings: Vec<String>,
-    /// Notes logged once (a contact below the calibrated range where diffusion is negligible).
+    /// Notes logged once (the first time a contact leaves its material's calibrated range).
     pub notes: Vec<String>,
     /// The lowest contact temperature after a step, per material [K] (f64::MAX before the first step;
     /// the calibrated-range verdict, docs/diffusion7.md (V3)).
@@ -102,7 +102,7 @@ impl Simulation {
         }
         let p = &prep.scene.particles;
         let n = p.len();
-        let (lo, hi) = p.bounding_box();
+        let (lo, _) = p.bounding_box();
         let r_mean = p.mean_radius();
         // the far layer of each axis, without particles that touch nothing (rattlers stay put)
         let mut touching = vec![false; n];
@@ -117,11 +117,8 @@ impl Simulation {
         }
         // the far faces of the touching particles (a particle touching nothing beyond the body,
         // e.g. an isolated one, must not empty the far layer)
-        let hi: Vector3<f64> = if touching.iter().any(|&t| t) {
-            Vector3::from_fn(|a, _| (0..n).filter(|&i| touching[i]).map(|i| p.position[i][a] + p.radius[i]).fold(f64::NEG_INFINITY, f64::max))
-        } else {
-            hi
-        };
+        let hi: Vector3<f64> =
+            Vector3::from_fn(|a, _| (0..n).filter(|&i| touching[i]).map(|i| p.position[i][a] + p.radius[i]).fold(f64::NEG_INFINITY, f64::max));
         let far_layer: [Vec<u32>; 3] = std::array::from_fn(|a| {
             (0..n as u32).filter(|&i| touching[i as usize] && p.position[i as usize][a] + p.radius[i as usize] >= hi[a] - r_mean).collect()
         });

@@ -49,7 +49,7 @@ impl Simulation {
         let mut lo_hi = vec![(f64::INFINITY, f64::NEG_INFINITY); self.d7_materials.len()];
         for &[i, j] in &self.contacts.pairs {
             let (ti, tj) = (p.temperature[i as usize], p.temperature[j as usize]);
-            let tc = iso.unwrap_or(if harmonic { 2.0 * ti * tj / (ti + tj) } else { 0.5 * (ti + tj) });
+            let tc = iso.unwrap_or_else(|| super::stages::contact_temperature(harmonic, ti, tj));
             for m in [p.material[i as usize], p.material[j as usize]] {
                 let e = &mut lo_hi[m as usize];
                 *e = (e.0.min(tc), e.1.max(tc));
@@ -69,6 +69,7 @@ impl Simulation {
                     "{tag} {:.1}–{:.1} K ({t:.1} K first at {at}): its diffusion data are extrapolated",
                     mat.calibrated_min_temperature, mat.calibrated_max_temperature
                 );
+                let seen = self.warnings.iter().any(|x| x.starts_with(&tag));
                 self.notes.push(tag);
                 if below {
                     // below the range: the first time goes to log.txt (detail); whether it matters
@@ -76,7 +77,7 @@ impl Simulation {
                     log(&format!("{}{w}; the end of the run weighs its share of the sintering (docs/diffusion7.md (V3))", crate::logging::DETAIL));
                 } else {
                     // once in summary.json, also across a resume (the notes are not checkpointed)
-                    if !self.warnings.iter().any(|x| x.starts_with(&self.notes[self.notes.len() - 1])) {
+                    if !seen {
                         self.warnings.push(w.clone());
                     }
                     log(&format!("warning: {w}"));
