@@ -18,7 +18,9 @@ pub const EXTRAPOLATED_SHARE_LIMIT: f64 = 1e-2;
 /// the verdict needs 1 % of the share, and 24 bytes per contact.
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Dose {
+    /// Θ̃_x over the contact's life, surface / GB / lattice [s at T_min] (V1).
     pub total: [f32; 3],
+    /// Θ̃_x over the time below the calibrated range [s at T_min] (V1).
     pub below: [f32; 3],
 }
 
@@ -58,6 +60,7 @@ pub struct DoseLaw {
 }
 
 impl DoseLaw {
+    /// The law (V2) of `mat`: its lower range end T_min [K] and, per phase, a_x [1] and b_x = Q_x/R [K].
     pub fn new(mat: &Material) -> DoseLaw {
         let t_min = mat.calibrated_min_temperature;
         let r = crate::units::GAS_CONSTANT;
