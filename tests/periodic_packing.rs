@@ -263,3 +263,60 @@ fn bad_periodic_values_are_refused_naming_the_key() {
     assert!(t.elapsed().as_secs_f64() < 120.0);
     let _ = std::fs::remove_dir_all(dir);
 }
+
+/// (G9): `compaction = "die"`, the walled recipe without walls. The box lands on the aimed solid
+/// fraction φ_t (1 + 2 c_o) or stalls short of it, is then backed off until the pressure vanishes,
+/// and reports the final box: φ = Σ V_i / V_box exactly, below the aim by no more than the elastic
+/// strain of the compaction pressure, stress-free; the same seed gives the same bits on 1 and 2
+/// threads; the keys it does not use are refused.
+#[test]
+fn die_compaction_is_the_walled_recipe_without_walls() {
+    let die = [("target_solid_fraction = 0.62", "target_solid_fraction = 0.60"), ("spread = 0.1", "spread = 0.1\n[packing.protocol]\ncompaction = \"die\"")];
+    let dir = common::tmp_dir("periodic-die");
+    let s = packing::generate_case(&bundled(&die), &dir, false).unwrap();
+    assert!(s.thresholds_met, "{s:?}");
+    assert!(s.max_overlap_rel < 1e-3, "{}", s.max_overlap_rel);
+    let p = sinterdem::packing::import(&dir.join("packing.csv"), sinterdem::packing::ImportFormat::Csv).unwrap();
+    let vp: f64 = p.radii.iter().map(|&r| sinterdem::units::sphere_volume(r)).sum();
+    let b = s.box_size_m.unwrap();
+    assert!((vp / (b[0] * b[1] * b[2]) - s.solid_fraction).abs() < 1e-12, "{} {}", vp / (b[0] * b[1] * b[2]), s.solid_fraction);
+    // the aim is φ_t (1 + 2 c_o) = 0.606; unloading from p_c = c_o k_n/(4 r̄²) relieves contact
+    // overlaps of about c_o r̄, a volume strain of order 3 c_o/2: the final box lies at most
+    // 3 c_o below the aim (relative) and never above it
+    let aim = 0.60 * (1.0 + 2.0 * 5e-3);
+    assert!(s.solid_fraction <= aim + 1e-12 && s.solid_fraction > aim * (1.0 - 3.0 * 5e-3), "{} (aim {aim})", s.solid_fraction);
+    let rep = s.periodic.clone().unwrap();
+    assert!(rep.taps.is_some(), "{rep:?}");
+    assert_eq!(summary_json(&dir)["periodic"]["taps"].as_u64(), rep.taps.map(u64::from));
+    // the servo held the compaction at or below the compaction pressure
+    assert!(rep.compaction_pressure_end_rel <= 5e-3 * (1.0 + 1e-9), "{rep:?}");
+    // a cube was asked for: the footprint starts 2 % wide and the edges end within it
+    for a in 0..3 {
+        assert!((b[a] / b[2] - 1.0).abs() < 0.021, "{b:?}");
+    }
+    // the isotropic path leaves no taps in the summary (its JSON is unchanged)
+    let iso = common::tmp_dir("periodic-iso-taps");
+    packing::generate_case(&bundled(&[("particles = 500", "particles = 150")]), &iso, false).unwrap();
+    assert!(summary_json(&iso)["periodic"].get("taps").is_none());
+    let _ = std::fs::remove_dir_all(iso);
+    // 1 and 2 threads: the same bits
+    let small = [die[0], die[1], ("particles = 500", "particles = 150"), ("seed = 1", "seed = 3")];
+    let mut csv = Vec::new();
+    for threads in [1, 2] {
+        let d = common::tmp_dir(&format!("periodic-die-threads-{threads}"));
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| packing::generate_case(&bundled(&small), &d, false)).unwrap();
+        csv.push(std::fs::read_to_string(d.join("packing.csv")).unwrap());
+        let _ = std::fs::remove_dir_all(d);
+    }
+    assert_eq!(csv[0], csv[1]);
+    // keys the die does not use, a value it does not know, and the die between walls
+    let err = |over: &[(&str, &str)]| packing::parse_generate_case(&bundled(over)).unwrap_err().to_string();
+    let e = err(&[("spread = 0.1", "spread = 0.1\n[packing.protocol]\ncompaction = \"die\"\nstrain_rate = 1e-4")]);
+    assert!(e.contains("packing.protocol.strain_rate") && e.contains("die"), "{e}");
+    let e = err(&[("spread = 0.1", "spread = 0.1\n[packing.protocol]\ncompaction = \"triaxial\"")]);
+    assert!(e.contains("packing.protocol.compaction") && e.contains("triaxial") && e.contains("isotropic"), "{e}");
+    let e = err(&[("boundary = \"periodic\"", "boundary = \"walls\""), ("spread = 0.1", "spread = 0.1\n[packing.protocol]\ncompaction = \"die\"")]);
+    assert!(e.contains("packing.protocol.compaction") && e.contains("periodic"), "{e}");
+    let _ = std::fs::remove_dir_all(dir);
+}

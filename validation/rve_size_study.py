@@ -112,6 +112,9 @@ def main():
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
     ap.add_argument("--end", type=float, default=1000.0)
     ap.add_argument("--bin", default=str(ROOT / "target/release/sinterdem"))
+    ap.add_argument("--recipe", choices=["isotropic", "die"], default="isotropic",
+                    help="packing.protocol.compaction of the periodic green body (docs/packing.md (G5), (G9))")
+    ap.add_argument("--no-block", action="store_true", help="skip the block cut from the periodic packing")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                     help="extra override of both sintering runs, e.g. contacts.detect_new=false (the green packings of --out are reused)")
     a = ap.parse_args()
@@ -127,13 +130,17 @@ def main():
                 sh([b, "run", ROOT / "cases/green-copper.toml", "--out", gw, "--quiet", "--set", f"packing.particles={n}",
                     "--set", f"packing.seed={s}", "--set", "packing.box=[1.0,1.0,1.0]"], out / f"{tag}-gw.log")
             phi = interior_fraction(gw)
+            if a.recipe == "die":
+                gp = out / f"gen-periodic-die-{tag}"
             if not (gp / "summary.json").exists():
+                # the die aims at phi (1 + 2 c_o) and unloads to about phi + 0.005 (G9)
                 sh([b, "run", ROOT / "cases/packing/periodic-copper.toml", "--out", gp, "--quiet", "--set", f"packing.particles={n}",
-                    "--set", f"packing.seed={s}", "--set", f"packing.target_solid_fraction={phi:.6f}"], out / f"{tag}-gp.log")
+                    "--set", f"packing.seed={s}", "--set", f"packing.target_solid_fraction={phi:.6f}",
+                    *(["--set", 'packing.protocol.compaction="die"'] if a.recipe == "die" else [])], out / f"{tag}-gp.log")
             box = json.load(open(gp / "summary.json"))["box_size_m"]
             common = ["--set", f"time.end={a.end}", "--set", "output.snapshots=1", "--set", f"output.conductivity_at=[{a.end}]",
                       "--set", "output.checkpoint_every=0", *[x for kv in a.set for x in ("--set", kv)]]
-            rp, rw = out / f"run-periodic-{tag}", out / f"run-walled-{tag}"
+            rp, rw = out / f"run-periodic{'-die' if a.recipe == 'die' else ''}-{tag}", out / f"run-walled-{tag}"
             if not (rp / "summary.json").exists():
                 sh([b, "run", ROOT / "cases/periodic-copper-rve.toml", "--out", rp, "--quiet",
                     "--set", f'particles={{source="file",file="{(gp / "packing.csv").resolve()}",periodic_box={box}}}', *common],
@@ -144,7 +151,8 @@ def main():
                     *common], out / f"{tag}-rw.log")
             sp, sw = json.load(open(rp / "summary.json")), json.load(open(rw / "summary.json"))
             kp, kw = kappa(sp), kappa(sw)
-            rows.append(dict(n=n, seed=s, body="periodic", phi0=phi, shrink_x=sp["shrinkage_x"], shrink_y=sp["shrinkage_y"],
+            phi_cell = json.load(open(gp / "summary.json"))["solid_fraction"]
+            rows.append(dict(n=n, seed=s, body=f"periodic ({a.recipe})", phi0=phi_cell, shrink_x=sp["shrinkage_x"], shrink_y=sp["shrinkage_y"],
                              shrink_z=sp["shrinkage_z"], density=sp["relative_density"], kxx=kp[0], kyy=kp[1], kzz=kp[2], interior=n,
                              near_neighbours=near_neighbours(gp, True),
                              wall_s=sum(sp["timing_seconds"].values())))
@@ -155,17 +163,33 @@ def main():
                              shrink_z=1 - f[2, 2], density=phi / np.linalg.det(f), kxx=kw[0], kyy=kw[1], kzz=kw[2],
                              near_neighbours=near_neighbours(gw, False),
                              interior=inside, wall_s=sum(sw["timing_seconds"].values())))
-            print(tag, rows[-2], rows[-1], flush=True)
+            if not a.no_block and a.recipe == "isotropic":
+                # the same periodic packing opened into a block with cut faces and sintered as the
+                # walled body is: the same packing recipe, with the boundary of a compact
+                rb = out / f"run-block-{tag}"
+                if not (rb / "summary.json").exists():
+                    sh([b, "run", ROOT / "cases/periodic-copper-rve.toml", "--out", rb, "--quiet",
+                        "--set", f'particles={{source="file",file="{(gp / "packing.csv").resolve()}"}}', "--set", 'mechanics={boundary="walls"}',
+                        *common], out / f"{tag}-rb.log")
+                sb = json.load(open(rb / "summary.json"))
+                kb = kappa(sb)
+                x0, x1 = positions(gp / "packing.csv", rb / "sinterdem.h5")
+                f, inside = affine(x0, x1, 50e-6)
+                rows.append(dict(n=n, seed=s, body="block interior", phi0=phi_cell, shrink_x=1 - f[0, 0], shrink_y=1 - f[1, 1],
+                                 shrink_z=1 - f[2, 2], density=phi_cell / np.linalg.det(f), kxx=kb[0], kyy=kb[1], kzz=kb[2],
+                                 near_neighbours=near_neighbours(gp, True), interior=inside,
+                                 wall_s=sum(sb["timing_seconds"].values())))
+            print(tag, *rows[-3:], sep="\n  ", flush=True)
     import pandas as pd
 
     df = pd.DataFrame(rows)
-    df.to_csv(out / "study.csv", index=False)
+    df.to_csv(out / f"study{'-die' if a.recipe == 'die' else ''}.csv", index=False)
     df["shrink_mean"] = df[["shrink_x", "shrink_y", "shrink_z"]].mean(axis=1)
     df["kappa_mean"] = df[["kxx", "kyy", "kzz"]].mean(axis=1)
     g = df.groupby(["body", "n"])[["phi0", "shrink_mean", "density", "kappa_mean", "near_neighbours"]].agg(["mean", "std", "count"])
     pd.set_option("display.width", 200)
     print(g)
-    g.to_csv(out / "summary_by_size.csv")
+    g.to_csv(out / f"summary_by_size{'-die' if a.recipe == 'die' else ''}.csv")
 
 
 if __name__ == "__main__":

@@ -66,6 +66,7 @@ struct ProtocolFile {
     dt_fraction: Option<f64>,
     max_steps: Option<f64>,
     strain_rate: Option<f64>,
+    compaction: Option<String>,
 }
 
 /// Protocol parameters (dimensionless; see the module docs).
@@ -85,6 +86,22 @@ pub struct Protocol {
     /// Periodic packings: compaction strain rate of the box, −L̇/L in 1 per scaled time unit
     /// √(m̄/k_n) (docs/packing.md (G5)).
     pub strain_rate: f64,
+    /// Periodic packings: the path of the box compaction (`packing.protocol.compaction`).
+    pub compaction: Compaction,
+}
+
+/// How a periodic box is compacted (`packing.protocol.compaction`, docs/packing.md (G9)).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Compaction {
+    /// `"isotropic"` (default): all edges strained together at `strain_rate` straight to the
+    /// target box, relaxed there at fixed volume (G5).
+    #[default]
+    Isotropic,
+    /// `"die"`: the walled recipe without walls. The footprint is held (2 % above the target's)
+    /// while the height is driven at the walls' speed under the same pressure servo, friction
+    /// lowering and taps as the walled box, then the box is backed off until the pressure
+    /// vanishes (G9).
+    Die,
 }
 
 impl Default for Protocol {
@@ -102,6 +119,7 @@ impl Default for Protocol {
             dt_fraction: 0.08,
             max_steps: 5_000_000,
             strain_rate: 1e-4,
+            compaction: Compaction::Isotropic,
         }
     }
 }
@@ -165,6 +183,20 @@ pub fn parse_generate_case(case: &toml::Value) -> Result<GenerateCase, Error> {
         Some("periodic") => true,
         Some(other) => return Err(ConfigError::inconsistent("packing.boundary", format!("\"{other}\": expected \"walls\" (default) or \"periodic\"")).into()),
     };
+    if pf.protocol.compaction.is_some() && !periodic {
+        return Err(ConfigError::inconsistent(
+            "packing.protocol.compaction",
+            "is used by boundary = \"periodic\" only (the walled box always compacts as a die: its upper walls move)",
+        )
+        .into());
+    }
+    if pf.protocol.strain_rate.is_some() && protocol.compaction == Compaction::Die {
+        return Err(ConfigError::inconsistent(
+            "packing.protocol.strain_rate",
+            "is not used by compaction = \"die\" (the box height moves at the walled protocol's wall speed, docs/packing.md (G9))",
+        )
+        .into());
+    }
     if pf.protocol.strain_rate.is_some() && !periodic {
         return Err(
             ConfigError::inconsistent("packing.protocol.strain_rate", "is used by boundary = \"periodic\" only (the walls have their own servo)").into()
@@ -254,6 +286,13 @@ fn protocol(pr: &ProtocolFile) -> Result<Protocol, ConfigError> {
         dt_fraction: get(pr.dt_fraction, "dt_fraction", d.dt_fraction)?,
         max_steps: get(pr.max_steps, "max_steps", d.max_steps as f64)? as u64,
         strain_rate: get(pr.strain_rate, "strain_rate", d.strain_rate)?,
+        compaction: match pr.compaction.as_deref() {
+            None | Some("isotropic") => Compaction::Isotropic,
+            Some("die") => Compaction::Die,
+            Some(other) => {
+                return Err(ConfigError::inconsistent("packing.protocol.compaction", format!("\"{other}\": expected \"isotropic\" (default) or \"die\"")));
+            }
+        },
     };
     Ok(protocol)
 }

@@ -34,7 +34,7 @@ mod output;
 mod periodic;
 mod protocol;
 
-pub use case::{GenerateCase, Protocol, parse_generate_case, requested_mean_diameter};
+pub use case::{Compaction, GenerateCase, Protocol, parse_generate_case, requested_mean_diameter};
 pub use output::{contact_pairs, coordination, coordination_in, write_outputs};
 pub use protocol::generate;
 
@@ -198,6 +198,9 @@ pub struct PeriodicReport {
     /// Final mean unbalanced force ratio (Yade's `unbalancedForce`): mean |F_i| over the particles /
     /// mean normal force over the contacts (0 without contacts).
     pub unbalanced_force_ratio: f64,
+    /// `compaction = "die"` (G9): the taps the compaction gave (absent for the isotropic path).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub taps: Option<u32>,
 }
 
 /// The packing itself: positions [m], radii [m], and the box [m].

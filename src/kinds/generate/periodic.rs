@@ -5,8 +5,8 @@
 //! the same scaled units as the walled protocol (module docs of [`super`]).
 
 use super::output::periodic_report;
-use super::protocol::{DRAIN_DAMPING, Progress, draw_radii, morton, out_of_steps, target_box};
-use super::{GenerateCase, GenerateSummary, Packing, PeriodicReport, Protocol, V3};
+use super::protocol::{BACKOFF_STRAIN_RATE, DRAIN_DAMPING, Jam, Progress, WALL_SPEED, draw_radii, morton, out_of_steps, target_box};
+use super::{Compaction, GenerateCase, GenerateSummary, Packing, PeriodicReport, Protocol, V3};
 use crate::error::{ConfigError, Error, SolveError};
 use crate::explicit::law::{Damping, LinearSpringDashpot};
 use crate::explicit::{Explicit, Settings, minimum_image, time_step};
@@ -29,8 +29,17 @@ pub fn generate_periodic(case: &GenerateCase, progress: bool) -> Result<(Packing
     let (r_unit, radii, r_max, vp) = draw_radii(case, &mut rng);
     // the target box: the requested shape scaled to Σ V_i / φ (G6), exactly
     let target = V3::from(target_box(case, vp, r_max)?);
-    // the cloud is never denser than the target (then the compaction is empty)
-    let l0 = target * (case.target_solid_fraction / proto.cloud_solid_fraction).cbrt().max(1.0);
+    let die = proto.compaction == Compaction::Die;
+    // the die aims at φ (1 + 2 c_o), as the walled box does: unloading expands it again (G9)
+    let aim = if die { target / (1.0 + 2.0 * proto.compaction_overlap).cbrt() } else { target };
+    let l0 = if die {
+        // the walled cloud's footprint, 2 % above the target's; the height at the cloud fraction
+        let (fx, fy) = (aim.x * 1.02, aim.y * 1.02);
+        V3::new(fx, fy, (vp / (proto.cloud_solid_fraction * fx * fy)).max(aim.z))
+    } else {
+        // the cloud is never denser than the target (then the compaction is empty)
+        target * (case.target_solid_fraction / proto.cloud_solid_fraction).cbrt().max(1.0)
+    };
     let (mut p, order) = insert(&radii, l0, &mut rng)?;
     let law = LinearSpringDashpot { stiffness: 1.0, damping: Damping::restitution_ratio(proto.restitution) };
     let (dt, tc) = time_step(&law, &p, proto.dt_fraction, 0.0, false)?;
@@ -44,11 +53,22 @@ pub fn generate_periodic(case: &GenerateCase, progress: bool) -> Result<(Packing
     sim.set_periodic_box(l0, &p)?;
     sim.parallel_threshold = 30_000;
     let mut extra = PeriodicReport::default();
-    let (mu, steps_compact) = compact(&mut sim, &mut p, target, vp, proto, &mut extra, &pr)?;
+    let (mu, steps_compact) = if die {
+        compact_die(&mut sim, &mut p, aim, vp, proto, &mut rng, &mut extra, &pr)?
+    } else {
+        compact(&mut sim, &mut p, target, vp, proto, &mut extra, &pr)?
+    };
     // a stop request (crate::interrupt): the packing as it is, in the box as it is
     let stopped = crate::interrupt::requested();
-    let (met, steps_relax, mu) = if stopped { (false, 0, mu) } else { relax(&mut sim, &mut p, mu, proto, &pr)? };
-    let target = if crate::interrupt::requested() { sim.periodic_box().unwrap_or(target) } else { target };
+    let (met, steps_relax, mu) = if stopped {
+        (false, 0, mu)
+    } else if die {
+        relax_die(&mut sim, &mut p, mu, aim, proto, &pr)?
+    } else {
+        relax(&mut sim, &mut p, mu, proto, &pr)?
+    };
+    // the die's box is where the unloading left it
+    let target = if die || crate::interrupt::requested() { sim.periodic_box().unwrap_or(target) } else { target };
     pr.say(format!(
         "relaxed after {steps_relax} steps (kinetic energy {:.3e}, largest overlap {:.2e} r, thresholds met: {met}; {} neighbour-list builds in all)",
         sim.energy.kinetic / n as f64,
@@ -228,6 +248,149 @@ fn compact(sim: &mut Sim, p: &mut Particles, target: V3, vp: f64, proto: &Protoc
         extra.compaction_kinetic_energy_max_rel
     ));
     Ok((mu, steps))
+}
+
+/// Stage 2 of the die (G9): the footprint driven from its cloud size and the height from the
+/// cloud's, along the straight path to `aim`, at `WALL_SPEED` on the longest leg, slowed by the
+/// pressure servo of the walled box (virial pressure (G4) against p_c); friction lowered and the
+/// packing tapped while it jams ([`Jam`], the walled box's rules); a stall accepts the current
+/// box. Returns the friction and the steps; the taps go to `extra`.
+#[allow(clippy::too_many_arguments)]
+fn compact_die(
+    sim: &mut Sim,
+    p: &mut Particles,
+    aim: V3,
+    vp: f64,
+    proto: &Protocol,
+    rng: &mut Rng,
+    extra: &mut PeriodicReport,
+    pr: &Progress,
+) -> Result<(f64, u64), Error> {
+    let n = p.len() as f64;
+    let p_c = proto.compaction_overlap / 4.0;
+    let dt = sim.settings.dt;
+    let l0 = sim.periodic_box().unwrap_or(aim);
+    let path_len = (0..3).map(|a| (aim[a] - l0[a]).abs()).fold(0.0, f64::max).max(1e-12);
+    let (mut lambda, mut steps) = (0.0f64, 0u64);
+    let mut jam = Jam::new(proto.friction);
+    extra.first_jam_solid_fraction = 0.0;
+    while lambda < 1.0 {
+        if crate::interrupt::requested() {
+            break;
+        }
+        let pm = sim.virial_pressure(p);
+        let servo = (1.0 - pm / p_c).clamp(0.0, 1.0);
+        let phi = vp / sim.periodic_box().unwrap_or(aim).product();
+        if servo < 0.05 && extra.first_jam_solid_fraction == 0.0 {
+            extra.first_jam_solid_fraction = phi;
+        }
+        if jam.update(sim, p, servo, phi, rng, pr) {
+            break;
+        }
+        lambda += (servo * WALL_SPEED * dt / path_len).min(1.0 - lambda);
+        let l = if lambda >= 1.0 { aim } else { l0 + (aim - l0) * lambda };
+        sim.strain_box(p, l)?;
+        sim.step(p)?;
+        steps += 1;
+        extra.compaction_kinetic_energy_max_rel = extra.compaction_kinetic_energy_max_rel.max(sim.energy.kinetic / n);
+        if steps.is_multiple_of(2000) {
+            pr.say(format!(
+                "die compaction: solid fraction {phi:.4}, pressure/p_c {:.3}, kinetic energy/particle {:.2e}, contacts/particle {:.2}",
+                pm / p_c,
+                sim.energy.kinetic / n,
+                2.0 * sim.contacts().len() as f64 / n
+            ));
+        }
+        if sim.counters.steps > proto.max_steps {
+            return Err(out_of_steps(proto.max_steps, "periodic die compaction", sim.counters.steps));
+        }
+    }
+    let l = sim.periodic_box().unwrap_or(aim);
+    extra.compaction_pressure_end_rel = 4.0 * sim.virial_pressure(p);
+    if extra.first_jam_solid_fraction == 0.0 {
+        extra.first_jam_solid_fraction = vp / l.product();
+    }
+    extra.taps = Some(jam.taps);
+    pr.say(format!(
+        "die compacted to solid fraction {:.4} ({} taps) after {steps} steps, friction {:.4}, pressure {:.3e} (p_c = {p_c:.3e})",
+        vp / l.product(),
+        jam.taps,
+        jam.mu,
+        sim.virial_pressure(p)
+    ));
+    Ok((jam.mu, steps))
+}
+
+/// Stage 3 of the die (G9), the walled relaxation with the box for the walls: relaxed; while the
+/// packing rests with overlaps above the threshold it carries load, and every edge backs off at
+/// `BACKOFF_STRAIN_RATE`·(aimed edge) per time unit until the pressure (G4) has fallen to 2 % of
+/// the compaction pressure scaled by max_overlap_rel/compaction_overlap or the overlaps to half
+/// the threshold; then the kinetic energy is drained. Returns whether the thresholds were met,
+/// the steps and the friction.
+fn relax_die(sim: &mut Sim, p: &mut Particles, mu: f64, aim: V3, proto: &Protocol, pr: &Progress) -> Result<(bool, u64, f64), Error> {
+    let n = p.len();
+    let p_c = proto.compaction_overlap / 4.0;
+    let p_end = (0.02 * p_c * proto.max_overlap_rel / proto.compaction_overlap.max(proto.max_overlap_rel)).max(1e-14);
+    if mu == 0.0 {
+        p.angular_velocity.iter_mut().for_each(|w| *w = V3::zeros());
+    }
+    let (ke_tol, ov_tol, dt) = (proto.kinetic_energy_rel * n as f64, proto.max_overlap_rel, sim.settings.dt);
+    let (mut steps, mut quiet, mut backing_off) = (0u64, 0u32, false);
+    let met = loop {
+        if backing_off {
+            for _ in 0..50 {
+                let l = sim.periodic_box().unwrap_or(aim) + aim * (BACKOFF_STRAIN_RATE * dt);
+                sim.strain_box(p, l)?;
+                sim.step(p)?;
+            }
+        } else {
+            sim.run(p, 50)?;
+        }
+        steps += 50;
+        if crate::interrupt::requested() {
+            break false;
+        }
+        if mu > 0.0 {
+            // rattlers keep their spin for ever (nothing damps it) and it does not shape the packing
+            for (w, f) in p.angular_velocity.iter_mut().zip(sim.forces()) {
+                if *f == V3::zeros() {
+                    *w = V3::zeros();
+                }
+            }
+        }
+        let ke = sim.energy.kinetic;
+        let ov = sim.max_pair_overlap(p);
+        if ke < ke_tol && ov < ov_tol && !backing_off {
+            break true;
+        }
+        let pm = sim.virial_pressure(p);
+        if ov >= ov_tol && ke < 100.0 * ke_tol {
+            quiet += 1;
+        }
+        if !backing_off && quiet >= 4 {
+            backing_off = true;
+            pr.say(format!("relaxed with largest overlap {ov:.2e} r: backing the box off (pressure {pm:.3e})"));
+        }
+        if backing_off && (pm <= p_end || ov < 0.5 * ov_tol) {
+            backing_off = false;
+            quiet = 0;
+        }
+        if !backing_off && ov < ov_tol && sim.settings.viscous_damping == 0.0 {
+            sim.settings.viscous_damping = DRAIN_DAMPING;
+            pr.say(format!("overlaps below {ov_tol:.1e} r: draining the kinetic energy ({:.2e} per particle) with viscous damping", ke / n as f64));
+        }
+        if steps.is_multiple_of(2000) {
+            pr.say(format!(
+                "relax: kinetic energy/particle {:.2e}, largest overlap {ov:.2e} r, pressure/p_c {:.3e}, backing off {backing_off}",
+                ke / n as f64,
+                pm / p_c
+            ));
+        }
+        if sim.counters.steps > proto.max_steps {
+            break false;
+        }
+    };
+    Ok((met, steps, mu))
 }
 
 /// Stage 3 (G5): the box fixed at the target; relaxed until the kinetic energy per particle and the

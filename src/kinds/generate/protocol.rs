@@ -64,9 +64,12 @@ fn max_overlap(p: &Particles, walls: &[Wall], pairs: &[(u32, u32)]) -> f64 {
     m
 }
 
+/// Fastest wall speed of the compaction [r̄ per scaled time unit √(m̄/k_n)]; the periodic die's
+/// height moves at the same speed (G9).
+pub(super) const WALL_SPEED: f64 = 0.03;
 /// Strain rate [1 per scaled time unit] at which the walls back off to unload the packing
 /// (the copper box, 15 r̄ high, backs off at 2·10⁻⁴ r̄ per time unit).
-const BACKOFF_STRAIN_RATE: f64 = 1.3e-5;
+pub(super) const BACKOFF_STRAIN_RATE: f64 = 1.3e-5;
 /// Background viscous damping rate [1 per scaled time unit] of the final relaxation: the kinetic
 /// energy falls by e^{-0.1} per time unit (≈ 6 steps), a damping ratio of ≈ 0.01 of the contacts.
 pub(super) const DRAIN_DAMPING: f64 = 0.05;
@@ -340,11 +343,11 @@ fn compact(sim: &mut Sim, p: &mut Particles, s: &Scaled, zmax: f64, dt: f64, rng
     sim.invalidate();
     let l0 = box_of(&sim.walls);
     let p_c = proto.compaction_overlap / 4.0;
-    let v_max = 0.03; // fastest wall speed, scaled units (r̄ per √(m̄/k_n))
+    let v_max = WALL_SPEED;
     let mut target = s.target;
     let path_len = (0..3).map(|a| (target[a] - l0[a]).abs()).fold(0.0, f64::max).max(1e-12);
     let mut lambda = 0.0f64;
-    let mut jam = Jam { mu: proto.friction, jammed_steps: 0, taps: 0, phi_at_check: 0.0 };
+    let mut jam = Jam::new(proto.friction);
     let mut steps_compact = 0u64;
     for a in 0..3 {
         sim.walls[2 * a + 1].control = WallControl::Velocity;
@@ -371,7 +374,7 @@ fn compact(sim: &mut Sim, p: &mut Particles, s: &Scaled, zmax: f64, dt: f64, rng
                 w.velocity = -((w.offset - want) / dt);
             }
         }
-        if jam.update(sim, p, servo, vp, rng, pr) {
+        if jam.update(sim, p, servo, vp / box_of(&sim.walls).iter().product::<f64>(), rng, pr) {
             target = box_of(&sim.walls);
             lambda = 1.0;
             continue;
@@ -408,23 +411,28 @@ fn compact(sim: &mut Sim, p: &mut Particles, s: &Scaled, zmax: f64, dt: f64, rng
     Ok(Compacted { target, mu, steps: steps_compact })
 }
 
-/// What the compaction does while the walls stall: friction lowered step by step, then (without
-/// friction) taps; strength of a tap, jammed steps before a tap, taps per stall check.
-struct Jam {
-    mu: f64,
+/// What the compaction does while the walls (or the periodic die's height, (G9)) stall: friction
+/// lowered step by step, then (without friction) taps; strength of a tap, jammed steps before a
+/// tap, taps per stall check.
+pub(super) struct Jam {
+    pub(super) mu: f64,
     jammed_steps: u64,
-    taps: u32,
+    pub(super) taps: u32,
     phi_at_check: f64,
 }
 
 impl Jam {
+    pub(super) fn new(friction: f64) -> Self {
+        Jam { mu: friction, jammed_steps: 0, taps: 0, phi_at_check: 0.0 }
+    }
+
     const TAP: f64 = 0.05;
     const QUIET_STEPS: u64 = 150;
     const STALL_TAPS: u32 = 40;
 
-    /// One compaction step's jam handling at servo factor `servo`; true: the packing stalled,
-    /// accept the current box.
-    fn update(&mut self, sim: &mut Sim, p: &mut Particles, servo: f64, vp: f64, rng: &mut Rng, pr: &Progress) -> bool {
+    /// One compaction step's jam handling at servo factor `servo` and solid fraction `phi` of the
+    /// current box; true: the packing stalled, accept the current box.
+    pub(super) fn update(&mut self, sim: &mut Sim, p: &mut Particles, servo: f64, phi: f64, rng: &mut Rng, pr: &Progress) -> bool {
         if servo < 0.05 {
             self.jammed_steps += 1;
             if self.jammed_steps >= 300 && self.mu > 0.0 {
@@ -435,7 +443,7 @@ impl Jam {
                     p.angular_velocity.iter_mut().for_each(|w| *w = V3::zeros());
                 }
                 self.jammed_steps = 0;
-                pr.say(format!("jammed at solid fraction {:.4}: friction lowered to {:.4}", vp / box_of(&sim.walls).iter().product::<f64>(), self.mu));
+                pr.say(format!("jammed at solid fraction {phi:.4}: friction lowered to {:.4}", self.mu));
             }
         } else {
             self.jammed_steps = 0;
@@ -447,7 +455,6 @@ impl Jam {
             // gained < 1e-3 in solid fraction
             self.jammed_steps = 0;
             self.taps += 1;
-            let phi = vp / box_of(&sim.walls).iter().product::<f64>();
             if self.taps.is_multiple_of(Self::STALL_TAPS) {
                 if phi - self.phi_at_check < 1e-3 {
                     pr.say(format!("jammed at solid fraction {phi:.4} after {} taps: accepting it", self.taps));
