@@ -14,7 +14,13 @@ For every size N and seed s, with the same copper powder (50 um, 1 +- 0.1, unifo
    diameters from the initial bounding box) from the first to the last snapshot,
    x_end = F x_0 + c, shrinkage_k = 1 - F_kk, and whose density is phi_int / det F (particle
    volume is conserved by the model); and the periodic conductivity tensor against the walled
-   faces method (both at the end, `output.conductivity_at`).
+   faces method (both at the end, `output.conductivity_at`);
+5. the block: the periodic green body itself, opened into a block with cut faces (no
+   periodic_box) and sintered as the walled body is; its interior, measured as the walled
+   interior, is the same packing recipe as the cell with the boundary of a compact
+   (docs/rve.md, "The same recipe with faces"). Skipped with --no-block.
+With --recipe die the periodic green body is made by the die path (docs/packing.md (G9)) at the
+target phi_int, the walled bodies of --out are reused, and the table is written as study-die.csv.
 
 Writes DIR/study.csv (one row per size, seed and body) and prints the table of means and spreads
 over seeds. Long: at 8000 particles a seed takes minutes. Run:
