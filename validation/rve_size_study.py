@@ -1,4 +1,4 @@
-"""Size and seed study of the periodic representative volume (issue 23; docs/mechanics.md
+"""Size and seed study of the periodic representative volume (issue 23; docs/rve.md
 "Size and seed study").
 
 For every size N and seed s, with the same copper powder (50 um, 1 +- 0.1, uniform):
@@ -18,7 +18,7 @@ For every size N and seed s, with the same copper powder (50 um, 1 +- 0.1, unifo
 5. the block: the periodic green body itself, opened into a block with cut faces (no
    periodic_box) and sintered as the walled body is; its interior, measured as the walled
    interior, is the same packing recipe as the cell with the boundary of a compact
-   (docs/rve.md, "The same recipe with faces"). Skipped with --no-block.
+   (docs/rve.md, "Size and seed study": "The same recipe"). Skipped with --no-block.
 With --recipe die the periodic green body is made by the die path (docs/packing.md (G9)) at the
 target phi_int, the walled bodies of --out are reused, and the table is written as study-die.csv.
 
@@ -76,6 +76,20 @@ def affine(x0, x1, d_mean):
     return coef[:3].T, int(inside.sum())
 
 
+def cell_interior_fit(packing_csv, h5, box, shrink, d_mean):
+    """The periodic cell measured as the walled and block interiors are: its end centres unwrapped
+    about the cell's affine map (minimum image of the end box; the fluctuations are far below a
+    box), then the least-squares affine map of the particles 1.5 mean diameters inside the
+    initial bounding box, i.e. the block's interior particles. Differs from the box strain by the
+    fit's weighting of the periodic fluctuation field (a few 1e-4 of the shrinkage)."""
+    x0, x1 = positions(packing_csv, h5)
+    box, shrink = np.asarray(box), np.asarray(shrink)
+    aff = x0 * (1.0 - shrink)
+    d = x1 - aff
+    d -= box * (1.0 - shrink) * np.round(d / (box * (1.0 - shrink)))
+    return affine(x0, aff + d, d_mean)
+
+
 def near_neighbours(gen_dir, periodic, d_mean=50e-6):
     """Neighbours per particle at gaps between 1e-3 and 2 % of the contact distance r_i + r_j in a
     green packing (the contacts that close during sintering); the walled body's interior only."""
@@ -131,6 +145,7 @@ def main():
     for n in a.sizes:
         for s in a.seeds:
             tag = f"n{n}-s{s}"
+            k0 = len(rows)
             gw, gp = out / f"gen-walled-{tag}", out / f"gen-periodic-{tag}"
             if not (gw / "summary.json").exists():
                 sh([b, "run", ROOT / "cases/green-copper.toml", "--out", gw, "--quiet", "--set", f"packing.particles={n}",
@@ -162,6 +177,11 @@ def main():
                              shrink_z=sp["shrinkage_z"], density=sp["relative_density"], kxx=kp[0], kyy=kp[1], kzz=kp[2], interior=n,
                              near_neighbours=near_neighbours(gp, True),
                              wall_s=sum(sp["timing_seconds"].values())))
+            cell_shrink = [sp["shrinkage_x"], sp["shrinkage_y"], sp["shrinkage_z"]]
+            f, inside = cell_interior_fit(gp / "packing.csv", rp / "sinterdem.h5", box, cell_shrink, 50e-6)
+            rows.append(dict(n=n, seed=s, body=f"periodic ({a.recipe}), interior fit", phi0=phi_cell, shrink_x=1 - f[0, 0],
+                             shrink_y=1 - f[1, 1], shrink_z=1 - f[2, 2], density=phi_cell / np.linalg.det(f), kxx=kp[0], kyy=kp[1],
+                             kzz=kp[2], interior=inside, near_neighbours=rows[-1]["near_neighbours"], wall_s=rows[-1]["wall_s"]))
             x0, x1 = positions(gw / "packing.csv", rw / "sinterdem.h5")
             d_mean = 50e-6
             f, inside = affine(x0, x1, d_mean)
@@ -185,7 +205,7 @@ def main():
                                  shrink_z=1 - f[2, 2], density=phi_cell / np.linalg.det(f), kxx=kb[0], kyy=kb[1], kzz=kb[2],
                                  near_neighbours=near_neighbours(gp, True), interior=inside,
                                  wall_s=sum(sb["timing_seconds"].values())))
-            print(tag, *rows[-3:], sep="\n  ", flush=True)
+            print(tag, *rows[k0:], sep="\n  ", flush=True)
     import pandas as pd
 
     df = pd.DataFrame(rows)
