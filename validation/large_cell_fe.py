@@ -11,7 +11,7 @@ third case is in random_large_b.csv).  The network with the default law
 (thermal.multi_neck = "fabric") is not a column of that file: it is recomputed
 from the case toml the run writes, validation/data/random/<case>/fabric/<case>.toml
 (`sinterdem conductivity ...`), and printed on the DONE line.
-Usage: FE_LEVELS="0 1 2" python validation/large_cell_fe.py [NAME ...]
+Usage: [FE_LEVELS="0 1 2 3"] python validation/large_cell_fe.py [NAME ...]
        python validation/large_cell_fe.py --report   # the doc's table from the CSV + the binary
 (SINTERDEM_BIN: the binary, default target/release/sinterdem.)
 """
@@ -38,7 +38,7 @@ fr.CASES.update(NEW)
 OUT = os.path.join(fr.DATA, os.environ.get("FE_OUT", "random_large.csv"))
 
 
-def main(names, levels=tuple(int(v) for v in os.environ.get("FE_LEVELS", "0 1 2").split())):
+def main(names, levels=tuple(int(v) for v in os.environ.get("FE_LEVELS", "0 1 2 3").split())):
     results = []
     for name in names:
         try:
