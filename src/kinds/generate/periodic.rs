@@ -5,7 +5,9 @@
 //! the same scaled units as the walled protocol (module docs of [`super`]).
 
 use super::output::periodic_report;
-use super::protocol::{BACKOFF_STRAIN_RATE, DRAIN_DAMPING, Jam, Progress, WALL_SPEED, draw_radii, morton, out_of_steps, target_box};
+use super::protocol::{
+    BACKOFF_STRAIN_RATE, Jam, Progress, Unloading, WALL_SPEED, drain_kinetic_energy, draw_radii, morton, out_of_steps, stop_rattler_spin, target_box,
+};
 use super::{Compaction, GenerateCase, GenerateSummary, Packing, PeriodicReport, Protocol, V3};
 use crate::error::{ConfigError, Error, SolveError};
 use crate::explicit::law::{Damping, LinearSpringDashpot};
@@ -172,7 +174,6 @@ fn insert(radii: &[f64], l: V3, rng: &mut Rng) -> Result<(Particles, Vec<usize>)
 /// while the servo holds the box (jammed) the friction is lowered (×0.6 every 300 steps, 0 below
 /// 0.005). Lands exactly on the target. Returns the friction and the steps.
 fn compact(sim: &mut Sim, p: &mut Particles, target: V3, vp: f64, proto: &Protocol, extra: &mut PeriodicReport, pr: &Progress) -> Result<(f64, u64), Error> {
-    let n = p.len() as f64;
     let p_c = proto.compaction_overlap / 4.0;
     let dt = sim.settings.dt;
     let l0 = sim.periodic_box().unwrap_or(target);
@@ -220,22 +221,8 @@ fn compact(sim: &mut Sim, p: &mut Particles, target: V3, vp: f64, proto: &Protoc
             jammed = 0;
         }
         let l = if lambda == 1.0 { target } else { target * lambda };
-        sim.strain_box(p, l)?;
-        sim.step(p)?;
-        steps += 1;
-        extra.compaction_kinetic_energy_max_rel = extra.compaction_kinetic_energy_max_rel.max(sim.energy.kinetic / n);
-        if steps.is_multiple_of(2000) {
-            pr.say(format!(
-                "compaction: solid fraction {:.4}, pressure/p_c {:.3}, kinetic energy/particle {:.2e}, contacts/particle {:.2}",
-                phi(lambda),
-                pm / p_c,
-                sim.energy.kinetic / n,
-                2.0 * sim.contacts().len() as f64 / n
-            ));
-        }
-        if sim.counters.steps > proto.max_steps {
-            return Err(out_of_steps(proto.max_steps, "periodic compaction", sim.counters.steps));
-        }
+        let at = Progressed { phi: phi(lambda), pressure_rel: pm / p_c, stage: "compaction" };
+        compaction_step(sim, p, l, &mut steps, &at, proto, extra, pr)?;
     }
     extra.compaction_pressure_end_rel = 4.0 * sim.virial_pressure(p);
     if extra.first_jam_solid_fraction == 0.0 {
@@ -248,6 +235,48 @@ fn compact(sim: &mut Sim, p: &mut Particles, target: V3, vp: f64, proto: &Protoc
         extra.compaction_kinetic_energy_max_rel
     ));
     Ok((mu, steps))
+}
+
+/// Where a box compaction stands before its step: solid fraction, pressure / p_c, the stage's name.
+struct Progressed {
+    phi: f64,
+    pressure_rel: f64,
+    stage: &'static str,
+}
+
+/// One step of a box compaction, (G5) or (G9): the box strained to `l` by (G2), one explicit
+/// step, the largest kinetic energy per particle recorded, progress every 2000 steps, and the
+/// step budget checked.
+#[allow(clippy::too_many_arguments)]
+fn compaction_step(
+    sim: &mut Sim,
+    p: &mut Particles,
+    l: V3,
+    steps: &mut u64,
+    at: &Progressed,
+    proto: &Protocol,
+    extra: &mut PeriodicReport,
+    pr: &Progress,
+) -> Result<(), Error> {
+    let n = p.len() as f64;
+    sim.strain_box(p, l)?;
+    sim.step(p)?;
+    *steps += 1;
+    extra.compaction_kinetic_energy_max_rel = extra.compaction_kinetic_energy_max_rel.max(sim.energy.kinetic / n);
+    if steps.is_multiple_of(2000) {
+        pr.say(format!(
+            "{}: solid fraction {:.4}, pressure/p_c {:.3}, kinetic energy/particle {:.2e}, contacts/particle {:.2}",
+            at.stage,
+            at.phi,
+            at.pressure_rel,
+            sim.energy.kinetic / n,
+            2.0 * sim.contacts().len() as f64 / n
+        ));
+    }
+    if sim.counters.steps > proto.max_steps {
+        return Err(out_of_steps(proto.max_steps, &format!("periodic {}", at.stage), sim.counters.steps));
+    }
+    Ok(())
 }
 
 /// Stage 2 of the die (G9): the footprint driven from its cloud size and the height from the
@@ -266,7 +295,6 @@ fn compact_die(
     extra: &mut PeriodicReport,
     pr: &Progress,
 ) -> Result<(f64, u64), Error> {
-    let n = p.len() as f64;
     let p_c = proto.compaction_overlap / 4.0;
     let dt = sim.settings.dt;
     let l0 = sim.periodic_box().unwrap_or(aim);
@@ -289,21 +317,8 @@ fn compact_die(
         }
         lambda += (servo * WALL_SPEED * dt / path_len).min(1.0 - lambda);
         let l = if lambda >= 1.0 { aim } else { l0 + (aim - l0) * lambda };
-        sim.strain_box(p, l)?;
-        sim.step(p)?;
-        steps += 1;
-        extra.compaction_kinetic_energy_max_rel = extra.compaction_kinetic_energy_max_rel.max(sim.energy.kinetic / n);
-        if steps.is_multiple_of(2000) {
-            pr.say(format!(
-                "die compaction: solid fraction {phi:.4}, pressure/p_c {:.3}, kinetic energy/particle {:.2e}, contacts/particle {:.2}",
-                pm / p_c,
-                sim.energy.kinetic / n,
-                2.0 * sim.contacts().len() as f64 / n
-            ));
-        }
-        if sim.counters.steps > proto.max_steps {
-            return Err(out_of_steps(proto.max_steps, "periodic die compaction", sim.counters.steps));
-        }
+        let at = Progressed { phi, pressure_rel: pm / p_c, stage: "die compaction" };
+        compaction_step(sim, p, l, &mut steps, &at, proto, extra, pr)?;
     }
     let l = sim.periodic_box().unwrap_or(aim);
     extra.compaction_pressure_end_rel = 4.0 * sim.virial_pressure(p);
@@ -321,23 +336,21 @@ fn compact_die(
     Ok((jam.mu, steps))
 }
 
-/// Stage 3 of the die (G9), the walled relaxation with the box for the walls: relaxed; while the
-/// packing rests with overlaps above the threshold it carries load, and every edge backs off at
-/// `BACKOFF_STRAIN_RATE`·(aimed edge) per time unit until the pressure (G4) has fallen to 2 % of
-/// the compaction pressure scaled by max_overlap_rel/compaction_overlap or the overlaps to half
-/// the threshold; then the kinetic energy is drained. Returns whether the thresholds were met,
-/// the steps and the friction.
+/// Stage 3 of the die (G9), the walled relaxation with the box for the walls: while the packing
+/// carries load ([`Unloading`]) every edge backs off at `BACKOFF_STRAIN_RATE`·(aimed edge) per
+/// time unit; then the kinetic energy is drained. Returns whether the thresholds were met, the
+/// steps and the friction.
 fn relax_die(sim: &mut Sim, p: &mut Particles, mu: f64, aim: V3, proto: &Protocol, pr: &Progress) -> Result<(bool, u64, f64), Error> {
     let n = p.len();
     let p_c = proto.compaction_overlap / 4.0;
-    let p_end = (0.02 * p_c * proto.max_overlap_rel / proto.compaction_overlap.max(proto.max_overlap_rel)).max(1e-14);
     if mu == 0.0 {
         p.angular_velocity.iter_mut().for_each(|w| *w = V3::zeros());
     }
-    let (ke_tol, ov_tol, dt) = (proto.kinetic_energy_rel * n as f64, proto.max_overlap_rel, sim.settings.dt);
-    let (mut steps, mut quiet, mut backing_off) = (0u64, 0u32, false);
+    let dt = sim.settings.dt;
+    let mut un = Unloading::new(proto, n);
+    let mut steps = 0u64;
     let met = loop {
-        if backing_off {
+        if un.backing_off {
             for _ in 0..50 {
                 let l = sim.periodic_box().unwrap_or(aim) + aim * (BACKOFF_STRAIN_RATE * dt);
                 sim.strain_box(p, l)?;
@@ -351,39 +364,26 @@ fn relax_die(sim: &mut Sim, p: &mut Particles, mu: f64, aim: V3, proto: &Protoco
             break false;
         }
         if mu > 0.0 {
-            // rattlers keep their spin for ever (nothing damps it) and it does not shape the packing
-            for (w, f) in p.angular_velocity.iter_mut().zip(sim.forces()) {
-                if *f == V3::zeros() {
-                    *w = V3::zeros();
-                }
-            }
+            stop_rattler_spin(sim, p);
         }
         let ke = sim.energy.kinetic;
         let ov = sim.max_pair_overlap(p);
-        if ke < ke_tol && ov < ov_tol && !backing_off {
+        if un.relaxed(ke, ov) {
             break true;
         }
         let pm = sim.virial_pressure(p);
-        if ov >= ov_tol && ke < 100.0 * ke_tol {
-            quiet += 1;
-        }
-        if !backing_off && quiet >= 4 {
-            backing_off = true;
+        if un.update(ke, ov, pm).0 {
             pr.say(format!("relaxed with largest overlap {ov:.2e} r: backing the box off (pressure {pm:.3e})"));
         }
-        if backing_off && (pm <= p_end || ov < 0.5 * ov_tol) {
-            backing_off = false;
-            quiet = 0;
-        }
-        if !backing_off && ov < ov_tol && sim.settings.viscous_damping == 0.0 {
-            sim.settings.viscous_damping = DRAIN_DAMPING;
-            pr.say(format!("overlaps below {ov_tol:.1e} r: draining the kinetic energy ({:.2e} per particle) with viscous damping", ke / n as f64));
+        if !un.backing_off {
+            drain_kinetic_energy(sim, ov, un.ov_tol, ke, n, pr);
         }
         if steps.is_multiple_of(2000) {
             pr.say(format!(
-                "relax: kinetic energy/particle {:.2e}, largest overlap {ov:.2e} r, pressure/p_c {:.3e}, backing off {backing_off}",
+                "relax: kinetic energy/particle {:.2e}, largest overlap {ov:.2e} r, pressure/p_c {:.3e}, backing off {}",
                 ke / n as f64,
-                pm / p_c
+                pm / p_c,
+                un.backing_off
             ));
         }
         if sim.counters.steps > proto.max_steps {
@@ -412,12 +412,7 @@ fn relax(sim: &mut Sim, p: &mut Particles, mut mu: f64, proto: &Protocol, pr: &P
         }
         steps += 50;
         if mu > 0.0 {
-            // rattlers keep their spin for ever (nothing damps it) and it does not shape the packing
-            for (w, f) in p.angular_velocity.iter_mut().zip(sim.forces()) {
-                if *f == V3::zeros() {
-                    *w = V3::zeros();
-                }
-            }
+            stop_rattler_spin(sim, p);
         }
         let ke = sim.energy.kinetic;
         let ov = sim.max_pair_overlap(p);
@@ -446,10 +441,7 @@ fn relax(sim: &mut Sim, p: &mut Particles, mut mu: f64, proto: &Protocol, pr: &P
                 ov_at_check = ov;
             }
         }
-        if ov < ov_tol && sim.settings.viscous_damping == 0.0 {
-            sim.settings.viscous_damping = DRAIN_DAMPING;
-            pr.say(format!("overlaps below {ov_tol:.1e} r: draining the kinetic energy ({:.2e} per particle) with viscous damping", ke / n as f64));
-        }
+        drain_kinetic_energy(sim, ov, ov_tol, ke, n, pr);
         if steps.is_multiple_of(2000) {
             pr.say(format!(
                 "relax: kinetic energy/particle {:.2e}, largest overlap {ov:.2e} r, pressure/p_c {:.3e}",

@@ -72,7 +72,7 @@ pub(super) const WALL_SPEED: f64 = 0.03;
 pub(super) const BACKOFF_STRAIN_RATE: f64 = 1.3e-5;
 /// Background viscous damping rate [1 per scaled time unit] of the final relaxation: the kinetic
 /// energy falls by e^{-0.1} per time unit (≈ 6 steps), a damping ratio of ≈ 0.01 of the contacts.
-pub(super) const DRAIN_DAMPING: f64 = 0.05;
+const DRAIN_DAMPING: f64 = 0.05;
 
 /// Morton (Z-order) key of a lattice cell: the bits of the three indices interleaved.
 pub(super) fn morton(ix: usize, iy: usize, iz: usize) -> u64 {
@@ -470,20 +470,83 @@ impl Jam {
     }
 }
 
-/// Stage 4: walls at the target box, backed off while the packing carries load, then the
-/// kinetic energy drained; returns whether the thresholds were met within the budget, and the
-/// steps.
+/// Stops the spin of every contact-free sphere (a rattler: zero force). Nothing damps it, it
+/// does not shape the packing, and its energy would hold the kinetic energy above the threshold
+/// for ever.
+pub(super) fn stop_rattler_spin(sim: &Sim, p: &mut Particles) {
+    for (w, f) in p.angular_velocity.iter_mut().zip(sim.forces()) {
+        if *f == V3::zeros() {
+            *w = V3::zeros();
+        }
+    }
+}
+
+/// Once the box is final and the overlaps are within the threshold, only kinetic energy is left,
+/// in a nearly stress-free packing whose particles drift with almost no force. The local damping,
+/// proportional to the force, hardly slows them (the kinetic energy of a 10⁴-particle packing
+/// took ~2·10⁴ steps to fall by 100), so a background viscous damping drains it (once).
+pub(super) fn drain_kinetic_energy(sim: &mut Sim, ov: f64, ov_tol: f64, ke: f64, n: usize, pr: &Progress) {
+    if ov < ov_tol && sim.settings.viscous_damping == 0.0 {
+        sim.settings.viscous_damping = DRAIN_DAMPING;
+        pr.say(format!("overlaps below {ov_tol:.1e} r: draining the kinetic energy ({:.2e} per particle) with viscous damping", ke / n as f64));
+    }
+}
+
+/// The unloading rule of the walled relaxation, shared by the periodic die (G9): at rest (kinetic
+/// energy below 100× its threshold) with overlaps above the threshold at 4 checks, the packing
+/// carries load and its box backs off, until the pressure has fallen to
+/// `p_end` = 0.02 p_c · max_overlap_rel / compaction_overlap or the largest overlap to half the
+/// threshold.
+pub(super) struct Unloading {
+    quiet: u64,
+    pub(super) backing_off: bool,
+    ke_tol: f64,
+    pub(super) ov_tol: f64,
+    p_end: f64,
+}
+
+impl Unloading {
+    pub(super) fn new(proto: &Protocol, n: usize) -> Self {
+        let p_c = proto.compaction_overlap / 4.0;
+        let p_end = 0.02 * p_c * proto.max_overlap_rel / proto.compaction_overlap.max(proto.max_overlap_rel);
+        Unloading { quiet: 0, backing_off: false, ke_tol: proto.kinetic_energy_rel * n as f64, ov_tol: proto.max_overlap_rel, p_end: p_end.max(1e-14) }
+    }
+
+    /// The thresholds are met and the box is not moving: relaxed.
+    pub(super) fn relaxed(&self, ke: f64, ov: f64) -> bool {
+        ke < self.ke_tol && ov < self.ov_tol && !self.backing_off
+    }
+
+    /// One check at kinetic energy `ke`, largest overlap `ov` and pressure `pm`; returns
+    /// (backing off started, backing off stopped) at this check (both when it ends at once).
+    pub(super) fn update(&mut self, ke: f64, ov: f64, pm: f64) -> (bool, bool) {
+        if ov >= self.ov_tol && ke < 100.0 * self.ke_tol {
+            self.quiet += 1;
+        }
+        let started = !self.backing_off && self.quiet >= 4;
+        if started {
+            self.backing_off = true;
+        }
+        let stopped = self.backing_off && (pm <= self.p_end || ov < 0.5 * self.ov_tol);
+        if stopped {
+            self.backing_off = false;
+            self.quiet = 0;
+        }
+        (started, stopped)
+    }
+}
+
+/// Stage 4: walls at the target box, backed off while the packing carries load ([`Unloading`]),
+/// then the kinetic energy drained; returns whether the thresholds were met within the budget,
+/// and the steps.
 fn relax(sim: &mut Sim, p: &mut Particles, n: usize, c: &Compacted, proto: &Protocol, pr: &Progress) -> Result<(bool, u64), Error> {
     let (mu, target, budget) = (c.mu, c.target, proto.max_steps);
     let p_c = proto.compaction_overlap / 4.0;
     if mu == 0.0 {
         p.angular_velocity.iter_mut().for_each(|w| *w = V3::zeros());
     }
-    let ke_tol = proto.kinetic_energy_rel * n as f64;
-    let ov_tol = proto.max_overlap_rel;
+    let mut un = Unloading::new(proto, n);
     let mut steps_relax = 0u64;
-    let mut backing_off = false;
-    let mut quiet = 0u64;
     let met = loop {
         sim.run(p, 50)?;
         steps_relax += 50;
@@ -491,61 +554,44 @@ fn relax(sim: &mut Sim, p: &mut Particles, n: usize, c: &Compacted, proto: &Prot
             break false;
         }
         if mu > 0.0 {
-            // a rattler (no contact: zero force, gravity is off) keeps any spin forever, and its
-            // rotational energy would hold the kinetic energy above the threshold; the spin of a
-            // contact-free sphere does not affect the geometry, so stop it
-            for (w, f) in p.angular_velocity.iter_mut().zip(sim.forces()) {
-                if *f == V3::zeros() {
-                    *w = V3::zeros();
-                }
-            }
+            // gravity is off: a rattler has zero force
+            stop_rattler_spin(sim, p);
         }
         let ke = sim.energy.kinetic;
         let ov = max_overlap(p, &sim.walls, sim.neighbour_pairs());
-        if ke < ke_tol && ov < ov_tol && !backing_off {
+        if un.relaxed(ke, ov) {
             break true;
         }
         let pm = (0..3).map(|a| sim.walls[2 * a + 1].pressure()).sum::<f64>() / 3.0;
-        // kinetic energy settled but overlaps too large: the packing carries load; back the walls off
-        if ov >= ov_tol && ke < 100.0 * ke_tol {
-            quiet += 1;
-        }
-        if !backing_off && quiet >= 4 {
-            backing_off = true;
+        let was_backing_off = un.backing_off;
+        let (started, stopped) = un.update(ke, ov, pm);
+        if started {
             pr.say(format!("relaxed with largest overlap {ov:.2e} r: backing the walls off (pressure {pm:.3e})"));
         }
-        if backing_off {
-            let p_end = 0.02 * p_c * proto.max_overlap_rel / proto.compaction_overlap.max(proto.max_overlap_rel);
-            if pm <= p_end.max(1e-14) || ov < 0.5 * ov_tol {
-                backing_off = false;
-                quiet = 0;
-                for a in 0..3 {
-                    sim.walls[2 * a + 1].control = WallControl::Fixed;
-                }
-            } else {
-                for a in 0..3 {
-                    // a strain rate: the walls' travel to unload grows with the box
-                    let w = &mut sim.walls[2 * a + 1];
-                    w.control = WallControl::Velocity;
-                    w.velocity = -BACKOFF_STRAIN_RATE * target[a];
-                }
+        if stopped {
+            for a in 0..3 {
+                sim.walls[2 * a + 1].control = WallControl::Fixed;
             }
+        } else if un.backing_off {
+            for a in 0..3 {
+                // a strain rate: the walls' travel to unload grows with the box
+                let w = &mut sim.walls[2 * a + 1];
+                w.control = WallControl::Velocity;
+                w.velocity = -BACKOFF_STRAIN_RATE * target[a];
+            }
+        }
+        if was_backing_off || started {
             set_areas(&mut sim.walls);
         }
-        if !backing_off && ov < ov_tol && sim.settings.viscous_damping == 0.0 {
-            // the box is final and the overlaps are within the threshold: only kinetic energy is
-            // left, in a nearly stress-free packing whose particles drift with almost no force
-            // (the local damping, proportional to the force, hardly slows them; the kinetic energy
-            // of a 10^4-particle packing took ~2·10^4 steps to fall by 100): drain it with a
-            // background viscous damping
-            sim.settings.viscous_damping = DRAIN_DAMPING;
-            pr.say(format!("overlaps below {ov_tol:.1e} r: draining the kinetic energy ({:.2e} per particle) with viscous damping", ke / n as f64));
+        if !un.backing_off {
+            drain_kinetic_energy(sim, ov, un.ov_tol, ke, n, pr);
         }
         if steps_relax.is_multiple_of(2000) {
             pr.say(format!(
-                "relax: kinetic energy/particle {:.2e}, largest overlap {ov:.2e} r, pressure/p_c {:.3e}, backing off {backing_off}",
+                "relax: kinetic energy/particle {:.2e}, largest overlap {ov:.2e} r, pressure/p_c {:.3e}, backing off {}",
                 ke / n as f64,
-                pm / p_c
+                pm / p_c,
+                un.backing_off
             ));
         }
         if sim.counters.steps > budget {
