@@ -78,6 +78,14 @@ def _extrap(path):
             for r in rows if r["level"] == "extrap"}
 
 
+def _levels(path, name):
+    """The mesh levels stored for case `name` in `path`, as "first-last"."""
+    with open(path) as fh:
+        lv = [int(r["level"]) for r in csv.DictReader(ln for ln in fh if not ln.startswith("#"))
+              if r["case"] == name and r["level"] != "extrap"]
+    return f"{min(lv)}-{max(lv)}"
+
+
 def cases():
     """name -> (packing, FE diagonal (converged), role, note)."""
     out = {}
@@ -87,7 +95,7 @@ def cases():
     for path in sorted(glob.glob(os.path.join(fr.DATA, "random_crowding*.csv"))):
         for name, (fe, fin) in _extrap(path).items():
             out[name] = (rp.make_packing(*crowding_fe.NEW[name]), fe, "check",
-                         "new seed, levels " + ("1-3" if path.endswith("crowding.csv") else "0-2"), fin)
+                         "new seed, levels " + _levels(path, name), fin)
     if os.path.exists(cl.OUT):
         with open(cl.OUT) as fh:
             for r in csv.DictReader(ln for ln in fh if not ln.startswith("#")):
