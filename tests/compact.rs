@@ -337,3 +337,23 @@ fn outputs_land_exactly_on_the_requested_times() {
     let (x, y) = (s["shrinkage_x"].as_f64().unwrap(), plain["shrinkage_x"].as_f64().unwrap());
     assert!((x / y - 1.0).abs() < 1e-3, "{x} vs {y}");
 }
+
+/// (H17b) in a compact run: `output.conductivity_at` on a body with cut faces (the bundled
+/// periodic packing opened into a block) logs the cut-face warning once, lists it once in the
+/// summary's `warnings`, and marks every faces-method result it concerns.
+#[test]
+fn conductivity_of_a_cut_body_carries_the_cut_face_warning_once() {
+    let dir = common::tmp_dir("cut-face-run");
+    let csv = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases/data/periodic-copper-500.csv");
+    let v = compact_case(&csv, &["time.end=20.0", "output.conductivity_at=[0.0, 10.0]", "output.snapshots=0"]);
+    let sim = coupled::prepare(v, Path::new("."), &mut |_| {}).unwrap();
+    let mut log = Vec::new();
+    let s = sinterdem::kinds::compact::run(sim, &dir.join("out"), false, &mut |m| log.push(m.to_string())).unwrap();
+    assert_eq!(log.iter().filter(|l| l.starts_with("warning:") && l.contains("cut faces")).count(), 1, "{log:#?}");
+    let listed: Vec<_> = s["warnings"].as_array().unwrap().iter().filter(|w| w.as_str().unwrap().contains("cut faces")).collect();
+    assert_eq!(listed.len(), 1, "{}", s["warnings"]);
+    let cond = s["conductivity"].as_array().unwrap();
+    assert_eq!(cond.len(), 2);
+    assert!(cond.iter().all(|c| c["warning"].as_str().unwrap().contains("cut faces")), "{cond:?}");
+    let _ = std::fs::remove_dir_all(dir);
+}

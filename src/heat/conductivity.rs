@@ -148,6 +148,25 @@ fn steady_many(n: usize, pipes: &[[u32; 2]], k: &[f64], is_unknown: &[bool], val
 /// block's π/4; one particle standing proud of a face of 8 000 covers about 0.01.
 pub const FACE_COVERAGE_MIN: f64 = 0.1;
 
+/// Face-layer coverage below which a face is a cut (rough) face rather than a wall-compacted one
+/// (H17b). Wall-compacted faces cover 0.70–0.76 of the cross-section; the cut faces of a body
+/// opened from a periodic packing or the titanium column cover 0.13–0.21. On cut faces the faces
+/// method reads 17–48 % low for 27 000–500 particles (docs/heat-model.md "Error of the faces
+/// method"), so its result is reported with a warning.
+pub const FACE_COVERAGE_CUT: f64 = 0.25;
+
+/// The warning (H17b) for faces-method results whose least-covered face layer is below
+/// [`FACE_COVERAGE_CUT`]; None when every face looks wall-compacted.
+pub fn cut_face_warning(axes: &[AxisResult]) -> Option<String> {
+    let (c, axis) = axes.iter().flat_map(|r| [(r.hot_coverage, r.axis), (r.cold_coverage, r.axis)]).min_by(|a, b| a.0.total_cmp(&b.0))?;
+    (c < FACE_COVERAGE_CUT).then(|| {
+        format!(
+            "conductivity (faces method): a face layer along {} covers only {c:.2} of the cross-section (a wall-compacted face covers about 0.7): these are cut faces, on which the faces method reads 17-48 % low for 27 000-500 particles (docs/heat-model.md \"Error of the faces method\"); for material data use the periodic tensor (conductivity.boundary = \"periodic\" on a periodic packing)",
+            ["x", "y", "z"][axis.min(2)]
+        )
+    })
+}
+
 /// Farthest a face moves inward from its most extreme particle to reach [`FACE_COVERAGE_MIN`],
 /// in mean radii (two diameters); beyond it the face stays at the extreme particle.
 pub const FACE_SHIFT_MAX_RADII: f64 = 4.0;

@@ -3,7 +3,7 @@
 
 use crate::config;
 use crate::error::{ConfigError, Error};
-use crate::heat::conductivity::{faces, periodic, periodic_pipes};
+use crate::heat::conductivity::{cut_face_warning, faces, periodic, periodic_pipes};
 use nalgebra::Matrix3;
 
 /// `sinterdem conductivity CASE`: the tensor [W/(m·K)] and κ_eff/κ as JSON.
@@ -34,13 +34,17 @@ pub fn run_case(value: toml::Value, base: &std::path::Path) -> Result<serde_json
                 None => vec![0.5 * p.mean_radius(); axes.len()],
             };
             let mut t = Matrix3::zeros();
-            let mut details = Vec::new();
+            let mut results = Vec::new();
             for (k, &a) in axes.iter().enumerate() {
                 let r = faces(p, &prep.pipes, a, depth[k], dt)?;
                 t[(a, a)] = r.kappa;
-                details.push(serde_json::to_value(r).unwrap());
+                results.push(r);
             }
-            out.insert("axes".into(), serde_json::Value::Array(details));
+            if let Some(w) = cut_face_warning(&results) {
+                tracing::warn!(target: "sinterdem::kinds", "{w}");
+                out.insert("warnings".into(), serde_json::json!([w]));
+            }
+            out.insert("axes".into(), serde_json::to_value(results).unwrap());
             t
         }
         "periodic" => {

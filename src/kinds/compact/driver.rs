@@ -504,7 +504,14 @@ fn summary(sim: &Simulation, due: &Due, stop_reason: Option<String>, wall_second
         },
         "normal_force_mean_N": sim.mean_normal_force(),
         "skipped": sim.skipped,
-        "warnings": sim.warnings.iter().cloned().chain(sim.below_range_messages().0).collect::<Vec<_>>(),
+        "warnings": sim
+            .warnings
+            .iter()
+            .cloned()
+            .chain(sim.below_range_messages().0)
+            // the cut-face warning of the faces method (H17b), once
+            .chain(due.cond_results.iter().find_map(|c| c.get("warning").and_then(|w| w.as_str()).map(String::from)))
+            .collect::<Vec<_>>(),
         "extrapolated_below_range": sim.below_range_summary(),
         "threads": rayon::current_num_threads(),
         "completed": stop_reason.is_none(),

@@ -45,9 +45,19 @@ impl Due {
                 ));
                 self.cond_results.push(json!({"time_s": sim.t, "method": "periodic", "kappa_eff_W_per_mK": rows}));
             } else {
-                let k = compact_conductivity(sim)?;
+                let (k, cut) = compact_conductivity(sim)?;
                 log(&format!("t = {}: effective conductivity diag = [{:.4e}, {:.4e}, {:.4e}] W/(m K)", crate::units::fmt_seconds(sim.t), k[0], k[1], k[2]));
-                self.cond_results.push(json!({"time_s": sim.t, "kappa_eff_W_per_mK": k}));
+                match cut {
+                    Some(w) => {
+                        // on the console once per run (also across a resume: the results are
+                        // checkpointed); with every result it concerns in summary.json
+                        if !self.cond_results.iter().any(|c| c.get("warning").is_some()) {
+                            log(&format!("warning: {w}"));
+                        }
+                        self.cond_results.push(json!({"time_s": sim.t, "kappa_eff_W_per_mK": k, "warning": w}));
+                    }
+                    None => self.cond_results.push(json!({"time_s": sim.t, "kappa_eff_W_per_mK": k})),
+                }
             }
             self.next_cond += 1;
         }
@@ -111,16 +121,14 @@ pub(crate) fn write_snapshot(sim: &Simulation, snaps: &mut SnapshotWriter) -> Re
     })
 }
 
-/// Effective conductivity (faces method, diagonal) of the compact in its current state [W/(m·K)].
-pub fn compact_conductivity(sim: &Simulation) -> Result<[f64; 3], Error> {
+/// Effective conductivity (faces method, diagonal) of the compact in its current state [W/(m·K)],
+/// and the cut-face warning (H17b) when a face layer looks cut rather than wall-compacted.
+pub fn compact_conductivity(sim: &Simulation) -> Result<([f64; 3], Option<String>), Error> {
     let p = &sim.prep.scene.particles;
     let k = sim.conductances()?;
     let pipes = crate::heat::Pipes { pairs: sim.contacts.pairs.clone(), conductance: k, ..Default::default() };
-    let mut out = [0.0; 3];
-    for (a, o) in out.iter_mut().enumerate() {
-        *o = crate::heat::conductivity::faces(p, &pipes, a, 0.5 * p.mean_radius(), 1.0)?.kappa;
-    }
-    Ok(out)
+    let axes = (0..3).map(|a| crate::heat::conductivity::faces(p, &pipes, a, 0.5 * p.mean_radius(), 1.0)).collect::<Result<Vec<_>, _>>()?;
+    Ok(([axes[0].kappa, axes[1].kappa, axes[2].kappa], crate::heat::conductivity::cut_face_warning(&axes)))
 }
 
 /// The full effective conductivity tensor of a periodic compact in its current state by periodic
