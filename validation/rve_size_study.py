@@ -158,53 +158,46 @@ def main():
                 sh([b, "run", ROOT / "cases/packing/periodic-copper.toml", "--out", gp, "--quiet", "--set", f"packing.particles={n}",
                     "--set", f"packing.seed={s}", "--set", f"packing.target_solid_fraction={phi:.6f}",
                     *(["--set", 'packing.protocol.compaction="die"'] if a.recipe == "die" else [])], out / f"{tag}-gp.log")
-            box = json.load(open(gp / "summary.json"))["box_size_m"]
+            gen_p = json.load(open(gp / "summary.json"))
+            box, phi_cell = gen_p["box_size_m"], gen_p["solid_fraction"]
             common = ["--set", f"time.end={a.end}", "--set", "output.snapshots=1", "--set", f"output.conductivity_at=[{a.end}]",
                       "--set", "output.checkpoint_every=0", *[x for kv in a.set for x in ("--set", kv)]]
+
+            def sinter(run_dir, packing, particles_extra, mechanics, log_tag):
+                """The sintering run of a green body (cases/periodic-copper-rve.toml), unless done."""
+                if not (run_dir / "summary.json").exists():
+                    sh([b, "run", ROOT / "cases/periodic-copper-rve.toml", "--out", run_dir, "--quiet",
+                        "--set", f'particles={{source="file",file="{packing.resolve()}"{particles_extra}}}', *mechanics, *common],
+                       out / f"{tag}-{log_tag}.log")
+                return json.load(open(run_dir / "summary.json"))
+
+            def row(body, phi0, summary, f, inside, nn):
+                """A table row of a body measured by the affine map F of its interior (`inside` particles)."""
+                k = kappa(summary)
+                return dict(n=n, seed=s, body=body, phi0=phi0, shrink_x=1 - f[0, 0], shrink_y=1 - f[1, 1], shrink_z=1 - f[2, 2],
+                            density=phi0 / np.linalg.det(f), kxx=k[0], kyy=k[1], kzz=k[2], near_neighbours=nn, interior=inside,
+                            wall_s=sum(summary["timing_seconds"].values()))
+
+            walls = ["--set", 'mechanics={boundary="walls"}']
             rp, rw = out / f"run-periodic{'-die' if a.recipe == 'die' else ''}-{tag}", out / f"run-walled-{tag}"
-            if not (rp / "summary.json").exists():
-                sh([b, "run", ROOT / "cases/periodic-copper-rve.toml", "--out", rp, "--quiet",
-                    "--set", f'particles={{source="file",file="{(gp / "packing.csv").resolve()}",periodic_box={box}}}', *common],
-                   out / f"{tag}-rp.log")
-            if not (rw / "summary.json").exists():
-                sh([b, "run", ROOT / "cases/periodic-copper-rve.toml", "--out", rw, "--quiet",
-                    "--set", f'particles={{source="file",file="{(gw / "packing.csv").resolve()}"}}', "--set", 'mechanics={boundary="walls"}',
-                    *common], out / f"{tag}-rw.log")
-            sp, sw = json.load(open(rp / "summary.json")), json.load(open(rw / "summary.json"))
-            kp, kw = kappa(sp), kappa(sw)
-            phi_cell = json.load(open(gp / "summary.json"))["solid_fraction"]
+            sp = sinter(rp, gp / "packing.csv", f",periodic_box={box}", [], "rp")
+            sw = sinter(rw, gw / "packing.csv", "", walls, "rw")
+            kp = kappa(sp)
+            nn_cell = near_neighbours(gp, True)
             rows.append(dict(n=n, seed=s, body=f"periodic ({a.recipe})", phi0=phi_cell, shrink_x=sp["shrinkage_x"], shrink_y=sp["shrinkage_y"],
                              shrink_z=sp["shrinkage_z"], density=sp["relative_density"], kxx=kp[0], kyy=kp[1], kzz=kp[2], interior=n,
-                             near_neighbours=near_neighbours(gp, True),
-                             wall_s=sum(sp["timing_seconds"].values())))
+                             near_neighbours=nn_cell, wall_s=sum(sp["timing_seconds"].values())))
             cell_shrink = [sp["shrinkage_x"], sp["shrinkage_y"], sp["shrinkage_z"]]
-            f, inside = cell_interior_fit(gp / "packing.csv", rp / "sinterdem.h5", box, cell_shrink, 50e-6)
-            rows.append(dict(n=n, seed=s, body=f"periodic ({a.recipe}), interior fit", phi0=phi_cell, shrink_x=1 - f[0, 0],
-                             shrink_y=1 - f[1, 1], shrink_z=1 - f[2, 2], density=phi_cell / np.linalg.det(f), kxx=kp[0], kyy=kp[1],
-                             kzz=kp[2], interior=inside, near_neighbours=rows[-1]["near_neighbours"], wall_s=rows[-1]["wall_s"]))
-            x0, x1 = positions(gw / "packing.csv", rw / "sinterdem.h5")
-            d_mean = 50e-6
-            f, inside = affine(x0, x1, d_mean)
-            rows.append(dict(n=n, seed=s, body="walled interior", phi0=phi, shrink_x=1 - f[0, 0], shrink_y=1 - f[1, 1],
-                             shrink_z=1 - f[2, 2], density=phi / np.linalg.det(f), kxx=kw[0], kyy=kw[1], kzz=kw[2],
-                             near_neighbours=near_neighbours(gw, False),
-                             interior=inside, wall_s=sum(sw["timing_seconds"].values())))
+            rows.append(row(f"periodic ({a.recipe}), interior fit", phi_cell, sp,
+                            *cell_interior_fit(gp / "packing.csv", rp / "sinterdem.h5", box, cell_shrink, 50e-6), nn_cell))
+            rows.append(row("walled interior", phi, sw, *affine(*positions(gw / "packing.csv", rw / "sinterdem.h5"), 50e-6),
+                            near_neighbours(gw, False)))
             if not a.no_block and a.recipe == "isotropic":
                 # the same periodic packing opened into a block with cut faces and sintered as the
                 # walled body is: the same packing recipe, with the boundary of a compact
                 rb = out / f"run-block-{tag}"
-                if not (rb / "summary.json").exists():
-                    sh([b, "run", ROOT / "cases/periodic-copper-rve.toml", "--out", rb, "--quiet",
-                        "--set", f'particles={{source="file",file="{(gp / "packing.csv").resolve()}"}}', "--set", 'mechanics={boundary="walls"}',
-                        *common], out / f"{tag}-rb.log")
-                sb = json.load(open(rb / "summary.json"))
-                kb = kappa(sb)
-                x0, x1 = positions(gp / "packing.csv", rb / "sinterdem.h5")
-                f, inside = affine(x0, x1, 50e-6)
-                rows.append(dict(n=n, seed=s, body="block interior", phi0=phi_cell, shrink_x=1 - f[0, 0], shrink_y=1 - f[1, 1],
-                                 shrink_z=1 - f[2, 2], density=phi_cell / np.linalg.det(f), kxx=kb[0], kyy=kb[1], kzz=kb[2],
-                                 near_neighbours=near_neighbours(gp, True), interior=inside,
-                                 wall_s=sum(sb["timing_seconds"].values())))
+                sb = sinter(rb, gp / "packing.csv", "", walls, "rb")
+                rows.append(row("block interior", phi_cell, sb, *affine(*positions(gp / "packing.csv", rb / "sinterdem.h5"), 50e-6), nn_cell))
             print(tag, *rows[k0:], sep="\n  ", flush=True)
     import pandas as pd
 
