@@ -152,7 +152,7 @@ pub const FACE_COVERAGE_MIN: f64 = 0.1;
 /// (H17b). Wall-compacted faces cover 0.70–0.76 of the cross-section; the cut faces of a body
 /// opened from a periodic packing or the titanium column cover 0.13–0.21. On cut faces the faces
 /// method reads 17–48 % low for 27 000–500 particles (docs/heat-model.md "Error of the faces
-/// method"), so its result is reported with a warning.
+/// method"), so its result is reported with a warning. A fraction of the cross-section [1].
 pub const FACE_COVERAGE_CUT: f64 = 0.25;
 
 /// The warning (H17b) for faces-method results whose least-covered face layer is below
