@@ -8,6 +8,19 @@ cd "$(dirname "$0")/.."
 source scripts/setup.sh
 features=$(sinterdem_features)
 start=$(date +%s)
+# The tests write nothing into the tree (docs/decisions.md "Tests leave the tree as they found
+# it"): the tree's state (status, tracked changes, untracked files) before and after must agree.
+tree_state() {
+    git status --porcelain=v1 --untracked-files=all 2>/dev/null
+    git diff --binary HEAD 2>/dev/null | sha256sum
+    git ls-files --others --exclude-standard -z 2>/dev/null | xargs -0 -r sha256sum 2>/dev/null
+}
+tree_check=1
+if ! git rev-parse --is-inside-work-tree >/dev/null 2>&1; then
+    echo "tree check SKIPPED: $(pwd) is not a git work tree (the check compares git status before and after)"
+    tree_check=0
+fi
+[ "$tree_check" = "1" ] && tree_before=$(tree_state)
 echo "== cargo build --release $features"
 # shellcheck disable=SC2086
 cargo build --release --quiet $features
@@ -65,6 +78,18 @@ set -e
 if [ "$package_status" = "77" ]; then
     package_status=0   # skipped: run_tests.sh printed "Python package tests SKIPPED: <why>"
 fi
+tree_status=0
+if [ "$tree_check" = "1" ]; then
+    echo "== the tree after the tests (git status --porcelain outside ignored paths, as before the run)"
+    tree_after=$(tree_state)
+    if [ "$tree_before" != "$tree_after" ]; then
+        echo "THE TESTS CHANGED THE TREE (a test wrote into the repository; tests must write to temporary folders):"
+        diff <(echo "$tree_before") <(echo "$tree_after") | head -n 40
+        tree_status=1
+    else
+        echo "tree unchanged"
+    fi
+fi
 set +e
 passed=$(grep -Eo "[0-9]+ passed" /tmp/sinterdem-cargo-test.log | awk '{s+=$1} END {print s+0}')
 failed=$(grep -Eo "[0-9]+ failed" /tmp/sinterdem-cargo-test.log | awk '{s+=$1} END {print s+0}')
@@ -76,9 +101,9 @@ pkg_note=""
 grep -q "Python package tests SKIPPED" /tmp/sinterdem-package.log 2>/dev/null && pkg_note=" (SKIPPED)"
 set -e
 echo "== Rust: $passed passed, $failed failed; Python: ${py_passed:-0} passed, ${py_failed:-0} failed (exit $python_status); Python package: ${pkg_passed:-0} passed, ${pkg_failed:-0} failed (exit $package_status)$pkg_note; $(( $(date +%s) - start )) s"
-if [ "$rust_status" != "0" ] || [ "$python_status" != "0" ] || [ "$package_status" != "0" ] || [ "$gate_status" != "0" ]; then
+if [ "$rust_status" != "0" ] || [ "$python_status" != "0" ] || [ "$package_status" != "0" ] || [ "$gate_status" != "0" ] || [ "$tree_status" != "0" ]; then
     echo "SOME TESTS FAILED"
-    echo "$(( passed + ${py_passed:-0} + ${pkg_passed:-0} )) passed, $(( failed + ${py_failed:-0} + ${pkg_failed:-0} + (rust_status != 0 && failed == 0) + (python_status != 0 && ${py_failed:-0} == 0) + (package_status != 0 && ${pkg_failed:-0} == 0) + gate_status )) failed"
+    echo "$(( passed + ${py_passed:-0} + ${pkg_passed:-0} )) passed, $(( failed + ${py_failed:-0} + ${pkg_failed:-0} + (rust_status != 0 && failed == 0) + (python_status != 0 && ${py_failed:-0} == 0) + (package_status != 0 && ${pkg_failed:-0} == 0) + gate_status + tree_status )) failed"
     exit 1
 fi
 echo "$(( passed + ${py_passed:-0} + ${pkg_passed:-0} )) passed, 0 failed"

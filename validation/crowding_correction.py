@@ -90,11 +90,11 @@ def cases():
     """name -> (packing, FE diagonal (converged), role, note)."""
     out = {}
     for name, (fe, fin) in _extrap(fr.TABLE).items():
-        out[name] = (rp.make_packing(*fr.CASES[name]), fe, "train" if name in TRAIN else "check",
+        out[name] = (fr.stored_packing(name), fe, "train" if name in TRAIN else "check",
                      "table, levels 0-4", fin)
     for path in sorted(glob.glob(os.path.join(fr.DATA, "random_crowding*.csv"))):
         for name, (fe, fin) in _extrap(path).items():
-            out[name] = (rp.make_packing(*crowding_fe.NEW[name]), fe, "check",
+            out[name] = (fr.stored_packing(name), fe, "check",
                          "new seed, levels " + _levels(path, name), fin)
     if os.path.exists(cl.OUT):
         with open(cl.OUT) as fh:

@@ -46,6 +46,8 @@ def main(names, levels=tuple(int(v) for v in os.environ.get("FE_LEVELS", "1 2 3"
     results = []
     for name in names:
         try:
+            if not os.path.exists(os.path.join(fr.DATA, "random", name, "packing.csv")):
+                fr.new_reference(name)     # a new case: its packing becomes the stored reference
             results.append(fr.run_case(name, levels))
         except Exception as e:  # a packing whose OCC union fails everywhere: report, go on
             print(f"{name}: FAILED {e}", flush=True)

@@ -42,7 +42,9 @@ import math
 import os
 import subprocess
 import sys
+import tempfile
 import time
+from fractions import Fraction
 
 import numpy as np
 import scipy.sparse as sp
@@ -60,13 +62,32 @@ DATA = os.path.join(HERE, "data")
 # --------------------------------------------------------------------------
 # necks of a packing
 # --------------------------------------------------------------------------
+def _fma(a, b, c):
+    """a*b + c rounded once (exact rational arithmetic; math.fma needs Python 3.13)."""
+    return float(Fraction(a) * Fraction(b) + Fraction(c))
+
+
+def bond_length(v):
+    """|v| of a 3-vector in one fixed arithmetic, sqrt(fma(z, z, fma(y, y, x*x))), on every machine.
+
+    The stored FE tables were computed with np.linalg.norm, i.e. OpenBLAS's ddot, whose result
+    depends on the kernel OpenBLAS picks for the processor: the default kernel on our machines
+    evaluates exactly this fused chain (equal on all 1114 stored bonds), the Haswell kernel
+    (OPENBLAS_CORETYPE=Haswell) rounds each product (different in 143 of 1114).  One ulp in a
+    neck axis moves gmsh's periodic surface matching and gives another mesh (-0.2 to -0.4 % at
+    level 0), so the geometry is computed without BLAS (docs/validation-conductance.md
+    "Reference packings")."""
+    x, y, z = (float(c) for c in v)
+    return math.sqrt(_fma(z, z, _fma(y, y, x * x)))
+
+
 def necks(pk: rp.Packing):
     """Per bond: centre c_i (of sphere i, unwrapped), unit axis n, radius a,
     distance t_i of the cut plane of i from c_i along n, neck height h_n."""
     out = []
     b = pk.branch()
     for (i, j), bv in zip(pk.bonds, b):
-        d = float(np.linalg.norm(bv))
+        d = bond_length(bv)
         ri, rj = pk.r[i], pk.r[j]
         h = ri + rj - d
         a, hc_s, hc_l, hn, _ = fc.neck_radius(ri, rj, h)
@@ -93,7 +114,7 @@ def inside(pk: rp.Packing, p):
     for k in necks(pk):
         dv = p - (k["ci"] + k["n"] * k["ti"])
         dv -= L * np.round(dv / L)
-        ax = dv @ k["n"]
+        ax = np.einsum("ij,j->i", dv, k["n"])   # not BLAS (gemv): the same bits on every machine
         rad2 = np.einsum("ij,ij->i", dv, dv) - ax * ax
         hit |= (ax > 0) & (ax < k["hn"]) & (rad2 < k["a"] ** 2)
     return hit
@@ -486,12 +507,27 @@ CASES = {
 }
 
 
-def run_case(name, levels=(0, 1, 2), verbose=True, order=2):
-    n, eta, spread, seed = CASES[name]
-    pk = rp.make_packing(n, eta, spread, seed)
+def stored_packing(name):
+    """The reference geometry of case `name`: validation/data/random/<name>/packing.csv (the
+    packing its stored FE was computed on; random_packing.load_packing).  make_packing's
+    L-BFGS path depends on the BLAS kernels of the machine (OPENBLAS_CORETYPE), so the tests
+    never regenerate a packing they compare with stored numbers."""
+    folder = os.path.join(DATA, "random", name)
+    meta = None
+    if name in CASES:
+        n, eta, spread, seed = CASES[name]
+        meta = dict(n=n, eta=eta, spread=spread, seed=seed)
+    return rp.load_packing(folder, meta)
+
+
+def run_case(name, levels=(0, 1, 2), verbose=True, order=2, packing=None, workdir=None):
+    """FE on `levels` and the binary's networks of case `name`.  `packing`: the geometry
+    (default: the stored reference, stored_packing); `workdir`: where the network's case files
+    go (default: a new temporary folder; never the stored data)."""
+    pk = stored_packing(name) if packing is None else packing
     st = rp.stats(pk)
     Ks, infos = fe_kappa_levels(pk, levels, order=order, verbose=verbose)
-    folder = os.path.join(DATA, "random", name)
+    folder = workdir or tempfile.mkdtemp(prefix=f"sinterdem-fe-{name}-")
     Kn_fit, res = network_kappa(pk, folder, name, "fe_fit")
     Kn_lin, _ = network_kappa(pk, os.path.join(folder, "linear"), name, "linear")
     Kn_fab, _ = network_kappa(pk, os.path.join(folder, "fabric"), name, "fe_fit", "fabric")
@@ -508,6 +544,20 @@ def run_case(name, levels=(0, 1, 2), verbose=True, order=2):
         diag_x = [extrapolate(hs[-3:], [K[k, k] for K in Ks[-3:]])[0] for k in range(3)]
         out.update(mean_x=mean_x, p=p, diag_x=np.array(diag_x), hs=hs)
     return out
+
+
+def new_reference(name, folder=None):
+    """A maintainer's step, never run by the tests: generate case `name` with make_packing and
+    store it as the reference (folder/packing.csv, folder/<name>.toml and the linear/, fabric/
+    variants; default validation/data/random/<name>).  The FE table of the case must then be
+    recomputed on the stored files (run_case reads them back)."""
+    folder = folder or os.path.join(DATA, "random", name)
+    pk = rp.make_packing(*CASES[name])
+    rp.write_case(pk, folder, name, conductance="fe_fit", multi_neck="none")
+    rp.write_case(pk, os.path.join(folder, "linear"), name, conductance="linear", multi_neck="none")
+    rp.write_case(pk, os.path.join(folder, "fabric"), name, conductance="fe_fit", multi_neck="fabric")
+    rp.write_exact(pk, folder)
+    return rp.load_packing(folder, pk.meta)
 
 
 TABLE = os.path.join(DATA, "random_conductivity.csv")
@@ -547,8 +597,8 @@ def write_table(results, path=TABLE):
         fh.write("# 3-D periodic FE kappa_eff/kappa_s of random sintered packings vs sinterdem's network\n")
         fh.write(f"# generated by validation/fe_random.py --table on {datetime.date.today().isoformat()}; "
                  f"gmsh {gmsh.__version__}, scikit-fem {skfem.__version__}, pyamg {pyamg.__version__}\n")
-        fh.write("# packings: validation/random_packing.py make_packing(n, eta, spread, seed); files in "
-                 "validation/data/random/<case>/\n")
+        fh.write("# packings: validation/random_packing.py make_packing(n, eta, spread, seed), stored as the "
+                 "reference in validation/data/random/<case>/ and read back from there\n")
         fh.write("# FE: union of spheres + volume-conserving neck cylinders, periodic P2 (isoparametric), "
                  "energy form; level L: mesh factor 2^(1 - L/3)\n")
         fh.write("# row level=extrap: f_inf of f = f_inf + C h^p through the last three levels, "
@@ -569,7 +619,15 @@ def main(argv=None):
     ap.add_argument("--order", type=int, default=2)
     ap.add_argument("--table", action="store_true", help="all CASES -> " + TABLE)
     ap.add_argument("--cases", nargs="+", help="with --table: only these")
+    ap.add_argument("--new-reference", action="store_true",
+                    help="regenerate the case's packing with make_packing and store it as the "
+                         "reference in validation/data/random/<case>/ (then recompute its FE)")
     a = ap.parse_args(argv)
+    if a.new_reference:
+        for name in (a.cases or [a.case]):
+            pk = new_reference(name)
+            print(f"{name}: stored {pk.meta['stored']}: {json.dumps(rp.stats(pk))}")
+        return
     if a.table:
         results = []
         for name in (a.cases or list(CASES)):

@@ -42,6 +42,8 @@ def main(names, levels=tuple(int(v) for v in os.environ.get("FE_LEVELS", "0 1 2 
     results = []
     for name in names:
         try:
+            if not os.path.exists(os.path.join(fr.DATA, "random", name, "packing.csv")):
+                fr.new_reference(name)     # a new case: its packing becomes the stored reference
             r = fr.run_case(name, levels)
         except Exception as e:  # a packing whose OCC union fails everywhere: report, go on
             print(f"{name}: FAILED {e}", flush=True)
@@ -92,7 +94,7 @@ def stored(path=None):
             d.update(fe=diag(ex[0]), mean_x=float(ex[0]["fe_mean"]), p=float(ex[0]["ndofs"]))
             # pessimistic: the last two levels with the corner-limited order 2 pi / omega of the
             # mean neck, omega = 3 pi / 2 - asin(a / r) (docs "Geometry and FE", "Convergence")
-            pk = fr.rp.make_packing(*fr.CASES[name]) if name in fr.CASES else None
+            pk = fr.stored_packing(name) if name in fr.CASES else None
             if pk is not None:
                 ar = np.mean([k["a"] / min(pk.r[k["i"]], pk.r[k["j"]]) for k in fr.necks(pk)])
                 pc = 2 * np.pi / (1.5 * np.pi - np.arcsin(ar))

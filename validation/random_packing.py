@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -221,6 +222,73 @@ def stats(pk: Packing) -> dict:
                 coordination_mean=float(z.mean()), coordination_min=int(z.min()),
                 coordination_max=int(z.max()), solid_fraction_spheres=phi, box=pk.L,
                 clearance=_face_clearance(pk, np.zeros(3)))
+
+
+def load_packing(folder: str, meta: dict | None = None) -> Packing:
+    """The stored packing of `folder` (folder/packing.csv as written by write_case: centres and
+    radii in metres, the periodic box in the header's "periodic box ... m" phrase), in units of the
+    mean radius stored there ("mean radius ... m").  Bonds: every pair that overlaps under the
+    minimum image, the contacts `sinterdem conductivity` sees.  The stored files are the reference
+    geometry of the validation (docs/validation-conductance.md "Reference packings"): a
+    regeneration by make_packing follows another L-BFGS path wherever the BLAS kernels differ
+    (OPENBLAS_CORETYPE), so tests read these files instead."""
+    path = os.path.join(folder, "packing.csv")
+    with open(path) as fh:
+        head = fh.readline()
+    m_r = re.search(r"mean radius ([0-9.eE+-]+) m", head)
+    m_l = re.search(r"periodic box ([0-9.eE+-]+) m", head)
+    if not (m_r and m_l):
+        raise ValueError(f"{path}: header lacks 'mean radius ... m' or 'periodic box ... m': {head!r}")
+    rbar, Lm = float(m_r.group(1)), float(m_l.group(1))
+    data = np.loadtxt(path, delimiter=",", skiprows=2, ndmin=2)
+    exact = os.path.join(folder, EXACT_FILE)
+    if os.path.exists(exact):
+        # the generator's own floats: the metre file divided by rbar differs from them in the
+        # last bit, and one ulp gives gmsh another mesh (docs "Reference packings")
+        with open(exact) as fh:
+            head2 = fh.readline()
+        m_b = re.search(r"box ([0-9.eE+-]+) r", head2)
+        if not m_b:
+            raise ValueError(f"{exact}: header lacks 'box ... r': {head2!r}")
+        L = float(m_b.group(1))
+        d2 = np.loadtxt(exact, delimiter=",", skiprows=2, ndmin=2)
+        x, r = d2[:, :3], d2[:, 3]
+        if (d2.shape != data.shape or not np.array_equal(d2 * rbar, data)
+                or float(L * rbar) != Lm):
+            raise ValueError(f"{exact} and {path} disagree: the metre file must be this one times "
+                             f"{rbar} m bit for bit")
+    else:
+        x, r, L = data[:, :3] / rbar, data[:, 3] / rbar, Lm / rbar
+    n = len(r)
+    i, j = _pairs(n)
+    dv, s = _min_image(x, L, i, j)
+    bonded = np.linalg.norm(dv, axis=1) < r[i] + r[j]
+    if meta is None:
+        meta = {}
+        for key in ("n", "eta", "spread", "seed"):
+            m = re.search(rf"\b{key}=([0-9.eE+-]+)", head)
+            if m:
+                meta[key] = float(m.group(1)) if key in ("eta", "spread") else int(m.group(1))
+    meta = dict(meta, stored=path)
+    return Packing(x=x, r=r, L=L, bonds=np.stack([i[bonded], j[bonded]], axis=1),
+                   shifts=s[bonded].astype(int), meta=meta)
+
+
+EXACT_FILE = "packing_rbar.csv"
+
+
+def write_exact(pk: Packing, folder: str) -> str:
+    """folder/packing_rbar.csv: centres and radii in units of the mean radius, every float
+    written with repr (exact round trip), the box in the header."""
+    path = os.path.join(folder, EXACT_FILE)
+    with open(path + ".tmp", "w") as fh:
+        fh.write(f"# The packing of packing.csv in units of the mean radius, the generator's floats "
+                 f"(repr, exact): the geometry the FE meshes; box {float(pk.L)!r} r per axis.\n")
+        fh.write("x,y,z,r\n")
+        for p, rr in zip(pk.x, pk.r):
+            fh.write(f"{float(p[0])!r},{float(p[1])!r},{float(p[2])!r},{float(rr)!r}\n")
+    os.replace(path + ".tmp", path)
+    return path
 
 
 def write_case(pk: Packing, folder: str, name: str, rbar_m: float = 25e-6,
