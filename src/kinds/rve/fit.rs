@@ -4,6 +4,10 @@
 //!
 //! With θ = 1 − ρ the porosity: φ = (1−θ)², ψ = (2/3)(1−θ)³/θ (R9); the bulk viscosity
 //! K = 2η0ψ and the shear viscosity G = η0φ (R10); the sintering stress P_L = 3α(1−θ)²/r0 (R11).
+//!
+//! Beside it the porosity power law (R12)–(R13), whose exponents follow the table instead of being
+//! fixed: G = g0 ρ^a_G (1−ρ)^−b_G, K = k0 ρ^a_K (1−ρ)^−b_K, σ_s = s0 ρ^m — linear least squares
+//! in the logarithm; Skorohod–Olevsky is the special case a_G = 2, b_G = 0, a_K = 3, b_K = 1, m = 2.
 
 use crate::error::ConfigError;
 
@@ -42,6 +46,126 @@ pub struct LawFit {
     pub rms_rel_residual_stress: f64,
     /// Rows used.
     pub rows: usize,
+    /// The porosity power law (R12)–(R13) fitted to the same rows, or why not.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub density_law: Option<PowerLawFit>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub density_law_reason: Option<String>,
+}
+
+/// One viscosity of (R12), v = prefactor · ρ^density_exponent · (1−ρ)^−porosity_exponent, with
+/// the standard errors of ln(prefactor) and of the exponents.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct PowerViscosity {
+    #[serde(rename = "prefactor_Pa_s")]
+    pub prefactor: f64,
+    pub density_exponent: f64,
+    pub porosity_exponent: f64,
+    pub prefactor_rel_error: f64,
+    pub density_exponent_error: f64,
+    pub porosity_exponent_error: f64,
+}
+
+/// The porosity power law (R12)–(R13) (`fit.json` → `density_law`).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct PowerLawFit {
+    pub law: &'static str,
+    pub shear: PowerViscosity,
+    pub bulk: PowerViscosity,
+    /// σ_s = s0 ρ^m [Pa], with the standard errors of ln s0 and m.
+    #[serde(rename = "stress_prefactor_Pa")]
+    pub stress_prefactor: f64,
+    pub stress_density_exponent: f64,
+    pub stress_prefactor_rel_error: f64,
+    pub stress_density_exponent_error: f64,
+    pub rms_rel_residual_bulk: f64,
+    pub rms_rel_residual_shear: f64,
+    pub rms_rel_residual_stress: f64,
+    pub rows: usize,
+}
+
+impl PowerViscosity {
+    /// (R12) at relative density ρ [Pa·s].
+    pub fn at(&self, rho: f64) -> f64 {
+        self.prefactor * rho.powf(self.density_exponent) * (1.0 - rho).powf(-self.porosity_exponent)
+    }
+}
+
+impl PowerLawFit {
+    /// (R13) σ_s at relative density ρ [Pa].
+    pub fn stress_at(&self, rho: f64) -> f64 {
+        self.stress_prefactor * rho.powf(self.stress_density_exponent)
+    }
+}
+
+/// Least squares y ≈ X β (X: n × p, n > p, full column rank): β and the standard errors of β
+/// from the residual variance s² = |y − Xβ|²/(n − p) and (XᵀX)⁻¹. None when XᵀX is singular to
+/// working precision (the rows do not separate the regressors).
+fn least_squares(x: &nalgebra::DMatrix<f64>, y: &nalgebra::DVector<f64>) -> Option<(nalgebra::DVector<f64>, nalgebra::DVector<f64>)> {
+    let (n, p) = x.shape();
+    let svd = x.clone().svd(true, true);
+    let smax = svd.singular_values.max();
+    if svd.singular_values.min() <= 1e-10 * smax {
+        return None;
+    }
+    let beta = svd.solve(y, 0.0).ok()?;
+    let r = y - x * &beta;
+    let s2 = r.norm_squared() / (n - p) as f64;
+    let xtx_inv = (x.transpose() * x).try_inverse()?;
+    let se = nalgebra::DVector::from_iterator(p, (0..p).map(|k| (s2 * xtx_inv[(k, k)]).max(0.0).sqrt()));
+    Some((beta, se))
+}
+
+/// Fits (R12)–(R13) to `rows` (validated by the caller as for Skorohod–Olevsky): ln v = ln v0 +
+/// a ln ρ − b ln(1−ρ) for K and G, ln σ_s = ln s0 + m ln ρ. Needs at least four rows (three
+/// parameters and one degree of freedom for the stated errors) spanning at least 0.05 in ρ.
+pub fn fit_power_law(rows: &[FitRow]) -> Result<PowerLawFit, String> {
+    let n = rows.len();
+    if n < 4 {
+        return Err(format!("{n} row(s): the porosity power law's three parameters per viscosity need at least four rows"));
+    }
+    let (lo, hi) = rows.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), r| (a.min(r.relative_density), b.max(r.relative_density)));
+    if hi - lo < 0.05 {
+        return Err(format!("the rows span relative density {lo:.4}-{hi:.4}: the exponents need a span of at least 0.05"));
+    }
+    let x3 = nalgebra::DMatrix::from_fn(n, 3, |i, k| match k {
+        0 => 1.0,
+        1 => rows[i].relative_density.ln(),
+        _ => -(1.0 - rows[i].relative_density).ln(),
+    });
+    let x2 = x3.columns(0, 2).into_owned();
+    let col = |f: &dyn Fn(&FitRow) -> f64| nalgebra::DVector::from_iterator(n, rows.iter().map(|r| f(r).ln()));
+    let visc = |y: nalgebra::DVector<f64>, what: &str| -> Result<PowerViscosity, String> {
+        let (b, se) = least_squares(&x3, &y).ok_or_else(|| format!("the {what} viscosity's regressors are collinear on these rows"))?;
+        Ok(PowerViscosity {
+            prefactor: b[0].exp(),
+            density_exponent: b[1],
+            porosity_exponent: b[2],
+            prefactor_rel_error: se[0],
+            density_exponent_error: se[1],
+            porosity_exponent_error: se[2],
+        })
+    };
+    let shear = visc(col(&|r| r.shear_viscosity), "shear")?;
+    let bulk = visc(col(&|r| r.bulk_viscosity), "bulk")?;
+    let (bs, ses) = least_squares(&x2, &col(&|r| r.sintering_stress)).ok_or("the sintering stress's regressors are collinear on these rows")?;
+    let mut f = PowerLawFit {
+        law: "porosity-power",
+        shear,
+        bulk,
+        stress_prefactor: bs[0].exp(),
+        stress_density_exponent: bs[1],
+        stress_prefactor_rel_error: ses[0],
+        stress_density_exponent_error: ses[1],
+        rms_rel_residual_bulk: 0.0,
+        rms_rel_residual_shear: 0.0,
+        rms_rel_residual_stress: 0.0,
+        rows: n,
+    };
+    f.rms_rel_residual_bulk = rms(rows.iter().map(|r| r.bulk_viscosity / f.bulk.at(r.relative_density) - 1.0));
+    f.rms_rel_residual_shear = rms(rows.iter().map(|r| r.shear_viscosity / f.shear.at(r.relative_density) - 1.0));
+    f.rms_rel_residual_stress = rms(rows.iter().map(|r| r.sintering_stress / f.stress_at(r.relative_density) - 1.0));
+    Ok(f)
 }
 
 /// (R9) φ(ρ), ψ(ρ).
@@ -109,6 +233,8 @@ pub fn fit_skorohod_olevsky(rows: &[FitRow], r0: f64) -> Result<LawFit, ConfigEr
         rms_rel_residual_shear: rms(rows.iter().map(|r| r.shear_viscosity / pg(r) - 1.0)),
         rms_rel_residual_stress: rms(rows.iter().map(|r| r.sintering_stress / (3.0 * alpha * r.relative_density.powi(2) / r0) - 1.0)),
         rows: rows.len(),
+        density_law: None,
+        density_law_reason: None,
     })
 }
 
@@ -143,6 +269,37 @@ mod tests {
         assert!((f.eta0 / eta0 - 1.0).abs() < 0.02 && (f.alpha / alpha - 1.0).abs() < 0.02, "{f:?}");
         assert!(f.eta0_rel_error > 0.005 && f.eta0_rel_error < 0.02, "{}", f.eta0_rel_error);
         assert!((f.rms_rel_residual_bulk - 0.05).abs() < 0.01, "{}", f.rms_rel_residual_bulk);
+    }
+
+    /// (R12)–(R13): a table made by the power law with exponents unlike Skorohod–Olevsky's is
+    /// fitted back exactly; the Skorohod–Olevsky table gives a_G = 2, b_G = 0, a_K = 3, b_K = 1,
+    /// m = 2 and k0 = (4/3)η0 (the special case), and too few or too close rows are refused.
+    #[test]
+    fn power_law_recovers_its_exponents_and_contains_skorohod_olevsky() {
+        let rows = |g: &dyn Fn(f64) -> f64, k: &dyn Fn(f64) -> f64, s: &dyn Fn(f64) -> f64| -> Vec<FitRow> {
+            (0..7)
+                .map(|i| {
+                    let rho = 0.64 + 0.05 * i as f64;
+                    FitRow { relative_density: rho, bulk_viscosity: k(rho), shear_viscosity: g(rho), sintering_stress: s(rho) }
+                })
+                .collect()
+        };
+        let t = rows(&|r| 2e9 * r.powf(3.5) * (1.0 - r).powf(-0.4), &|r| 7e9 * r.powf(1.5) * (1.0 - r).powf(-1.8), &|r| 4e5 * r.powf(4.0));
+        let f = fit_power_law(&t).unwrap();
+        let close = |a: f64, b: f64| (a - b).abs() < 1e-9 * b.abs().max(1.0);
+        assert!(close(f.shear.prefactor, 2e9) && close(f.shear.density_exponent, 3.5) && close(f.shear.porosity_exponent, 0.4), "{f:?}");
+        assert!(close(f.bulk.prefactor, 7e9) && close(f.bulk.density_exponent, 1.5) && close(f.bulk.porosity_exponent, 1.8), "{f:?}");
+        assert!(close(f.stress_prefactor, 4e5) && close(f.stress_density_exponent, 4.0), "{f:?}");
+        assert!(f.rms_rel_residual_bulk < 1e-12 && f.rms_rel_residual_shear < 1e-12 && f.shear.density_exponent_error < 1e-9);
+        let (eta0, alpha, r0) = (3e9, 1.5, 25e-6);
+        let so = rows(&|r| eta0 * phi_psi(r).0, &|r| 2.0 * eta0 * phi_psi(r).1, &|r| 3.0 * alpha * r * r / r0);
+        let f = fit_power_law(&so).unwrap();
+        assert!(close(f.shear.density_exponent, 2.0) && f.shear.porosity_exponent.abs() < 1e-9 && close(f.shear.prefactor, eta0), "{f:?}");
+        assert!(close(f.bulk.density_exponent, 3.0) && close(f.bulk.porosity_exponent, 1.0) && close(f.bulk.prefactor, 4.0 / 3.0 * eta0), "{f:?}");
+        assert!(close(f.stress_density_exponent, 2.0) && close(f.stress_prefactor, 3.0 * alpha / r0), "{f:?}");
+        assert!(fit_power_law(&so[..3]).unwrap_err().contains("at least four rows"));
+        let narrow: Vec<FitRow> = (0..5).map(|i| FitRow { relative_density: 0.8 + 0.005 * i as f64, ..so[0] }).collect();
+        assert!(fit_power_law(&narrow).unwrap_err().contains("span"));
     }
 
     #[test]

@@ -3,7 +3,7 @@
 
 use super::RveSettings;
 use super::branch::Point;
-use super::fit::{FitRow, LawFit, fit_skorohod_olevsky, phi_psi};
+use super::fit::{FitRow, LawFit, fit_power_law, fit_skorohod_olevsky, phi_psi};
 use crate::error::IoError;
 use crate::plot::{Plot, Series};
 use serde_json::json;
@@ -76,7 +76,12 @@ pub fn fit_rows(points: &[Point], r0: f64, temperature: Option<f64>) -> Result<L
             sintering_stress: p.sintering_stress,
         })
         .collect();
-    fit_skorohod_olevsky(&rows, r0).map_err(|e| format!("no fit at {t} K: {e}"))
+    let mut fit = fit_skorohod_olevsky(&rows, r0).map_err(|e| format!("no fit at {t} K: {e}"))?;
+    match fit_power_law(&rows) {
+        Ok(p) => fit.density_law = Some(p),
+        Err(e) => fit.density_law_reason = Some(format!("no porosity power law at {t} K: {e}")),
+    }
+    Ok(fit)
 }
 
 /// Writes `constitutive.csv`, `fit.json` and (with `plots`: the case title and key settings of the
@@ -115,6 +120,10 @@ pub fn rve_plots(header: &(String, String), points: &[Point], fit: &Result<LawFi
         let fine = law_grid(&rho);
         plot.add(Series::new("bulk, Skorohod-Olevsky fit", fine.iter().map(|&r| (r, 2.0 * f.eta0 * phi_psi(r).1)).collect()));
         plot.add(Series::new("shear, Skorohod-Olevsky fit", fine.iter().map(|&r| (r, f.eta0 * phi_psi(r).0)).collect()));
+        if let Some(p) = &f.density_law {
+            plot.add(Series::new("bulk, porosity power law", fine.iter().map(|&r| (r, p.bulk.at(r))).collect()));
+            plot.add(Series::new("shear, porosity power law", fine.iter().map(|&r| (r, p.shear.at(r))).collect()));
+        }
     }
     // the stress in kPa or MPa, whichever its values read in
     let top = points.iter().map(|p| p.sintering_stress.abs().max(p.sintering_stress_b23.abs())).fold(0.0, f64::max);
@@ -128,6 +137,9 @@ pub fn rve_plots(header: &(String, String), points: &[Point], fit: &Result<LawFi
     if let Ok(f) = fit {
         let fine = law_grid(&rho);
         stress.add(Series::new("Skorohod-Olevsky fit", fine.iter().map(|&r| (r, k * 3.0 * f.alpha * r * r / f.r0_m)).collect()));
+        if let Some(p) = &f.density_law {
+            stress.add(Series::new("porosity power law", fine.iter().map(|&r| (r, k * p.stress_at(r))).collect()));
+        }
     }
     vec![("constitutive.png", plot), ("sintering_stress.png", stress)]
 }
@@ -145,6 +157,11 @@ fn fit_json(fit: &Result<LawFit, String>) -> serde_json::Value {
             v["fitted"] = json!(true);
             v["equations"] =
                 json!("docs/rve.md (R9)-(R11): phi = (1-theta)^2, psi = (2/3)(1-theta)^3/theta, K = 2 eta0 psi, G = eta0 phi, P_L = 3 alpha (1-theta)^2 / r0");
+            if f.density_law.is_some() {
+                v["density_law"]["equations"] = json!(
+                    "docs/rve.md (R12)-(R13): G = shear.prefactor rho^shear.density_exponent (1-rho)^-shear.porosity_exponent, K likewise with bulk.*, sigma_s = stress_prefactor rho^stress_density_exponent"
+                );
+            }
             v
         }
         Err(e) => json!({"fitted": false, "law": "skorohod-olevsky", "reason": e}),
