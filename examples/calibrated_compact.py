@@ -16,7 +16,7 @@ with tempfile.TemporaryDirectory() as d:
     print(fit.parameters[["value", "sigma", "unit"]])
     # fit.material is the calibrated diffusion data ([[materials]] entry: name, phases, …); the
     # thermal and elastic values come from the preset it was fitted against
-    material = {**sinterdem.Case.preset_material("titanium"), **fit.material}
+    material = {**sinterdem.Case.preset_material("titanium-ivannikov2022"), **fit.material}
 
     case = sinterdem.Case.load(CASES / "titanium-compact-e14b.toml")
     case["materials"] = [material]                # the calibrated titanium instead of the preset

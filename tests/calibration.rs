@@ -39,7 +39,7 @@ fn setup(dir: &Path, ids: &[&str], noise: Option<u64>, extra: &str) -> PathBuf {
     generate(&mut ex, &truth_material(), PathFactors::default(), None, noise).unwrap();
     std::fs::write(dir.join("data.csv"), csv_text(&ex, "test data")).unwrap();
     let calib = dir.join("calib.toml");
-    std::fs::write(&calib, format!("data = \"data.csv\"\nmaterial = \"titanium\"\n{extra}\n{PARAMS}")).unwrap();
+    std::fs::write(&calib, format!("data = \"data.csv\"\nmaterial = \"titanium-ivannikov2022\"\n{extra}\n{PARAMS}")).unwrap();
     calib
 }
 
@@ -102,7 +102,7 @@ fn noisy_data_fit_within_two_sigma_with_reduced_chi2_near_one() {
     assert!(rep.warnings.iter().any(|w| w.contains("beta.d0_gb and beta.q_gb correlate")), "{:?}", rep.warnings);
     let mat = std::fs::read_to_string(dir.join("material.toml")).unwrap();
     let case = format!(
-        "kind = \"pair\"\n[pair]\nmaterial = \"titanium\"\nradius = 3.3e-5\nend_time = 100.0\n[temperature]\nconstant = 1373.0\n[output]\nplot = false\n{mat}"
+        "kind = \"pair\"\n[pair]\nmaterial = \"titanium-ivannikov2022\"\nradius = 3.3e-5\nend_time = 100.0\n[temperature]\nconstant = 1373.0\n[output]\nplot = false\n{mat}"
     );
     let spec = sinterdem::kinds::pair::parse_pair_case(&toml::Value::Table(case.parse().unwrap())).unwrap();
     assert_eq!(spec.material_a.phases[1].d0_gb, param(&rep, "beta.d0_gb", "value"));
@@ -145,7 +145,7 @@ fn bad_input_is_rejected_with_file_line_column_and_key() {
     let dir = common::tmp_dir("bad");
     let head = "id,diameter_m,schedule,neck_ratio,neck_ratio_sigma,shrinkage,shrinkage_sigma\n";
     let row = "E1B,6.75e-5,\"start 793 K, heat 20 K/min to 1203 K, hold 0 min, cool 20 K/min to 313 K\",0.48,0.01,1e-4,3e-4\n";
-    let ok = format!("data = \"data.csv\"\nmaterial = \"titanium\"\n{PARAMS}");
+    let ok = format!("data = \"data.csv\"\nmaterial = \"titanium-ivannikov2022\"\n{PARAMS}");
     let e = parse_err(&dir, &ok, Some(&format!("# c\n{head}{row}E2B,6.6e-5,\"start 793 K, heat 20 K/min to 1203 K\",0.5,0.01,-2,3e-4\n")));
     assert!(e.contains("data.csv line 4, column 6 (shrinkage) = -2 is out of range") && e.contains("[-1, 1]"), "{e}");
     let e = parse_err(&dir, &ok, Some(&format!("{head}{row}E2B,6.6e-5,\"start 793 K, hold 5 fortnights\",0.5,0.01,,\n")));
@@ -216,7 +216,7 @@ fn time_series_points_are_fitted() {
     let calib = dir.join("calib.toml");
     std::fs::write(
         &calib,
-        "data = \"data.csv\"\nseries = \"series.csv\"\nmaterial = \"titanium\"\n[optimiser]\nswarm_iterations = 0\ntolerance = 1e-12\n[solver]\nrtol = 1e-9\n\
+        "data = \"data.csv\"\nseries = \"series.csv\"\nmaterial = \"titanium-ivannikov2022\"\n[optimiser]\nswarm_iterations = 0\ntolerance = 1e-12\n[solver]\nrtol = 1e-9\n\
          [[parameters]]\nkey = \"beta.d0_gb\"\nmin = 1.0\nmax = 1.0e4\n[[parameters]]\nkey = \"beta.q_gb\"\nmin = 190.0e3\nmax = 260.0e3\n",
     )
     .unwrap();

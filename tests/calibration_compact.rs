@@ -21,7 +21,7 @@ fn validate_compact_runs_the_fitted_material_on_a_packing() {
     std::fs::write(
         dir.join("compact.toml"),
         "kind = \"compact\"\n[time]\nend = 100.0\ndt = 1.0e-3\ndt_max = 10.0\nsubsteps_allowed = 100\n[output]\nsnapshots = 0\nvtu = false\nhdf5 = false\n\
-         [[materials]]\nname = \"titanium\"\npreset = \"titanium\"\n[particles]\nsource = \"file\"\nfile = \"corner.csv\"\n\
+         [[materials]]\nname = \"titanium\"\npreset = \"titanium-ivannikov2022\"\n[particles]\nsource = \"file\"\nfile = \"corner.csv\"\n\
          [thermal]\nmode = \"isothermal\"\nfurnace = { profile = { constant = 1373.0 } }\n",
     )
     .unwrap();
@@ -33,7 +33,7 @@ fn validate_compact_runs_the_fitted_material_on_a_packing() {
     .unwrap();
     std::fs::write(
         dir.join("calib.toml"),
-        "data = \"data.csv\"\nmaterial = \"titanium\"\nseed = 3\n[[parameters]]\nkey = \"beta.d0_gb\"\nmin = 10.0\nmax = 200.0\n\
+        "data = \"data.csv\"\nmaterial = \"titanium-ivannikov2022\"\nseed = 3\n[[parameters]]\nkey = \"beta.d0_gb\"\nmin = 10.0\nmax = 200.0\n\
          [optimiser]\nswarm_size = 2\nswarm_iterations = 1\nlocal_iterations = 1\n\
          [compact]\ncase = \"compact.toml\"\nexperiments = [\"E14B\"]\n",
     )

@@ -44,7 +44,7 @@ fn compact_case(dir: &Path, model: &str) {
         dir.join("compact.toml"),
         format!(
             "kind = \"compact\"\n[time]\nend = 100.0\ndt = 1.0e-3\ndt_max = 10.0\nsubsteps_allowed = 100\n[output]\nsnapshots = 0\nvtu = false\nhdf5 = false\n\
-             [[materials]]\nname = \"titanium\"\npreset = \"titanium\"\n[particles]\nsource = \"file\"\nfile = \"corner.csv\"\n\
+             [[materials]]\nname = \"titanium\"\npreset = \"titanium-ivannikov2022\"\n[particles]\nsource = \"file\"\nfile = \"corner.csv\"\n\
              [thermal]\nmode = \"isothermal\"\nfurnace = {{ profile = {{ constant = 1373.0 }} }}\n{model}"
         ),
     )
@@ -126,7 +126,7 @@ fn packing_fit_recovers_the_truth_one_study_per_generation_and_resumes() {
     let calib = dir.join("calib.toml");
     std::fs::write(
         &calib,
-        "data = \"data.csv\"\nmaterial = \"titanium\"\nmodel = \"compact\"\nseed = 3\n\
+        "data = \"data.csv\"\nmaterial = \"titanium-ivannikov2022\"\nmodel = \"compact\"\nseed = 3\n\
          [[parameters]]\nkey = \"beta.d0_gb\"\nmin = 1.0\nmax = 1.0e4\n\
          [optimiser]\nswarm_size = 3\nswarm_iterations = 2\nlocal_iterations = 20\ntolerance = 1.0e-10\nstall = 2\n\
          [compact]\ncase = \"compact.toml\"\njobs = 2\n",
@@ -200,7 +200,7 @@ fn a_failed_packing_run_is_a_penalty() {
     let calib = dir.join("calib.toml");
     std::fs::write(
         &calib,
-        "data = \"data.csv\"\nmaterial = \"titanium\"\nmodel = \"compact\"\n[[parameters]]\nkey = \"beta.d0_gb\"\nmin = 1.0\nmax = 1.0e4\n\
+        "data = \"data.csv\"\nmaterial = \"titanium-ivannikov2022\"\nmodel = \"compact\"\n[[parameters]]\nkey = \"beta.d0_gb\"\nmin = 1.0\nmax = 1.0e4\n\
          [optimiser]\nswarm_iterations = 0\nlocal_iterations = 0\n[compact]\ncase = \"compact.toml\"\n",
     )
     .unwrap();
@@ -240,7 +240,7 @@ fn included_material_path_factors_reach_the_compact() {
             dir.join("compact.toml"),
             format!(
                 "kind = \"compact\"\n[time]\nend = 100.0\ndt = 1.0e-3\ndt_max = 10.0\n[output]\nsnapshots = 0\nvtu = false\nhdf5 = false\n\
-                 [[materials]]\nname = \"titanium\"\npreset = \"titanium\"\n{}[particles]\nsource = \"file\"\nfile = \"corner.csv\"\n\
+                 [[materials]]\nname = \"titanium\"\npreset = \"titanium-ivannikov2022\"\n{}[particles]\nsource = \"file\"\nfile = \"corner.csv\"\n\
                  [thermal]\nmode = \"isothermal\"\nfurnace = {{ profile = {{ constant = 1373.0 }} }}\n{model}",
                 inc(file)
             ),
@@ -268,7 +268,7 @@ fn included_material_path_factors_reach_the_compact() {
     std::fs::write(
         dir.join("two.toml"),
         "kind = \"compact\"\n[time]\nend = 1.0\ndt = 1.0e-3\n[[materials]]\nname = \"titanium\"\ninclude = \"with-model.toml\"\n\
-         [[materials]]\nname = \"titanium2\"\npreset = \"titanium\"\ninclude = \"other.toml\"\n[particles]\nsource = \"file\"\nfile = \"corner.csv\"\n",
+         [[materials]]\nname = \"titanium2\"\npreset = \"titanium-ivannikov2022\"\ninclude = \"other.toml\"\n[particles]\nsource = \"file\"\nfile = \"corner.csv\"\n",
     )
     .unwrap();
     let e = load_case(&dir.join("two.toml"), &[]).unwrap_err().to_string();
@@ -284,7 +284,7 @@ fn included_material_path_factors_reach_the_compact() {
     .unwrap();
     let calib = |extra: &str| {
         let p = dir.join("calib.toml");
-        std::fs::write(&p, format!("data = \"data.csv\"\nmaterial = \"titanium\"\ninclude = \"with-model.toml\"\n[[parameters]]\nkey = \"beta.q_gb\"\nmin = 2.0e5\nmax = 2.4e5\n{extra}")).unwrap();
+        std::fs::write(&p, format!("data = \"data.csv\"\nmaterial = \"titanium-ivannikov2022\"\ninclude = \"with-model.toml\"\n[[parameters]]\nkey = \"beta.q_gb\"\nmin = 2.0e5\nmax = 2.4e5\n{extra}")).unwrap();
         parse(&load_case(&p, &[]).unwrap(), &dir).unwrap().factors
     };
     assert_eq!(calib("").path_factor_gb, 0.5);

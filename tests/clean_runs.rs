@@ -186,18 +186,22 @@ fn an_explicit_end_before_the_schedule_warns_once_and_no_bundled_case_does() {
 /// it prints no warning at all: its heat-up from 293 K puts about 1.4·10⁻³ of titanium's diffusion
 /// dose below the calibrated range (docs/diffusion7.md (V3)), far under the 1 % that warns, and
 /// series.csv holds no column of physics the case lacks (no load, cell or thermal expansion).
+/// Its one warning (issue 37): the seed paper's fitted titanium is declared only up to 902 K,
+/// where its α surface diffusion becomes faster than a liquid, and the plate heats to 1373 K.
 #[test]
-fn the_flagship_is_warning_free_and_has_no_isolated_particle() {
+fn the_flagship_warns_only_that_the_fitted_titanium_leaves_its_range_and_has_no_isolated_particle() {
     let d = common::tmp_dir("flagship");
     let out = d.join("out");
     let e = ok(&sinterdem(&["-q", "run", "cases/hot-plate-compact.toml", "--out", s(&out), "--set", "output.snapshots=2"]));
     assert!(!e.contains("without a conductive path"), "{e}");
-    assert!(!e.lines().any(|l| l.starts_with("warning:")), "{e}");
+    let warn: Vec<&str> = e.lines().filter(|l| l.starts_with("warning:")).collect();
+    assert_eq!(warn.len(), 1, "{e}");
+    assert!(warn[0].contains("material \"titanium-ivannikov2022\": contact temperature above the calibrated range 793.0–902.0 K"), "{e}");
     let v = json(&out.join("summary.json"));
-    assert_eq!(v["warnings"], serde_json::json!([]));
-    let share = v["extrapolated_below_range"]["titanium"]["share"].as_f64().unwrap();
+    assert_eq!(v["warnings"].as_array().map(|w| w.len()), Some(1), "{}", v["warnings"]);
+    let share = v["extrapolated_below_range"]["titanium-ivannikov2022"]["share"].as_f64().unwrap();
     assert!(share > 0.0 && share < 1e-2, "{share}");
-    assert!(v["extrapolated_below_range"]["titanium"]["lowest_temperature_K"].as_f64().unwrap() < 400.0);
+    assert!(v["extrapolated_below_range"]["titanium-ivannikov2022"]["lowest_temperature_K"].as_f64().unwrap() < 400.0);
     let series = std::fs::read_to_string(out.join("series.csv")).unwrap();
     let head: Vec<&str> = series.lines().next().unwrap().split(',').collect();
     let rows: Vec<Vec<f64>> = series.lines().skip(1).map(|l| l.split(',').map(|x| x.parse().unwrap()).collect()).collect();
@@ -218,10 +222,10 @@ fn the_flagship_is_warning_free_and_has_no_isolated_particle() {
     assert!(vtu.contains("Name=\"temperature_K\"") && !vtu.contains("Name=\"isolated\""));
 }
 
-/// The calibrated-range verdict on a furnace heat-up (copper, calibrated 1193–1353 K): stopped
+/// The calibrated-range verdict on a furnace heat-up (copper-ivannikov2022, declared 1273–1353 K): stopped
 /// at 600 s (furnace at 793 K) every contact sintered wholly below the range, share 1, and the
 /// end of the run warns once (console and log.txt), after a log.txt detail line at the first
-/// time below; stopped at 1150 s (furnace at 1251 K) part of the dose was made inside the range,
+/// time below; stopped at 1250 s (furnace at its 1293 K hold) part of the dose was made inside the range,
 /// and the share is the one summary.json reports, between the two.
 #[test]
 fn the_calibrated_range_verdict_weighs_the_dose_made_below_the_range_on_a_heat_up() {
@@ -238,14 +242,14 @@ fn the_calibrated_range_verdict_weighs_the_dose_made_below_the_range_on_a_heat_u
         (json(&out.join("summary.json")), e, std::fs::read_to_string(out.join("log.txt")).unwrap())
     };
     let (v, e, log) = go("600", "cold");
-    let warn: Vec<&str> = e.lines().filter(|l| l.starts_with("warning: material \"copper\"")).collect();
+    let warn: Vec<&str> = e.lines().filter(|l| l.starts_with("warning: material \"copper-ivannikov2022\"")).collect();
     assert_eq!(warn.len(), 1, "{e}");
-    assert!(warn[0].contains("100.000 % of the diffusion dose") && warn[0].contains("below the calibrated range 1193.0–1353.0 K"), "{e}");
-    assert_eq!(v["extrapolated_below_range"]["copper"]["share"].as_f64(), Some(1.0));
-    assert!(log.contains("material \"copper\": contact temperature below the calibrated range 1193.0–1353.0 K (293."), "{log}");
-    assert_eq!(log.matches("warning: material \"copper\"").count(), 1, "{log}");
-    let (v, _, _) = go("1150", "hot");
-    let share = v["extrapolated_below_range"]["copper"]["share"].as_f64().unwrap();
+    assert!(warn[0].contains("100.000 % of the diffusion dose") && warn[0].contains("below the calibrated range 1273.0–1353.0 K"), "{e}");
+    assert_eq!(v["extrapolated_below_range"]["copper-ivannikov2022"]["share"].as_f64(), Some(1.0));
+    assert!(log.contains("material \"copper-ivannikov2022\": contact temperature below the calibrated range 1273.0–1353.0 K (293."), "{log}");
+    assert_eq!(log.matches("warning: material \"copper-ivannikov2022\"").count(), 1, "{log}");
+    let (v, _, _) = go("1250", "hot");
+    let share = v["extrapolated_below_range"]["copper-ivannikov2022"]["share"].as_f64().unwrap();
     assert!(share > 0.05 && share < 0.95, "{share}");
 }
 

@@ -48,7 +48,7 @@ fn pair_through_the_scheduler_equals_the_free_pair() {
     let neck = s["neck_ratio"].as_f64().unwrap();
     assert!((neck / 0.30939 - 1.0).abs() < 2e-5, "{neck}");
     let pair_toml: toml::Value = toml::Value::Table(
-        "kind = \"pair\"\n[pair]\nmaterial = \"copper\"\nradius = 25e-6\nend_time = 1000.0\n[temperature]\nconstant = 1293.0\n[solver]\nrtol = 1e-8\n"
+        "kind = \"pair\"\n[pair]\nmaterial = \"copper-ivannikov2022\"\nradius = 25e-6\nend_time = 1000.0\n[temperature]\nconstant = 1293.0\n[solver]\nrtol = 1e-8\n"
             .parse()
             .unwrap(),
     );
@@ -141,7 +141,7 @@ fn hot_plate_compact_densifies_from_the_bottom_and_conserves_heat() {
             "time.end=300.0",
             "time.dt=1e-3",
             "time.substeps_allowed=20",
-            "materials.0.preset=\"titanium\"",
+            "materials.0.preset=\"titanium-ivannikov2022\"",
             "materials.0.name=\"titanium\"",
             "thermal.mode=\"network\"",
             "thermal.furnace={ profile = { constant = 293.15 }, emissivity = 1.0, exposure = 0.5, exposed = { face = \"z+\" } }",
@@ -196,7 +196,7 @@ fn fcc_compact_of_equal_spheres_shrinks_like_the_free_pair() {
         sim.advance_step(&mut |_| {}).unwrap();
     }
     let pair_toml: toml::Value = toml::Value::Table(
-        "kind = \"pair\"\n[pair]\nmaterial = \"copper\"\nradius = 25e-6\nend_time = 1000.0\n[temperature]\nconstant = 1293.0\n".parse().unwrap(),
+        "kind = \"pair\"\n[pair]\nmaterial = \"copper-ivannikov2022\"\nradius = 25e-6\nend_time = 1000.0\n[temperature]\nconstant = 1293.0\n".parse().unwrap(),
     );
     let spec = sinterdem::kinds::pair::parse_pair_case(&pair_toml).unwrap();
     let free = sinterdem::kinds::pair::run_pair(&spec, false, false).unwrap();

@@ -33,11 +33,11 @@ fn params(dir: &Path) -> RunParams {
 fn a_compact_held_below_the_calibrated_range_warns_at_the_end_with_share_one() {
     let dir = common::tmp_dir("range");
     let p = packing(&dir, 1.6e-4, "");
-    // copper data are calibrated for 1193–1353 K
+    // copper-ivannikov2022 data are declared for 1273–1353 K
     let s = kinds::run(&isothermal(&p, "copper", 1100.0, 50.0), &[], &dir.join("cold"), &params(&dir)).unwrap();
     let w: Vec<String> = serde_json::from_value(s.summary["warnings"].clone()).unwrap();
     assert_eq!(w.len(), 1, "{w:?}");
-    assert!(w[0].contains("copper") && w[0].contains("100.000 %") && w[0].contains("below the calibrated range 1193.0–1353.0 K"), "{w:?}");
+    assert!(w[0].contains("copper") && w[0].contains("100.000 %") && w[0].contains("below the calibrated range 1273.0–1353.0 K"), "{w:?}");
     assert!(w[0].contains("down to 1100.0 K") && w[0].contains("contact "), "{w:?}");
     let v = &s.summary["extrapolated_below_range"]["copper"];
     assert_eq!(v["share"].as_f64(), Some(1.0), "{v}");
@@ -87,7 +87,7 @@ fn an_isolated_particle_is_named_and_left_out_of_the_temperatures() {
     let p = packing(&dir, 1.6e-4, "8.0e-5,8.0e-5,6.0e-4,2.5e-5\n");
     let text = format!(
         "kind = \"compact\"\n[time]\nend = 20.0\ndt = 1.0e-3\ndt_max = 1.0\nscheme = \"bdf2\"\n[output]\nsnapshots = 0\nvtu = false\nhdf5 = false\n\
-         [[materials]]\nname = \"copper\"\npreset = \"copper\"\n[particles]\nsource = \"file\"\nfile = \"{}\"\ninitial_temperature = 1200.0\n\
+         [[materials]]\nname = \"copper\"\npreset = \"copper-ivannikov2022\"\n[particles]\nsource = \"file\"\nfile = \"{}\"\ninitial_temperature = 1200.0\n\
          [thermal]\nmode = \"network\"\n[[thermal.fixed]]\nregion = {{ face = \"z-\" }}\nprofile = {{ constant = 1293.0 }}\n",
         p.display()
     );

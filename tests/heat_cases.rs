@@ -24,7 +24,7 @@ end = 1.0
 dt = 0.1
 [[materials]]
 name = "copper"
-preset = "copper"
+preset = "copper-ivannikov2022"
 [particles]
 source = "lattice"
 lattice = "sc"

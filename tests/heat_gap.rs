@@ -149,7 +149,7 @@ fn two_sphere_case(dir: &Path, rows: &str, gap: &str, extra: &str) -> toml::Valu
     std::fs::write(&csv, format!("x,y,z,r,temperature\n{rows}")).unwrap();
     let text = format!(
         "[time]\nend = 1.0\ndt = 1.0e-3\nscheme = \"bdf2\"\n[output]\nsnapshots = 5\nvtu = false\nhdf5 = false\nseries_every = 100\n\
-         [[materials]]\nname = \"titanium\"\npreset = \"titanium\"\n{extra}\n[particles]\nsource = \"file\"\nfile = \"{}\"\n\
+         [[materials]]\nname = \"titanium\"\npreset = \"titanium-ivannikov2022\"\n{extra}\n[particles]\nsource = \"file\"\nfile = \"{}\"\n\
          [thermal]\nmode = \"network\"\nradiation_tolerance = 1e-14\n[thermal.gap]\n{gap}\n",
         csv.display()
     );

@@ -47,8 +47,8 @@ fn shrink(dir: &Path, name: &str, case: &toml::Value) -> [f64; 3] {
     [s.f64("shrinkage_x").unwrap(), s.f64("shrinkage_y").unwrap(), s.f64("shrinkage_z").unwrap()]
 }
 
-const PRESET_A: &str = "name = \"copper\"\npreset = \"copper\"";
-const PRESET_B: &str = "name = \"copper2\"\npreset = \"copper\"";
+const PRESET_A: &str = "name = \"copper\"\npreset = \"copper-ivannikov2022\"";
+const PRESET_B: &str = "name = \"copper2\"\npreset = \"copper-ivannikov2022\"";
 
 #[test]
 fn inline_and_included_phases_equal_the_preset_and_their_data_matter() {
@@ -65,7 +65,7 @@ fn inline_and_included_phases_equal_the_preset_and_their_data_matter() {
         COPPER_PHASE.replace("D0GB", "2.7e11")
     );
     std::fs::write(dir.join("material.toml"), file).unwrap();
-    let included = shrink(&dir, "included", &case(&p, PRESET_A, "name = \"copper2\"\npreset = \"copper\"\ninclude = \"material.toml\""));
+    let included = shrink(&dir, "included", &case(&p, PRESET_A, "name = \"copper2\"\npreset = \"copper-ivannikov2022\"\ninclude = \"material.toml\""));
     assert_eq!(included, preset);
     // faster grain-boundary diffusion in half of the particles: more shrinkage
     let fast_b = format!("{PRESET_B}\ncalibrated_min_temperature = 1193.0\ncalibrated_max_temperature = 1353.0\n{}", COPPER_PHASE.replace("D0GB", "2.7e12"));
@@ -138,7 +138,7 @@ fn a_calibrated_material_file_runs_in_a_compact() {
     let mut m = sinterdem::models::diffusion7::Material::copper();
     m.phases[0].d0_gb *= 10.0;
     sinterdem::calibrate::report::write_material(&dir.join("material.toml"), &m, None, "test").unwrap();
-    let inc = "name = \"copper\"\npreset = \"copper\"\ninclude = \"material.toml\"";
+    let inc = "name = \"copper\"\npreset = \"copper-ivannikov2022\"\ninclude = \"material.toml\"";
     let fast = shrink(&dir, "cal", &case(&p, inc, PRESET_B));
     let base = shrink(&dir, "base", &case(&p, PRESET_A, PRESET_B));
     for a in 0..3 {

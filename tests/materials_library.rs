@@ -28,7 +28,7 @@ fn points(v: &toml::Value) -> (Vec<f64>, Vec<f64>) {
 #[test]
 fn every_preset_resolves_to_the_values_written_in_the_file() {
     let raw = raw_entries();
-    assert_eq!(raw.len(), 8, "copper, titanium, nickel, silver, iron, tungsten, 316l, alumina");
+    assert_eq!(raw.len(), 12, "copper- and titanium-ivannikov2022, nickel, silver, iron, tungsten, 316l, alumina, copper, titanium, molybdenum, mar-m200");
     for m in &raw {
         let name = m["name"].as_str().unwrap();
         // the 7-DOF data (pair.material, diffusion = NAME)
@@ -94,14 +94,14 @@ fn every_preset_resolves_to_the_values_written_in_the_file() {
 fn copper_and_titanium_keep_their_values_bit_for_bit() {
     // the values of the code before the library (bundled checksums depend on them)
     let p = |n: &str| sinterdem::material::preset(n).unwrap();
-    let (cu, ti) = (p("copper"), p("titanium"));
+    let (cu, ti) = (p("copper-ivannikov2022"), p("titanium-ivannikov2022"));
     assert_eq!([cu.density, cu.heat_capacity, cu.conductivity, cu.young_modulus, cu.poisson_ratio], [8960.0, 385.0, 394.0, 72e9, 0.34]);
     assert_eq!([ti.density, ti.heat_capacity, ti.conductivity, ti.young_modulus, ti.poisson_ratio], [4506.0, 523.0, 21.9, 57e9, 0.39]);
     let d = D7::copper();
     assert_eq!((d.young_modulus, d.poisson_ratio, d.phases[0].d0_gb, d.phases[0].q_lattice), (72e9, 0.3, 2.7e11, 207.0e3));
     let t = D7::titanium();
     assert_eq!((t.phases[1].from_temperature, t.phases[0].d0_lattice, t.phases[1].d0_lattice), (1156.0, 1.7e-8, 1.9e-7));
-    let k = sinterdem::material::bundled_table("titanium", sinterdem::material::Quantity::HeatCapacity).unwrap();
+    let k = sinterdem::material::bundled_table("titanium-ivannikov2022", sinterdem::material::Quantity::HeatCapacity).unwrap();
     assert_eq!(k.at(1200.0), 620.0);
     // an unknown preset names the library
     let case: toml::Value = toml::from_str("name = \"x\"\npreset = \"brass\"").unwrap();
@@ -121,12 +121,21 @@ fn docs_materials_md_is_generated_from_the_file() {
     }
 }
 
-/// A temperature inside both the data range and phase `i`'s interval (the middle of the overlap).
-fn temperature_of_phase(m: &D7, i: usize) -> f64 {
+/// A temperature inside both the data range and phase `i`'s interval (the middle of the overlap);
+/// None for a phase the declared range leaves out (issue 37: iron's γ, the seed paper's β titanium).
+fn temperature_of_phase(m: &D7, i: usize) -> Option<f64> {
     let lo = m.phases[i].from_temperature.max(m.calibrated_min_temperature);
     let hi = m.phases.get(i + 1).map_or(f64::INFINITY, |p| p.from_temperature).min(m.calibrated_max_temperature);
-    assert!(lo < hi, "{}: phase {} has no temperature inside the data range", m.name, m.phases[i].name);
-    0.5 * (lo + hi)
+    if lo >= hi {
+        assert!(
+            matches!((m.name.as_str(), m.phases[i].name.as_str()), ("iron", "gamma") | ("titanium-ivannikov2022", "beta")),
+            "{}: phase {} has no temperature inside the data range",
+            m.name,
+            m.phases[i].name
+        );
+        return None;
+    }
+    Some(0.5 * (lo + hi))
 }
 
 #[test]
@@ -134,7 +143,7 @@ fn a_short_pair_of_every_preset_and_phase_grows_a_neck_and_shrinks() {
     for e in library::entries() {
         let m = e.diffusion();
         for i in 0..m.phases.len() {
-            let t = temperature_of_phase(&m, i);
+            let Some(t) = temperature_of_phase(&m, i) else { continue };
             assert_eq!(m.phase_at(t), i);
             let case: toml::Value = toml::from_str(&format!(
                 "kind = \"pair\"\n[pair]\nmaterial = \"{}\"\nradius = 20.0e-6\nend_time = 100.0\n[temperature]\nconstant = {t}\n[output]\nplot = false\n",

@@ -38,7 +38,7 @@ fn advance(sim: &mut Simulation) {
 /// The free copper pair (R = 25 µm, 1293 K) over `end` [s]: centre approach ΔL [m].
 fn free_pair_approach(end: f64) -> f64 {
     let text = format!(
-        "kind = \"pair\"\n[pair]\nmaterial = \"copper\"\nradius = 25e-6\nend_time = {end:?}\n[temperature]\nconstant = 1293.0\n[solver]\nrtol = 1e-12\n"
+        "kind = \"pair\"\n[pair]\nmaterial = \"copper-ivannikov2022\"\nradius = 25e-6\nend_time = {end:?}\n[temperature]\nconstant = 1293.0\n[solver]\nrtol = 1e-12\n"
     );
     let spec = sinterdem::kinds::pair::parse_pair_case(&toml::Value::Table(text.parse().unwrap())).unwrap();
     sinterdem::kinds::pair::run_pair(&spec, false, false).unwrap().contact.approach()

@@ -67,7 +67,7 @@ fn write_case(dir: &Path, name: &str, pos: &[Vector3<f64>], rad: &[f64], bbox: V
     }
     std::fs::write(dir.join(format!("{name}.csv")), csv).unwrap();
     let case = format!(
-        "[time]\nend = 1.0\ndt = 0.1\n[[materials]]\nname = \"copper\"\npreset = \"copper\"\n[particles]\nsource = \"file\"\nfile = \"{name}.csv\"\nperiodic_box = [{:e}, {:e}, {:e}]\n[thermal]\nmulti_neck = \"fabric\"\n[conductivity]\nboundary = \"periodic\"\n",
+        "[time]\nend = 1.0\ndt = 0.1\n[[materials]]\nname = \"copper\"\npreset = \"copper-ivannikov2022\"\n[particles]\nsource = \"file\"\nfile = \"{name}.csv\"\nperiodic_box = [{:e}, {:e}, {:e}]\n[thermal]\nmulti_neck = \"fabric\"\n[conductivity]\nboundary = \"periodic\"\n",
         bbox.x, bbox.y, bbox.z
     );
     let path = dir.join(format!("{name}.toml"));
@@ -245,7 +245,7 @@ fn bad_periodic_boxes_are_refused_with_the_key_named() {
     let lat = dir.join("lattice.toml");
     std::fs::write(
         &lat,
-        "[time]\nend = 1.0\ndt = 0.1\n[[materials]]\nname = \"copper\"\npreset = \"copper\"\n[particles]\nsource = \"lattice\"\nlattice = \"sc\"\ncells = [4, 4, 4]\nradius = 1e-3\nperiodic_box = [1e-2, 1e-2, 1e-2]\n",
+        "[time]\nend = 1.0\ndt = 0.1\n[[materials]]\nname = \"copper\"\npreset = \"copper-ivannikov2022\"\n[particles]\nsource = \"lattice\"\nlattice = \"sc\"\ncells = [4, 4, 4]\nradius = 1e-3\nperiodic_box = [1e-2, 1e-2, 1e-2]\n",
     )
     .unwrap();
     assert_eq!(common::key_of(&err_of(&lat, &[])), "particles.periodic_box");

@@ -194,7 +194,7 @@ fn generated_packing_runs_through_periodic_conductivity() {
     }
     std::fs::write(dir.join("sintered.csv"), csv).unwrap();
     let conductivity_case = format!(
-        "[time]\nend = 1.0\ndt = 0.1\n[[materials]]\nname = \"copper\"\npreset = \"copper\"\n[particles]\nsource = \"file\"\nfile = \"sintered.csv\"\nperiodic_box = [{:e}, {:e}, {:e}]\n[conductivity]\nboundary = \"periodic\"\n",
+        "[time]\nend = 1.0\ndt = 0.1\n[[materials]]\nname = \"copper\"\npreset = \"copper-ivannikov2022\"\n[particles]\nsource = \"file\"\nfile = \"sintered.csv\"\nperiodic_box = [{:e}, {:e}, {:e}]\n[conductivity]\nboundary = \"periodic\"\n",
         b[0] * lambda,
         b[1] * lambda,
         b[2] * lambda

@@ -65,7 +65,7 @@ fn zero_load_is_bit_identical_to_no_load() {
 
 fn pair_spec(force: f64) -> sinterdem::kinds::pair::PairSpec {
     let text = format!(
-        "kind = \"pair\"\n[pair]\nmaterial = \"copper\"\nradius = 25e-6\nend_time = 1000.0\n[temperature]\nconstant = 1293.0\n[solver]\nrtol = 1e-9\n[load]\nforce = {force:e}\n"
+        "kind = \"pair\"\n[pair]\nmaterial = \"copper-ivannikov2022\"\nradius = 25e-6\nend_time = 1000.0\n[temperature]\nconstant = 1293.0\n[solver]\nrtol = 1e-9\n[load]\nforce = {force:e}\n"
     );
     parse_pair_case(&toml::Value::Table(text.parse().unwrap())).unwrap()
 }
@@ -215,7 +215,8 @@ fn bad_load_keys_give_clear_errors() {
     let e = check_err(compact_case(&pair, "[load]\nmode = \"uniaxial\"\nstress = 1e6", &[]));
     assert!(e.contains("load.force"), "{e}");
     // pair kind: range of load.force
-    let text = "kind = \"pair\"\n[pair]\nmaterial = \"copper\"\nradius = 25e-6\nend_time = 1.0\n[temperature]\nconstant = 1293.0\n[load]\nforce = 1e4\n";
+    let text =
+        "kind = \"pair\"\n[pair]\nmaterial = \"copper-ivannikov2022\"\nradius = 25e-6\nend_time = 1.0\n[temperature]\nconstant = 1293.0\n[load]\nforce = 1e4\n";
     let e = parse_pair_case(&toml::Value::Table(text.parse().unwrap())).unwrap_err().to_string();
     assert!(e.contains("load.force") && e.contains("N"), "{e}");
 }

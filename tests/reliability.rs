@@ -57,7 +57,7 @@ vtu = false
 hdf5 = false
 [[materials]]
 name = "copper"
-preset = "copper"
+preset = "copper-ivannikov2022"
 [particles]
 source = "pair"
 radius = 25e-6

@@ -323,7 +323,7 @@ fn class11_heat_checkpoints_with_overflowing_accounts_or_unequal_histories_are_r
     let case = d.join("heat.toml");
     std::fs::write(
         &case,
-        "[time]\nend = 10.0\ndt = 0.1\n[output]\nsnapshots = 0\nvtu = false\nhdf5 = false\ncheckpoint_every = 20\n[[materials]]\nname = \"copper\"\npreset = \"copper\"\n\
+        "[time]\nend = 10.0\ndt = 0.1\n[output]\nsnapshots = 0\nvtu = false\nhdf5 = false\ncheckpoint_every = 20\n[[materials]]\nname = \"copper\"\npreset = \"copper-ivannikov2022\"\n\
          [particles]\nsource = \"pair\"\nradius = 25e-6\noverlap = 0.05\ninitial_temperature = 293.15\n[thermal.furnace]\nprofile = { constant = 1000.0 }\nconvection_coefficient = 10.0\n",
     )
     .unwrap();
@@ -599,7 +599,7 @@ fn class10_a_failed_data_write_is_an_error_and_no_truncated_plot_is_left() {
 fn class13_an_included_material_file_with_model_works_in_a_heat_case() {
     let d = common::tmp_dir("include-model");
     // a calibration's material.toml carries [model] (the fitted path factors); heat cases have none
-    std::fs::write(d.join("material.toml"), "[[materials]]\nname = \"copper\"\npreset = \"copper\"\n\n[model]\npath_factor_gb = 2.0\n").unwrap();
+    std::fs::write(d.join("material.toml"), "[[materials]]\nname = \"copper\"\npreset = \"copper-ivannikov2022\"\n\n[model]\npath_factor_gb = 2.0\n").unwrap();
     let text = "[time]\nend = 2.0\ndt = 1.0\n[output]\nsnapshots = 0\nvtu = false\nhdf5 = false\n[[materials]]\nname = \"copper\"\ninclude = \"material.toml\"\n\
                 [particles]\nsource = \"lattice\"\nlattice = \"fcc\"\ncells = [2, 2, 2]\nradius = 25e-6\noverlap = 0.05\ninitial_temperature = 293.15\n\
                 [thermal]\nmode = \"network\"\n[[thermal.fixed]]\nregion = { face = \"z-\" }\nprofile = { constant = 400.0 }\n";
@@ -782,7 +782,7 @@ impl Tap for Command {
 #[test]
 fn fuzz_found_heat_snapshots_are_one_per_step_and_rtol_has_a_floor() {
     let d = common::tmp_dir("fuzz-found");
-    let text = "[time]\nend = 3.0\ndt = 1.0\n[output]\nsnapshots = 5000\nvtu = true\nhdf5 = false\n[[materials]]\nname = \"copper\"\npreset = \"copper\"\n\
+    let text = "[time]\nend = 3.0\ndt = 1.0\n[output]\nsnapshots = 5000\nvtu = true\nhdf5 = false\n[[materials]]\nname = \"copper\"\npreset = \"copper-ivannikov2022\"\n\
                 [particles]\nsource = \"lattice\"\nlattice = \"fcc\"\ncells = [2, 2, 2]\nradius = 25e-6\noverlap = 0.05\ninitial_temperature = 293.15\n\
                 [thermal]\nmode = \"network\"\n[[thermal.fixed]]\nregion = { face = \"z-\" }\nprofile = { constant = 400.0 }\n";
     std::fs::write(d.join("heat.toml"), text).unwrap();

@@ -184,7 +184,7 @@ fn hot_plate_expands_the_hot_side_more() {
     let ramp = "{ table = [[0.0, 293.15], [5.0, 800.0], [60.0, 800.0]] }";
     let text = format!(
         "kind = \"compact\"\n[time]\nend = 60.0\ndt = 1.0e-3\ndt_max = 1.0\n[output]\nsnapshots = 0\nvtu = false\nhdf5 = false\n\
-         [[materials]]\nname = \"titanium\"\npreset = \"titanium\"\nthermal_expansion = {alpha:e}\n[particles]\nsource = \"file\"\nfile = \"{}\"\ninitial_temperature = 293.15\n\
+         [[materials]]\nname = \"titanium\"\npreset = \"titanium-ivannikov2022\"\nthermal_expansion = {alpha:e}\n[particles]\nsource = \"file\"\nfile = \"{}\"\ninitial_temperature = 293.15\n\
          [thermal]\nmode = \"network\"\n\
          fixed = [{{ region = {{ face = \"z-\" }}, profile = {ramp} }}, {{ region = {{ face = \"z+\" }}, profile = {{ constant = 293.15 }} }}]\n\
          [contacts]\nneck = \"seven_dof\"\ndetect_new = false\n",
@@ -303,7 +303,7 @@ fn other_kinds_warn_that_they_ignore_thermal_expansion() {
     assert!(log.contains("warning: materials.0.thermal_expansion is used by compact runs only; this heat run ignores it"), "log.txt:\n{log}");
     // the same key on a compact run is used, not warned about
     let compact = toml::Value::Table(
-        "kind = \"compact\"\n[[materials]]\nname = \"copper\"\npreset = \"copper\"\nthermal_expansion = 1.6e-5\n".parse::<toml::Table>().unwrap(),
+        "kind = \"compact\"\n[[materials]]\nname = \"copper\"\npreset = \"copper-ivannikov2022\"\nthermal_expansion = 1.6e-5\n".parse::<toml::Table>().unwrap(),
     );
     assert!(sinterdem::kinds::compact_only_keys(&compact).is_empty());
 }

@@ -156,15 +156,15 @@ def test_run_releases_the_gil():
 
 
 def test_preset_material_spelled_out_gives_the_same_heat_run():
-    m = sinterdem.Case.preset_material("titanium")
-    assert m["name"] == "titanium" and m["density"] == 4506.0 and m["heat_capacity"] == 523.0
+    m = sinterdem.Case.preset_material("titanium-ivannikov2022")
+    assert m["name"] == "titanium-ivannikov2022" and m["density"] == 4506.0 and m["heat_capacity"] == 523.0
     sets = {"time.end": 30.0, "output.snapshots": 0}
     a = sinterdem.Case.load(CASES / "hot-plate.toml")
     b = sinterdem.Case.load(CASES / "hot-plate.toml")
     for k, v in sets.items():
         a[k] = v
         b[k] = v
-    b["materials"] = [m]  # the preset's values written out instead of preset = "titanium"
+    b["materials"] = [m]  # the preset's values written out instead of preset = "titanium-ivannikov2022"
     assert "preset" not in b["materials.0"]
     ra, rb = sinterdem.run(a, progress=False), sinterdem.run(b, progress=False)
     assert ra.kind == "heat"

@@ -63,7 +63,7 @@ def test_calibrate_reads_back_parameters_sigma_correlation_material(tmp_path):
     assert list(res.correlation.index) == keys and list(res.correlation.columns) == keys
     assert np.allclose(np.diag(res.correlation.to_numpy()), 1.0)
     assert list(res.sigma.index) == keys and "sigma" in res.sigma.columns
-    assert res.material["name"] == "titanium"
+    assert res.material["name"] == "titanium-ivannikov2022"
     assert "phases" in res.material
     name, cmd = cli_commands()[-1]
     sets = [a for s in CALIB_SETS for a in ("--set", s)]

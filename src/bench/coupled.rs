@@ -75,7 +75,7 @@ pub fn bench_coupled(copper_case: Option<&Path>, sizes: &[usize], packings: &[st
     for &n in sizes {
         let cells = ((n as f64 / 4.0).cbrt().round() as u32).max(2);
         let text = format!(
-            "kind = \"compact\"\n[time]\nend = {end}\ndt = 1.0\ndt_max = 1.0\n[output]\nsnapshots = 0\nvtu = false\nhdf5 = false\n[[materials]]\nname = \"copper\"\npreset = \"copper\"\n[particles]\nsource = \"lattice\"\nlattice = \"fcc\"\ncells = [{cells}, {cells}, {cells}]\nradius = 25e-6\noverlap = 0.0\n[thermal]\nmode = \"isothermal\"\nfurnace = {{ profile = {{ constant = 1293.0 }} }}\n[contacts]\ndetect_new = true\n",
+            "kind = \"compact\"\n[time]\nend = {end}\ndt = 1.0\ndt_max = 1.0\n[output]\nsnapshots = 0\nvtu = false\nhdf5 = false\n[[materials]]\nname = \"copper\"\npreset = \"copper-ivannikov2022\"\n[particles]\nsource = \"lattice\"\nlattice = \"fcc\"\ncells = [{cells}, {cells}, {cells}]\nradius = 25e-6\noverlap = 0.0\n[thermal]\nmode = \"isothermal\"\nfurnace = {{ profile = {{ constant = 1293.0 }} }}\n[contacts]\ndetect_new = true\n",
             end = steps as f64 + 1.0
         );
         let _ = writeln!(out, "{}", time_steps(&text, Path::new("."), steps, overrides)?);
@@ -100,7 +100,7 @@ pub fn bench_coupled(copper_case: Option<&Path>, sizes: &[usize], packings: &[st
             let _ = writeln!(out, "{}", time_steps(&format!("{cell}{particles}"), Path::new("."), steps, overrides)?);
             // a static heat case of the packing (the compact's overrides do not apply to it)
             let heat = format!(
-                "[time]\nend = 1.0\ndt = 0.1\n[[materials]]\nname = \"copper\"\npreset = \"copper\"\n{particles}[conductivity]\nboundary = \"periodic\"\n"
+                "[time]\nend = 1.0\ndt = 0.1\n[[materials]]\nname = \"copper\"\npreset = \"copper-ivannikov2022\"\n{particles}[conductivity]\nboundary = \"periodic\"\n"
             );
             let value = toml::Value::Table(heat.parse::<toml::Table>().map_err(|e| ConfigError::invalid(e.to_string()))?);
             let t = Instant::now();
@@ -126,7 +126,7 @@ pub fn bench_coupled(copper_case: Option<&Path>, sizes: &[usize], packings: &[st
 /// The copper compact's settings (cases/large/copper-compact-100k.toml) without its packing: the
 /// per-step cost of a random packing under the schedule users run.
 const PACKING_CASE: &str = "kind = \"compact\"\n[time]\nend = 5000.0\ndt = 1.0e-6\nstrategy = 2\ndt_max = 10.0\nalpha = 1.5\n\
-[output]\nsnapshots = 0\nvtu = false\nhdf5 = false\n[[materials]]\nname = \"copper\"\npreset = \"copper\"\n\
+[output]\nsnapshots = 0\nvtu = false\nhdf5 = false\n[[materials]]\nname = \"copper\"\npreset = \"copper-ivannikov2022\"\n\
 [thermal]\nmode = \"isothermal\"\nfurnace = { profile = { constant = 1293.0 } }\n\
 [contacts]\ndetect_new = true\ndetect_every = 5\ngap_tolerance = 1.0e-3\nneck = \"volume_conserving\"\n\
 [solver]\nmethod = \"dopri5\"\nrtol = 1.0e-5\n[mechanics]\nconstrain_planes = true\nplane_margin = 1.01\nsolver = \"auto\"\n";

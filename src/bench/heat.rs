@@ -36,7 +36,7 @@ pub fn random_packing(n: usize, seed: u64) -> Particles {
 
 /// Prints the benchmark table.
 pub fn bench_heat(sizes: &[usize], repeat: usize) -> Result<(), Error> {
-    let mat = crate::material::preset("copper").unwrap();
+    let mat = crate::material::preset("copper-ivannikov2022").unwrap();
     println!("# one implicit heat step (backward Euler, Δt = 1000 × explicit limit), {} rayon threads", rayon::current_num_threads());
     println!(
         "{:>9} {:>9} {:>11} {:>11} {:>11} {:>11} {:>11} {:>11} {:>10}",

@@ -96,6 +96,10 @@ impl Simulation {
                     d7::Material::builtin(name)?
                 }
             };
+            if dm.young_modulus != m.young_modulus {
+                // the case's own E replaces the library's E(T) (docs/materials.md (L1))
+                dm.young_modulus_table = None;
+            }
             dm.young_modulus = m.young_modulus;
             dm.poisson_ratio = m.poisson_ratio;
             d7m.push(dm);

@@ -469,7 +469,10 @@ pub fn run_pair_spec(spec: &PairSpec, out_dir: &Path, progress: bool, warn: &mut
 /// The summary of a finished run.
 pub fn summarize(spec: &PairSpec, run: &PairRun) -> PairSummary {
     let c = &run.contact;
-    let e = 0.5 * (spec.material_a.young_modulus + spec.material_b.young_modulus);
+    // E at the pair's last temperature (the library's E(T), docs/materials.md (L1))
+    let t_end = run.temperatures.last().copied().unwrap_or(f64::NAN);
+    let e_at = |m: &crate::models::diffusion7::Material| if t_end.is_finite() { m.young_modulus_at(t_end) } else { m.young_modulus };
+    let e = 0.5 * (e_at(&spec.material_a) + e_at(&spec.material_b));
     PairSummary {
         title: spec.title.clone(),
         final_time_s: run.interrupted_at.unwrap_or(spec.end_time),

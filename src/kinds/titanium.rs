@@ -85,7 +85,7 @@ impl Experiment {
              kind = \"pair\"\n\
              title = \"titanium {id}\"\n\n\
              [pair]\n\
-             material = \"titanium\"   # bundled, alpha/beta at 1156 K (docs/diffusion7.md §9)\n\
+             material = \"titanium-ivannikov2022\"   # bundled, alpha/beta at 1156 K (docs/diffusion7.md §9)\n\
              radius = {rad:e}        # m, half the mean diameter\n\n\
              [temperature]\n\
              start_temperature = 793.0     # K\n\

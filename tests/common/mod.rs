@@ -87,7 +87,7 @@ pub fn write_block(dir: &Path, file: &str, header: &str, lines: impl IntoIterato
 }
 
 /// The `[[materials]]` body of the bundled copper preset.
-pub const COPPER: &str = "name = \"copper\"\npreset = \"copper\"";
+pub const COPPER: &str = "name = \"copper\"\npreset = \"copper-ivannikov2022\"";
 
 /// The furnace profile of the copper compacts: a constant 1293 K.
 pub const AT_1293_K: &str = "{ constant = 1293.0 }";

@@ -78,6 +78,7 @@ pub(in crate::coupled) fn mechanics(sim: &mut Simulation, w: &Window, temps_old:
 fn bonded_solve(sim: &mut Simulation, t1: f64, approach: &[f64], thermal: Option<&StepTerms>) -> Result<Vec<f64>, Error> {
     // the applied load enters as its increment over the step (docs/pressure.md (P2))
     let external = sim.load_increment(t1);
+    elastic_at_temperature(sim)?;
     let radii = thermal.map(|th| th.radii.as_slice());
     // with thermal expansion the solve takes what the predictor (X7) leaves
     let solve_approach: std::borrow::Cow<[f64]> = match thermal {
@@ -93,6 +94,30 @@ fn bonded_solve(sim: &mut Simulation, t1: f64, approach: &[f64], thermal: Option
         *x += d;
     }
     Ok(xi)
+}
+
+/// A material with an E(T) table (docs/materials.md (L1)): each particle's `[E(T_i), ν]` at its
+/// current temperature, so that each link takes the constants of its two particles at theirs.
+/// Nothing changes for materials without a table.
+fn elastic_at_temperature(sim: &mut Simulation) -> Result<(), Error> {
+    if sim.d7_materials.iter().all(|m| m.young_modulus_table.is_none()) {
+        return Ok(());
+    }
+    let p = &sim.prep.scene.particles;
+    let iso = sim.prep.isothermal.as_ref().map(|prof| prof.temperature(sim.t));
+    let per: Vec<[f64; 2]> = p
+        .material
+        .iter()
+        .zip(&p.temperature)
+        .map(|(&k, &t)| {
+            let m = &sim.d7_materials[k as usize];
+            [m.young_modulus_at(iso.unwrap_or(t)), m.poisson_ratio]
+        })
+        .collect();
+    if let Some(sys) = sim.mechanics.sys.as_mut() {
+        sys.set_particle_elastic(Some(per))?;
+    }
+    Ok(())
 }
 
 /// The bonded solve on the periodic cell (docs/mechanics.md (B13)–(B21)): the cell controls of

@@ -73,6 +73,10 @@ pub struct Material {
     pub young_modulus: f64,
     /// Poisson ratio ν [1].
     pub poisson_ratio: f64,
+    /// E(T) `[[T, E], ...]` ([K], [Pa]) of a library entry (docs/materials.md "Elastic
+    /// constants"); None: `young_modulus` at every temperature. Not a case key.
+    #[serde(skip)]
+    pub young_modulus_table: Option<Vec<[f64; 2]>>,
     /// Lower end of the calibrated temperature range [K].
     pub calibrated_min_temperature: f64,
     /// Upper end of the calibrated temperature range [K].
@@ -109,14 +113,16 @@ impl Material {
         }
     }
 
-    /// Bundled copper (docs/diffusion7.md §9, Table 2 of [IV22]).
+    /// The seed paper's fitted copper, `copper-ivannikov2022` (docs/diffusion7.md §9, Table 2 of
+    /// [IV22]; the compiled set is `builtin("copper")`, docs/materials.md).
     pub fn copper() -> Material {
-        Material::builtin("copper").expect("bundled copper is valid")
+        Material::builtin("copper-ivannikov2022").expect("bundled copper-ivannikov2022 is valid")
     }
 
-    /// Bundled titanium with α and β phases (docs/diffusion7.md §9, Table 4 of [IV22]).
+    /// The seed paper's fitted titanium with α and β phases, `titanium-ivannikov2022`
+    /// (docs/diffusion7.md §9, Table 4 of [IV22]; the compiled set is `builtin("titanium")`).
     pub fn titanium() -> Material {
-        Material::builtin("titanium").expect("bundled titanium is valid")
+        Material::builtin("titanium-ivannikov2022").expect("bundled titanium-ivannikov2022 is valid")
     }
 
     /// Checks every numeric key against the range table and the phase ordering.
@@ -170,6 +176,24 @@ impl Material {
             }
         }
         Ok(())
+    }
+
+    /// E at temperature `t` [K]: the E(T) table, piecewise linear in T and held at its end
+    /// points, where the material has one; else `young_modulus` (docs/materials.md (L1)).
+    pub fn young_modulus_at(&self, t: f64) -> f64 {
+        let Some(tab) = self.young_modulus_table.as_deref().filter(|x| !x.is_empty()) else {
+            return self.young_modulus;
+        };
+        let (first, last) = (tab[0], tab[tab.len() - 1]);
+        if !(t > first[0]) {
+            return first[1];
+        }
+        if t >= last[0] {
+            return last[1];
+        }
+        let k = tab.iter().position(|p| p[0] > t).unwrap_or(tab.len() - 1);
+        let ([t0, e0], [t1, e1]) = (tab[k - 1], tab[k]);
+        e0 + (e1 - e0) * (t - t0) / (t1 - t0)
     }
 
     /// Index of the phase at temperature `t` [K]: the last phase whose `from_temperature ≤ t`
