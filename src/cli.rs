@@ -213,8 +213,8 @@ enum Command {
     },
     /// The bundled materials library (docs/materials.md): one line per preset, or with
     /// `--markdown` the generated part of docs/materials.md.
-    #[command(hide = true)]
     Materials {
+        /// Print the generated part of docs/materials.md (Markdown) instead.
         #[arg(long)]
         markdown: bool,
     },
@@ -509,42 +509,7 @@ fn real_main(cli: Cli) -> Result<(), Error> {
             Ok(())
         }
         Command::Neck { r1, r2, overlap, kappa, kappa2, conductance, factor, contact_conductance } => {
-            let law = match conductance.as_str() {
-                "linear" => crate::heat::ConductanceLaw::Linear,
-                "fe_fit" => crate::heat::ConductanceLaw::FeFit,
-                other => return Err(crate::ConfigError::invalid(format!("--conductance {other}: expected linear or fe_fit")).into()),
-            };
-            let optional = [("--kappa2", kappa2), ("--contact-conductance", contact_conductance)];
-            for (k, v) in [("--r1", r1), ("--r2", r2), ("--kappa", kappa), ("--factor", factor)]
-                .into_iter()
-                .chain(optional.into_iter().filter_map(|(k, v)| Some((k, v?))))
-            {
-                if !(v > 0.0 && v.is_finite()) {
-                    return Err(crate::ConfigError::OutOfRange {
-                        key: k.into(),
-                        value: v,
-                        range: "(0, inf)".into(),
-                        unit: match k {
-                            "--r1" | "--r2" => "m",
-                            "--kappa" | "--kappa2" => "W/(m K)",
-                            "--factor" => "1",
-                            _ => "W/K",
-                        }
-                        .into(),
-                    }
-                    .into());
-                }
-            }
-            let n = crate::neck::solve(r1, r2, overlap)?;
-            // one pair: every neck alone on its particle, crowding 1 (docs/heat-model.md (H8a))
-            let c = crate::heat::Conductance { law, factor, contact: contact_conductance, ..Default::default() };
-            let p = c.pipe(kappa, kappa2.unwrap_or(kappa), r1, r2, n.a);
-            let v = serde_json::json!({
-                "a": n.a, "a_coble": n.a_coble, "h_ci": n.h_ci, "h_cj": n.h_cj, "h_n": n.h_n,
-                "newton_iterations": n.iterations,
-                "K_half_i": p.half_i, "K_half_j": p.half_j, "K_pair": p.pair,
-                "conductance": conductance,
-            });
+            let v = neck_report(&NeckArgs { r1, r2, overlap, kappa, kappa2, conductance, factor, contact_conductance })?;
             println!("{}", serde_json::to_string_pretty(&v).unwrap());
             Ok(())
         }
@@ -574,6 +539,60 @@ fn real_main(cli: Cli) -> Result<(), Error> {
         }
         Command::Bench { which } => run_bench(which),
     }
+}
+
+/// The arguments of `sinterdem neck` (SI units; `sinterdem neck --help`).
+#[derive(Debug, Clone)]
+pub struct NeckArgs {
+    pub r1: f64,
+    pub r2: f64,
+    pub overlap: f64,
+    pub kappa: f64,
+    pub kappa2: Option<f64>,
+    pub conductance: String,
+    pub factor: f64,
+    pub contact_conductance: Option<f64>,
+}
+
+/// `sinterdem neck`: the neck geometry of two spheres at an overlap and the pipe conductance of
+/// the pair, as the JSON object the command prints (the Python package's `sinterdem.neck`).
+pub fn neck_report(a: &NeckArgs) -> Result<serde_json::Value, Error> {
+    let law = match a.conductance.as_str() {
+        "linear" => crate::heat::ConductanceLaw::Linear,
+        "fe_fit" => crate::heat::ConductanceLaw::FeFit,
+        other => return Err(crate::ConfigError::invalid(format!("--conductance {other}: expected linear or fe_fit")).into()),
+    };
+    let optional = [("--kappa2", a.kappa2), ("--contact-conductance", a.contact_conductance)];
+    for (k, v) in [("--r1", a.r1), ("--r2", a.r2), ("--kappa", a.kappa), ("--factor", a.factor)]
+        .into_iter()
+        .chain(optional.into_iter().filter_map(|(k, v)| Some((k, v?))))
+    {
+        if !(v > 0.0 && v.is_finite()) {
+            return Err(crate::ConfigError::OutOfRange {
+                key: k.into(),
+                value: v,
+                range: "(0, inf)".into(),
+                unit: match k {
+                    "--r1" | "--r2" => "m",
+                    "--kappa" | "--kappa2" => "W/(m K)",
+                    "--factor" => "1",
+                    _ => "W/K",
+                }
+                .into(),
+            }
+            .into());
+        }
+    }
+    let n = crate::neck::solve(a.r1, a.r2, a.overlap)?;
+    // one pair: every neck alone on its particle, crowding 1 (docs/heat-model.md (H8a))
+    let c = crate::heat::Conductance { law, factor: a.factor, contact: a.contact_conductance, ..Default::default() };
+    let p = c.pipe(a.kappa, a.kappa2.unwrap_or(a.kappa), a.r1, a.r2, n.a);
+    Ok(serde_json::json!({
+        "a": n.a, "a_coble": n.a_coble, "h_ci": n.h_ci, "h_cj": n.h_cj, "h_n": n.h_n,
+        "newton_iterations": n.iterations,
+        "K_half_i": p.half_i, "K_half_j": p.half_j, "K_pair": p.pair,
+        "conductance": a.conductance,
+    }))
 }
 
 /// `sinterdem bench …`: runs one benchmark of [`crate::bench`] and prints its table.

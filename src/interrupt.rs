@@ -31,11 +31,19 @@ pub const POLL_INTERVAL: f64 = 0.05;
 thread_local! {
     /// The poll registered on this thread and when it last ran.
     static POLL: RefCell<Option<(Box<dyn FnMut() -> bool>, Instant)>> = const { RefCell::new(None) };
+    /// The stop flag of the call this thread computes for ([`Scope::enter`]), if any.
+    static SCOPE: RefCell<Option<Arc<AtomicBool>>> = const { RefCell::new(None) };
 }
 
-/// Whether a stop was requested (a signal arrived, or this thread's poll said so).
+/// Whether a stop was requested (a signal arrived, the [`Scope`] this thread works in was asked
+/// to stop, or this thread's poll said so: the request then goes to that scope alone, or to the
+/// whole process outside a scope).
 pub fn requested() -> bool {
     if REQUESTED.load(Ordering::Relaxed) {
+        return true;
+    }
+    let scope = SCOPE.with(|s| s.borrow().clone());
+    if scope.as_ref().is_some_and(|f| f.load(Ordering::Relaxed)) {
         return true;
     }
     let polled = POLL.with(|p| {
@@ -49,9 +57,46 @@ pub fn requested() -> bool {
         }
     });
     if polled {
-        REQUESTED.store(true, Ordering::Relaxed);
+        scope.as_deref().unwrap_or(&**REQUESTED).store(true, Ordering::Relaxed);
     }
     polled
+}
+
+/// The stop request of one call (an embedding's run: the Python package runs calls in several
+/// threads at once, and Ctrl-C must stop the call that received it, not every call of the
+/// process). Threads that compute for the call [`Scope::enter`] it; a poll on such a thread
+/// requests a stop of this scope only.
+#[derive(Clone, Default)]
+pub struct Scope(Arc<AtomicBool>);
+
+impl Scope {
+    /// A scope with no stop requested.
+    pub fn new() -> Scope {
+        Scope::default()
+    }
+
+    /// Makes this the scope of the calling thread until the guard is dropped.
+    pub fn enter(&self) -> ScopeGuard {
+        let previous = SCOPE.with(|s| s.borrow_mut().replace(self.0.clone()));
+        ScopeGuard { previous, _not_send: std::marker::PhantomData }
+    }
+
+    /// Whether a stop of this scope was requested.
+    pub fn requested(&self) -> bool {
+        self.0.load(Ordering::Relaxed)
+    }
+}
+
+/// Restores the thread's earlier scope when dropped.
+pub struct ScopeGuard {
+    previous: Option<Arc<AtomicBool>>,
+    _not_send: std::marker::PhantomData<*const ()>,
+}
+
+impl Drop for ScopeGuard {
+    fn drop(&mut self) {
+        SCOPE.with(|s| *s.borrow_mut() = self.previous.take());
+    }
 }
 
 /// Asks every run of this process to stop after its current step.

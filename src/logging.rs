@@ -110,8 +110,13 @@ pub fn line_of(level: Level, message: &str) -> String {
     }
 }
 
+/// Where the events a user should see go: the command line's stderr, or an embedding's sink.
+pub type Sink = Box<dyn Fn(Level, &str) + Send + Sync>;
+
 struct SinterdemLayer {
     console: Level,
+    /// Receives (level, line) instead of stderr (the Python package: `logging` and `warnings`).
+    sink: Option<Sink>,
 }
 
 impl<S: Subscriber> Layer<S> for SinterdemLayer {
@@ -135,13 +140,24 @@ impl<S: Subscriber> Layer<S> for SinterdemLayer {
             });
         }
         if to_console {
-            crate::io::progress::println(&line);
+            match &self.sink {
+                Some(sink) => sink(level, &line),
+                None => crate::io::progress::println(&line),
+            }
         }
     }
 }
 
 /// Installs the subscriber of the command line (module docs). A second call does nothing.
 pub fn init(v: Verbosity) {
-    let layer = SinterdemLayer { console: v.max_level() };
+    let layer = SinterdemLayer { console: v.max_level(), sink: None };
     let _ = tracing_subscriber::registry().with(layer).try_init();
+}
+
+/// Installs the subscriber of an embedding (the Python package): events of level `level` and
+/// above go to `sink(level, line)` (the line as [`line_of`] writes it), and a run's events are
+/// copied to its `log.txt` as with [`init`]. Returns false when a subscriber was already set.
+pub fn init_with_sink(level: Level, sink: Sink) -> bool {
+    let layer = SinterdemLayer { console: level, sink: Some(sink) };
+    tracing_subscriber::registry().with(layer).try_init().is_ok()
 }

@@ -243,3 +243,30 @@ fn sigint_stops_a_calibration_without_a_fit() {
     assert!(!out.join("calibration.json").exists() && !out.join("material.toml").exists());
     let _ = std::fs::remove_dir_all(&out);
 }
+
+/// An embedding's stop request is scoped to the call that received it (issue 38 item 3): a poll
+/// saying "stop" on a thread in scope `a` stops `a`, not a run computing in scope `b` on another
+/// thread, and sets nothing process-wide.
+#[test]
+fn a_poll_in_a_scope_stops_that_scope_only() {
+    use sinterdem::interrupt::{POLL_INTERVAL, Scope, requested, set_poll};
+    let (a, b) = (Scope::new(), Scope::new());
+    let other = std::thread::spawn({
+        let b = b.clone();
+        move || {
+            let _in = b.enter();
+            std::thread::sleep(Duration::from_secs_f64(POLL_INTERVAL * 4.0));
+            requested()
+        }
+    });
+    {
+        let _in = a.enter();
+        let _poll = set_poll(Box::new(|| true));
+        std::thread::sleep(Duration::from_secs_f64(POLL_INTERVAL * 1.2));
+        assert!(requested(), "the poll asked");
+        assert!(requested(), "the scope keeps the request");
+    }
+    assert!(a.requested() && !b.requested());
+    assert!(!other.join().unwrap(), "the other scope's thread saw no request");
+    assert!(!requested(), "nothing process-wide (this thread, out of any scope)");
+}

@@ -15,9 +15,13 @@ _LOCATED = re.compile(r"^(?P<file>[^\n]+?):(?P<line>\d+):(?P<col>\d+): ")
 
 
 class Error(Exception):
-    """Any sinterdem error. ``str(e)`` is the command line's message; ``exit_code`` its exit code."""
+    """Any sinterdem error. ``str(e)`` is the command line's message; ``exit_code`` its exit code;
+    ``out`` the output directory of the run that failed (None for errors before a run): what
+    the run computed up to the error is there (``series.csv``, ``summary.json`` with
+    ``completed = false`` and the error, ``log.txt``)."""
 
     exit_code = 1
+    out = None
 
     def __init__(self, message: str, *, key: Optional[str] = None, value: Optional[float] = None,
                  allowed: Optional[str] = None, unit: Optional[str] = None,

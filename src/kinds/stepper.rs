@@ -137,6 +137,11 @@ impl Stepper {
         }
     }
 
+    /// Whether a model error ended the run: [`Stepper::finish`] writes the outputs and returns it.
+    pub fn failed(&self) -> bool {
+        matches!(&self.inner, Inner::Compact(r) if r.failed())
+    }
+
     /// Relative density of the compact now [1] (None for heat runs: the packing is static;
     /// explicit_sinter: the solid fraction ΣV_i/V_box of the sample being advanced).
     pub fn relative_density(&self) -> Option<f64> {
@@ -144,6 +149,18 @@ impl Stepper {
             Inner::Heat(_) => None,
             Inner::Compact(r) => Some(r.sim.relative_density()),
             Inner::Explicit(r) => r.density(),
+        }
+    }
+
+    /// Shrinkage of the compact now per axis, 1 − L/L₀ [1] (the `shrinkage_x/y/z` columns of
+    /// `series.csv`); None for heat and explicit_sinter runs.
+    pub fn shrinkage(&self) -> Option<[f64; 3]> {
+        match &self.inner {
+            Inner::Compact(r) => {
+                let s = r.sim.shrinkage();
+                Some([s.x, s.y, s.z])
+            }
+            Inner::Heat(_) | Inner::Explicit(_) => None,
         }
     }
 

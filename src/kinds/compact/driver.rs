@@ -120,6 +120,11 @@ impl CompactRun {
         &self.out
     }
 
+    /// Whether a model error ended the run (it is returned by `finish`, after the outputs).
+    pub fn failed(&self) -> bool {
+        self.failure.is_some()
+    }
+
     /// Takes one accepted step and writes the outputs due in it; returns whether the run goes on.
     /// A model error ends the run (the error is returned by [`CompactRun::finish`]); an
     /// interrupt ([`crate::interrupt`]) or a stop criterion ends it after this step.
