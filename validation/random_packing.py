@@ -315,7 +315,7 @@ def write_case(pk: Packing, folder: str, name: str, rbar_m: float = 25e-6,
         fh.write(f"# Network kappa_eff of a validation packing (validation/random_packing.py); "
                  f"compared with the 3-D FE of validation/fe_random.py.\n")
         fh.write(f'title = "{name}"\n\n[time]\nend = 1.0\ndt = 0.1\n\n')
-        fh.write('[[materials]]\nname = "copper"\npreset = "copper"\n\n')
+        fh.write('[[materials]]\nname = "copper"\npreset = "copper-ivannikov2022"\n\n')
         fh.write(f'[particles]\nsource = "file"\nfile = "packing.csv"\n'
                  f"periodic_box = [{Lm!r}, {Lm!r}, {Lm!r}]\n\n")
         fh.write(f'[thermal]\nconductance = "{conductance}"\n')
