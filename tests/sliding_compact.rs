@@ -33,7 +33,7 @@ fn advance(sim: &mut Simulation) {
     }
 }
 
-/// SC (3³) and FCC (2³) lattices of touching copper spheres, free, 300 s at 1293 K: every bond is
+/// SC (3³) and FCC (2³) lattices of touching copper spheres, free, 100 s at 1293 K: every bond is
 /// loaded alike and the cell deforms affinely, so no bond shears and sliding (even at the
 /// smallest factor, the softest links) changes the shrinkage by round-off only.
 #[test]
@@ -42,9 +42,9 @@ fn lattice_free_sintering_is_unchanged_by_sliding() {
         let particles = format!("source = \"lattice\"\nlattice = \"{lattice}\"\ncells = [{cells}, {cells}, {cells}]\nradius = 25e-6\noverlap = 0.0");
         let mut s = Vec::new();
         for sliding in [&[][..], &["mechanics.sliding=\"viscous\"", "mechanics.sliding_factor=1e-4"][..]] {
-            let mut sets = vec!["contacts.detect_new=false", "solver.rtol=1e-12", "mechanics.rtol=1e-12"];
+            let mut sets = vec!["contacts.detect_new=false", "mechanics.rtol=1e-12"];
             sets.extend_from_slice(sliding);
-            let mut sim = coupled::prepare(periodic_case(300.0, &particles, "components = \"all\"", &sets), Path::new("."), &mut |_| {}).unwrap();
+            let mut sim = coupled::prepare(periodic_case(100.0, &particles, "components = \"all\"", &sets), Path::new("."), &mut |_| {}).unwrap();
             advance(&mut sim);
             if !sliding.is_empty() {
                 let t = &sim.mechanics.tangential;
@@ -54,7 +54,7 @@ fn lattice_free_sintering_is_unchanged_by_sliding() {
             s.push(sim.shrinkage());
         }
         for a in 0..3 {
-            assert!(s[0][a] > 1e-3 && (s[1][a] / s[0][a] - 1.0).abs() < 1e-9, "{lattice} axis {a}: {} with sliding, {} without", s[1][a], s[0][a]);
+            assert!(s[0][a] > 5e-4 && (s[1][a] / s[0][a] - 1.0).abs() < 1e-9, "{lattice} axis {a}: {} with sliding, {} without", s[1][a], s[0][a]);
         }
     }
 }
