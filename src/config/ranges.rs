@@ -95,6 +95,13 @@ pub static TABLE: &[Range] = &[
     c("mechanics.rtol", 1e-15, 1e-2, "1", "Newton tolerance of the bonded solve: scaled residual relative to the scaled load"),
     c("mechanics.warm_start_depth", 1.0, 8.0, "1", "earlier solutions spanning the warm start of the bonded solve (an integer)"),
     c("mechanics.plane_margin", 1.0, 2.0, "1", "a particle touches a principal plane when its centre is within margin * r"),
+    c(
+        "mechanics.sliding_factor",
+        1e-4,
+        1e2,
+        "1",
+        "sliding = \"viscous\": factor f of the tangential neck viscosity f pi a^2 R*^2 kT/(8 Omega delta D_gb) (docs/mechanics.md (B24); 1: the law as derived, 0.01: MUSEN's default)",
+    ),
     c("load.stress", 0.0, 1e9, "Pa", "compact runs: applied compressive stress (also every stress of load.stress_table; docs/pressure.md)"),
     p(
         "load.contact_stress_limit",

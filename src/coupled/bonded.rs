@@ -15,6 +15,12 @@ pub struct MechanicsStage {
     bonds: usize,
     /// Accumulated rotations [rad].
     pub rotation: Vec<Vector3<f64>>,
+    /// With sliding: the stored tangential link force per contact, global axes [N] (B27)
+    /// (checkpointed); empty without sliding.
+    pub tangential: Vec<Vector3<f64>>,
+    /// With sliding: the tangential viscosity per contact [N·s/m] (B24) and the step [s] of the
+    /// next solves, set by the caller before each ([`Self::set_sliding`]).
+    sliding: Option<(Vec<f64>, f64)>,
     /// Newton iterations and factorisations so far.
     pub newton_iterations: u64,
     pub factorizations: u64,
@@ -48,6 +54,8 @@ impl MechanicsStage {
             sys: None,
             bonds: 0,
             rotation: vec![Vector3::zeros(); n],
+            tangential: Vec::new(),
+            sliding: None,
             newton_iterations: 0,
             factorizations: 0,
             max_residual: 0.0,
@@ -78,6 +86,25 @@ impl MechanicsStage {
         Ok(())
     }
 
+    /// The tangential viscosities [N·s/m] per contact and the step `dt` [s] of the next solves
+    /// (docs/mechanics.md (B24)–(B28)); None: elastic links.
+    pub(super) fn set_sliding(&mut self, sliding: Option<(Vec<f64>, f64)>) {
+        self.sliding = sliding;
+    }
+
+    /// Puts the sliding data into the bonded system for a solve: with the stored forces of the
+    /// contacts (`commit`: a step that advances them; new contacts store nothing) or without (a
+    /// load distribution (P3), which sees the effective links only).
+    fn relaxation_for(&self, commit: bool, contacts: usize) -> Option<crate::mechanics::sliding::Relaxation> {
+        let (visc, dt) = self.sliding.as_ref()?;
+        let mut stored = Vec::new();
+        if commit {
+            stored = self.tangential.clone();
+            stored.resize(contacts, Vector3::zeros());
+        }
+        Some(crate::mechanics::sliding::Relaxation { dt: *dt, viscosity: visc.clone(), stored })
+    }
+
     /// Forgets the cached factor, so that the next step factorises afresh (done at checkpoints, so
     /// that a resumed run repeats the uninterrupted one bit for bit).
     pub fn drop_factor(&mut self) -> Result<(), Error> {
@@ -98,13 +125,21 @@ impl MechanicsStage {
         external: Option<&[NodalLoad]>,
         radii: Option<&[f64]>,
     ) -> Result<(Vec<Vector3<f64>>, Vec<f64>), Error> {
+        let relax = self.relaxation_for(true, contacts.len());
+        let sliding = relax.is_some();
         let sys = self.synced(contacts)?;
+        sys.set_relaxation(relax);
         let y4_y7 = bar_lengths(contacts);
         let load = load_increments(sys, contacts, approach, radii);
         let inp = StepInput { positions: &p.position, radii: radii.unwrap_or(&p.radius), y4_y7: &y4_y7, load: &load, external };
-        let out = step_or_refactor(sys, &inp)?;
+        let out = step_or_refactor(sys, &inp);
+        sys.set_relaxation(None);
+        let out = out?;
         for (r, d) in self.rotation.iter_mut().zip(&out.dtheta) {
             *r += d;
+        }
+        if sliding {
+            self.tangential = out.tangential.clone();
         }
         self.count(&out.info);
         Ok((out.du, out.xi))
@@ -120,10 +155,15 @@ impl MechanicsStage {
         contacts: &Contacts,
         loads: &[NodalLoad],
     ) -> Result<(Vec<f64>, Vec<Vector3<f64>>), Error> {
+        let relax = self.relaxation_for(false, contacts.len());
+        let sliding = relax.clone();
         let sys = self.synced(contacts)?;
+        sys.set_relaxation(relax);
         let y4_y7 = bar_lengths(contacts);
         let zero = vec![0.0; contacts.len()];
-        let out = step_or_refactor(sys, &StepInput { positions: &p.position, radii: &p.radius, y4_y7: &y4_y7, load: &zero, external: Some(loads) })?;
+        let out = step_or_refactor(sys, &StepInput { positions: &p.position, radii: &p.radius, y4_y7: &y4_y7, load: &zero, external: Some(loads) });
+        sys.set_relaxation(None);
+        let out = out?;
         let r_scale = p.radius.iter().sum::<f64>() / p.len().max(1) as f64;
         let mut normal = Vec::with_capacity(contacts.len());
         let mut force = Vec::with_capacity(contacts.len());
@@ -132,7 +172,13 @@ impl MechanicsStage {
             let [y4, y7] = y4_y7[k];
             let g = crate::mechanics::BondGeometry::new(&p.position[a], &p.position[b], y4, y7)?;
             let [e, nu] = sys.link_elastic(a as u32, b as u32);
-            let kl = crate::mechanics::link_stiffness(e, nu, 0.5 * (p.radius[a] + p.radius[b]));
+            let mut kl = crate::mechanics::link_stiffness(e, nu, 0.5 * (p.radius[a] + p.radius[b]));
+            if let Some(r) = &sliding {
+                // the effective shear springs of the solve (B25)
+                let phi = crate::mechanics::sliding::maxwell_factor(kl[0], r.viscosity[k], r.dt);
+                kl[0] *= phi;
+                kl[1] *= phi;
+            }
             let mut y = nalgebra::SMatrix::<f64, 12, 1>::zeros();
             for d in 0..3 {
                 y[d] = out.du[a][d];
@@ -161,20 +207,44 @@ impl MechanicsStage {
         cell: &nalgebra::Matrix3<f64>,
         controls: &[CellControl],
     ) -> Result<(Vec<Vector3<f64>>, Vec<f64>, CellStep), Error> {
+        self.periodic_step(p, contacts, approach, cell, controls, true)
+    }
+
+    /// [`Self::solve_periodic`]; `commit`: a step (rotations and stored tangential forces
+    /// advance), else a load distribution (nothing changes).
+    fn periodic_step(
+        &mut self,
+        p: &crate::particles::Particles,
+        contacts: &Contacts,
+        approach: &[f64],
+        cell: &nalgebra::Matrix3<f64>,
+        controls: &[CellControl],
+        commit: bool,
+    ) -> Result<(Vec<Vector3<f64>>, Vec<f64>, CellStep), Error> {
+        let relax = self.relaxation_for(commit, contacts.len());
+        let sliding = relax.is_some();
         let sys = self.synced(contacts)?;
+        sys.set_relaxation(relax);
         let y4_y7 = bar_lengths(contacts);
         let load = load_increments(sys, contacts, approach, None);
         let inp = StepInput { positions: &p.position, radii: &p.radius, y4_y7: &y4_y7, load: &load, external: None };
         let ci = CellInput { cell, controls };
-        let (out, cs) = match sys.step_periodic(&inp, &ci) {
+        let result = match sys.step_periodic(&inp, &ci) {
             Err(Error::Solve(_)) => {
                 sys.drop_factor();
-                sys.step_periodic(&inp, &ci)?
+                sys.step_periodic(&inp, &ci)
             }
-            r => r?,
+            r => r,
         };
-        for (r, d) in self.rotation.iter_mut().zip(&out.dtheta) {
-            *r += d;
+        sys.set_relaxation(None);
+        let (out, cs) = result?;
+        if commit {
+            for (r, d) in self.rotation.iter_mut().zip(&out.dtheta) {
+                *r += d;
+            }
+            if sliding {
+                self.tangential = out.tangential.clone();
+            }
         }
         self.count(&out.info);
         Ok((out.du, out.xi, cs))
@@ -191,9 +261,7 @@ impl MechanicsStage {
         controls: &[CellControl],
     ) -> Result<Vec<f64>, Error> {
         let zero = vec![0.0; contacts.len()];
-        let rotation = self.rotation.clone();
-        let (_, _, cs) = self.solve_periodic(p, contacts, &zero, cell, controls)?;
-        self.rotation = rotation;
+        let (_, _, cs) = self.periodic_step(p, contacts, &zero, cell, controls, false)?;
         Ok(cs.axial_force)
     }
 

@@ -179,6 +179,9 @@ pub struct MechanicsSettings {
     pub amg_keep_on_new_bonds: bool,
     /// The periodic cell's controls (`boundary = "periodic"`); None: walls.
     pub cell: Option<super::cell::CellSettings>,
+    /// Viscous grain-boundary sliding (docs/mechanics.md (B24)–(B28)): the factor f of (B24)
+    /// [1]; None: `sliding = "none"`, the elastic link.
+    pub sliding: Option<f64>,
 }
 
 impl MechanicsSettings {
@@ -196,7 +199,24 @@ impl MechanicsSettings {
         if depth.fract() != 0.0 {
             return Err(ConfigError::invalid(format!("mechanics.warm_start_depth = {depth}: expected an integer in [1, 8] (earlier solutions)")));
         }
+        let sliding = match m.sliding.as_str() {
+            "none" => {
+                if let Some(f) = m.sliding_factor {
+                    return Err(ConfigError::invalid(format!(
+                        "mechanics.sliding_factor = {f} is given but mechanics.sliding = \"none\": set sliding = \"viscous\" (docs/mechanics.md (B24)) or drop the factor"
+                    )));
+                }
+                None
+            }
+            "viscous" => Some(config::check("mechanics.sliding_factor", m.sliding_factor.unwrap_or(crate::scene::case::SLIDING_FACTOR_DEFAULT))?),
+            o => {
+                return Err(ConfigError::invalid(format!(
+                    "mechanics.sliding = \"{o}\": expected \"none\" (elastic links) or \"viscous\" (grain-boundary sliding, docs/mechanics.md (B24))"
+                )));
+            }
+        };
         Ok(MechanicsSettings {
+            sliding,
             constrain_planes: m.constrain_planes,
             plane_gap: margin - 1.0,
             solver,

@@ -30,6 +30,7 @@ pub mod constraints;
 pub mod fixtures;
 mod newton;
 pub mod periodic;
+pub mod sliding;
 pub mod solve;
 
 pub use bond::{BondGeometry, element_matrix, frame, h_matrix, kinematics, link_stiffness, skew};
@@ -81,6 +82,9 @@ pub struct MechStep {
     pub xi: Vec<f64>,
     /// The step's frame axis e3 per contact (unit, A → B).
     pub e3: Vec<Vector3<f64>>,
+    /// With sliding ([`BondedSystem::set_relaxation`]): the stored tangential link force per
+    /// contact at the step's end, global axes [N] ((B27)); empty otherwise.
+    pub tangential: Vec<Vector3<f64>>,
     /// Solver report.
     pub info: MechInfo,
 }
@@ -120,6 +124,8 @@ pub struct BondedSystem {
     history: Vec<Vec<Vec<f64>>>,
     /// `report` is a periodic cell's analysis ([`periodic::analyse`]), not the constraints'.
     periodic_report: bool,
+    /// Viscous sliding of the next steps (docs/mechanics.md (B24)–(B28)); None: elastic links.
+    relaxation: Option<sliding::Relaxation>,
 }
 
 impl BondedSystem {
@@ -142,7 +148,81 @@ impl BondedSystem {
             elastic: None,
             history: Vec::new(),
             periodic_report: false,
+            relaxation: None,
         })
+    }
+
+    /// Viscous sliding (docs/mechanics.md (B24)–(B28)) for the following steps: each link's two
+    /// shear springs become Maxwell elements with the viscosities and step of `relaxation`, and a
+    /// step returns the new stored tangential forces in [`MechStep::tangential`]. None: the elastic
+    /// link (bit for bit the system without this call). Checked against the bonds at each step.
+    pub fn set_relaxation(&mut self, relaxation: Option<sliding::Relaxation>) {
+        self.relaxation = relaxation;
+    }
+
+    /// The link stiffnesses (B5) of every bond for the radii `radii` [m], the shear entries
+    /// multiplied by the Maxwell factor (B25) when sliding is on.
+    fn link_k(&self, radii: &[f64]) -> Vec<[f64; 6]> {
+        let (e, nu) = (self.params.young_modulus, self.params.poisson_ratio);
+        self.pairs
+            .iter()
+            .enumerate()
+            .map(|(c, &[a, b])| {
+                let [e, nu] = if self.elastic.is_some() { self.link_elastic(a, b) } else { [e, nu] };
+                let mut k = link_stiffness(e, nu, 0.5 * (radii[a as usize] + radii[b as usize]));
+                if let Some(r) = &self.relaxation {
+                    let phi = sliding::maxwell_factor(k[0], r.viscosity[c], r.dt);
+                    k[0] *= phi;
+                    k[1] *= phi;
+                }
+                k
+            })
+            .collect()
+    }
+
+    /// The release loads (B26) of the stored tangential forces, per bond: `q = (1 − φ)·P_t`
+    /// (global axes, ⟂ e3) [N], the force on A (−q on B) with the moments `l × q` at the bond
+    /// point; None without sliding or with nothing stored.
+    fn release_loads(&self, geom: &[BondGeometry], radii: &[f64]) -> Option<Vec<Vector3<f64>>> {
+        let r = self.relaxation.as_ref().filter(|r| !r.stored.is_empty())?;
+        let (e, nu) = (self.params.young_modulus, self.params.poisson_ratio);
+        Some(
+            self.pairs
+                .iter()
+                .enumerate()
+                .map(|(c, &[a, b])| {
+                    let [e, nu] = if self.elastic.is_some() { self.link_elastic(a, b) } else { [e, nu] };
+                    let k = link_stiffness(e, nu, 0.5 * (radii[a as usize] + radii[b as usize]));
+                    let phi = sliding::maxwell_factor(k[0], r.viscosity[c], r.dt);
+                    r.stored_tangential(c, &geom[c].e3) * (1.0 - phi)
+                })
+                .collect(),
+        )
+    }
+
+    /// The stored tangential force of every bond after the step (B27), `P_t − q + φk_t·Δε_t`
+    /// [N], from the scaled element vectors `y_e(c)` = `[Δu_A, r̄θ_A, Δu_B(+ΔE·l), r̄θ_B]`; empty
+    /// without sliding.
+    fn relaxed_state(
+        &self,
+        geom: &[BondGeometry],
+        k: &[[f64; 6]],
+        release: Option<&[Vector3<f64>]>,
+        r_scale: f64,
+        y_e: impl Fn(usize) -> [Vector3<f64>; 4],
+    ) -> Vec<Vector3<f64>> {
+        let Some(r) = &self.relaxation else { return Vec::new() };
+        (0..self.pairs.len())
+            .map(|c| {
+                let g = &geom[c];
+                let [ua, ta, ub, tb] = y_e(c);
+                // (B3): ε = u_A − u_B − l_A0 × θ_A + l_B0 × θ_B, its part ⟂ e3
+                let eps = ua - ub - g.l_a.cross(&(ta / r_scale)) + g.l_b.cross(&(tb / r_scale));
+                let eps_t = eps - g.e3 * eps.dot(&g.e3);
+                let q = release.map_or(Vector3::zeros(), |q| q[c]);
+                r.stored_tangential(c, &g.e3) - q + eps_t * k[c][0]
+            })
+            .collect()
     }
 
     /// Gives each particle its own elastic constants `[E, ν]` ([Pa], [1]); a link takes
@@ -285,6 +365,9 @@ impl BondedSystem {
         if let Some(c) = inp.load.iter().position(|f| !f.is_finite()) {
             return Err(ModelError::new(format!("mechanics step: load increment of contact {c} is {}", inp.load[c])).into());
         }
+        if let Some(r) = &self.relaxation {
+            r.validate(m)?;
+        }
         Ok(())
     }
 
@@ -327,8 +410,19 @@ impl BondedSystem {
         if let Some(c) = xi.iter().position(|v| !v.is_finite()) {
             return Err(SolveError::new("mechanics", format!("non-finite approach at contact {c}")).into());
         }
+        let tangential = if self.relaxation.is_some() {
+            let k = self.link_k(inp.radii);
+            let release = self.release_loads(&geom, inp.radii);
+            self.relaxed_state(&geom, &k, release.as_deref(), r_scale, |c| {
+                let [a, b] = self.pairs[c];
+                let v = |i: u32, o: usize| Vector3::from_column_slice(&x[6 * i as usize + o..6 * i as usize + o + 3]);
+                [v(a, 0), v(a, 3), v(b, 0), v(b, 3)]
+            })
+        } else {
+            Vec::new()
+        };
         info.total_seconds = t_start.elapsed().as_secs_f64();
-        Ok(MechStep { du, dtheta, xi, e3: geom.iter().map(|g| g.e3).collect(), info })
+        Ok(MechStep { du, dtheta, xi, e3: geom.iter().map(|g| g.e3).collect(), tangential, info })
     }
 
     /// Solves the assembled system `blocks` (topology `rep`) for the scaled right-hand side `rhs`
@@ -425,15 +519,19 @@ impl BondedSystem {
             })
             .collect();
         let geom = geom?;
-        let k: Vec<[f64; 6]> = self
-            .pairs
-            .iter()
-            .map(|&[a, b]| {
-                let [e, nu] = if self.elastic.is_some() { self.link_elastic(a, b) } else { [e, nu] };
-                link_stiffness(e, nu, 0.5 * (inp.radii[a as usize] + inp.radii[b as usize]))
-            })
-            .collect();
+        let k: Vec<[f64; 6]> = if self.relaxation.is_some() {
+            self.link_k(inp.radii)
+        } else {
+            self.pairs
+                .iter()
+                .map(|&[a, b]| {
+                    let [e, nu] = if self.elastic.is_some() { self.link_elastic(a, b) } else { [e, nu] };
+                    link_stiffness(e, nu, 0.5 * (inp.radii[a as usize] + inp.radii[b as usize]))
+                })
+                .collect()
+        };
         let blocks = BlockMatrix::assemble(n, &self.pairs, &self.inc, &geom, &k, r_scale);
+        let release = self.release_loads(&geom, inp.radii);
         let mut rhs = vec![0.0; 6 * n];
         rhs.par_chunks_mut(6).enumerate().for_each(|(i, f)| {
             let mut force = Vector3::zeros();
@@ -442,6 +540,19 @@ impl BondedSystem {
                 if side == 0 { force += g } else { force -= g }
             }
             let mut moment = Vector3::zeros();
+            if let Some(q) = &release {
+                // (B26): the release of the stored tangential force, (B7) at the bond point
+                for &(c, side) in &self.inc.bonds[self.inc.start[i] as usize..self.inc.start[i + 1] as usize] {
+                    let (g, qc) = (&geom[c as usize], q[c as usize]);
+                    if side == 0 {
+                        force += qc;
+                        moment += g.l_a.cross(&qc) / r_scale;
+                    } else {
+                        force -= qc;
+                        moment -= g.l_b.cross(&qc) / r_scale;
+                    }
+                }
+            }
             if let Some(ext) = inp.external {
                 force += ext[i].force;
                 moment += ext[i].moment / r_scale;

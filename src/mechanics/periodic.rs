@@ -241,6 +241,8 @@ struct Coupling {
     ends: Vec<(Matrix6<f64>, Matrix6<f64>)>,
     /// Axial link stiffness `E·A/L_b` of each bond [N/m].
     k_axial: Vec<f64>,
+    /// Shear link stiffness of each bond as assembled (with sliding: `φ·k_t`, (B25)) [N/m].
+    k_shear: Vec<f64>,
     /// `K_ue`: one column per component, 6n entries, fixed DOF zero [N].
     columns: Vec<Vec<f64>>,
     /// `K_ee` [N·m].
@@ -292,16 +294,29 @@ impl BondedSystem {
 
     /// The coupling blocks of (B16): element ends, coupling columns, `K_ee` and the cell force of
     /// the sintering loads, for `nc` components.
-    fn coupling(&self, rep: &TopologyReport, inp: &StepInput, geom: &[BondGeometry], branch: &[Vector3<f64>], r_scale: f64, nc: usize) -> Coupling {
+    #[allow(clippy::too_many_arguments)]
+    fn coupling(
+        &self,
+        rep: &TopologyReport,
+        inp: &StepInput,
+        geom: &[BondGeometry],
+        branch: &[Vector3<f64>],
+        r_scale: f64,
+        nc: usize,
+        release: Option<&[Vector3<f64>]>,
+    ) -> Coupling {
         let (e, nu) = (self.params.young_modulus, self.params.poisson_ratio);
-        let k: Vec<[f64; 6]> = self
-            .pairs
-            .iter()
-            .map(|&[a, b]| {
-                let [e, nu] = if self.elastic.is_some() { self.link_elastic(a, b) } else { [e, nu] };
-                link_stiffness(e, nu, 0.5 * (inp.radii[a as usize] + inp.radii[b as usize]))
-            })
-            .collect();
+        let k: Vec<[f64; 6]> = if self.relaxation.is_some() {
+            self.link_k(inp.radii)
+        } else {
+            self.pairs
+                .iter()
+                .map(|&[a, b]| {
+                    let [e, nu] = if self.elastic.is_some() { self.link_elastic(a, b) } else { [e, nu] };
+                    link_stiffness(e, nu, 0.5 * (inp.radii[a as usize] + inp.radii[b as usize]))
+                })
+                .collect()
+        };
         let ends: Vec<(Matrix6<f64>, Matrix6<f64>)> = geom
             .par_iter()
             .zip(k.par_iter())
@@ -339,12 +354,16 @@ impl BondedSystem {
             let cs: Vec<Vector3<f64>> = g.iter().map(|gm| gm * l).collect();
             for a in 0..nc {
                 f_sinter[a] -= inp.load[c] * geom[c].e3.dot(&cs[a]);
+                if let Some(q) = release {
+                    // (B26): the release load on B, −q, works on ΔE·l like the sintering load
+                    f_sinter[a] -= q[c].dot(&cs[a]);
+                }
                 for b in 0..nc {
                     k_ee[(a, b)] += cs[a].dot(&(kbb * cs[b]));
                 }
             }
         }
-        Coupling { ends, k_axial: k.iter().map(|kk| kk[2]).collect(), columns, k_ee, f_sinter }
+        Coupling { ends, k_axial: k.iter().map(|kk| kk[2]).collect(), k_shear: k.iter().map(|kk| kk[0]).collect(), columns, k_ee, f_sinter }
     }
 
     /// [`Self::step_periodic`] with the analysis `rep` and the branch vectors.
@@ -361,7 +380,8 @@ impl BondedSystem {
         let nc = cell.controls.len();
         let volume = cell.cell.determinant();
         let (geom, blocks, rhs, r_scale) = self.prepare(rep, inp, Some(branch), &mut info)?;
-        let cp = self.coupling(rep, inp, &geom, branch, r_scale, nc);
+        let release = self.release_loads(&geom, inp.radii);
+        let cp = self.coupling(rep, inp, &geom, branch, r_scale, nc, release.as_deref());
         // (B17): K_uu X0 = f_u and K_uu Y_m = K_ue[:, m]
         // each right-hand side is its own solve with its own counters (the stale-hierarchy and
         // Newton limits are per solve) and its own warm-start history (B12)
@@ -408,7 +428,7 @@ impl BondedSystem {
         let de = strain_tensor(e.as_slice());
         let mut cs = CellStep { axial_force: Vec::with_capacity(self.pairs.len()), ..Default::default() };
         cs.strain[..nc].copy_from_slice(e.as_slice());
-        let (xi, net) = self.periodic_forces(&cp, &geom, branch, &x, &de, inp.load, volume, &mut cs);
+        let (xi, net) = self.periodic_forces(&cp, &geom, branch, &x, &de, inp.load, release.as_deref(), volume, &mut cs);
         for &gp in &rep.pinned {
             if rep.fixed[gp as usize] == dof::U {
                 cs.gauge_reaction = cs.gauge_reaction.max(net[gp as usize].norm());
@@ -420,8 +440,19 @@ impl BondedSystem {
         }
         let du: Vec<Vector3<f64>> = (0..n).map(|i| Vector3::new(x[6 * i], x[6 * i + 1], x[6 * i + 2]) + de * inp.positions[i]).collect();
         let dtheta: Vec<Vector3<f64>> = x.chunks(6).map(|c| Vector3::new(c[3], c[4], c[5]) / r_scale).collect();
+        let tangential = if self.relaxation.is_some() {
+            let k: Vec<[f64; 6]> = cp.k_shear.iter().map(|&kt| [kt, kt, 0.0, 0.0, 0.0, 0.0]).collect();
+            self.relaxed_state(&geom, &k, release.as_deref(), r_scale, |c| {
+                let [a, b] = self.pairs[c];
+                let v = |i: u32, o: usize| Vector3::from_column_slice(&x[6 * i as usize + o..6 * i as usize + o + 3]);
+                // (B15): node B carries the cell's ΔE·l
+                [v(a, 0), v(a, 3), v(b, 0) + de * branch[c], v(b, 3)]
+            })
+        } else {
+            Vec::new()
+        };
         info.total_seconds = t_start.elapsed().as_secs_f64();
-        Ok((MechStep { du, dtheta, xi, e3: geom.iter().map(|g| g.e3).collect(), info }, cs))
+        Ok((MechStep { du, dtheta, xi, e3: geom.iter().map(|g| g.e3).collect(), tangential, info }, cs))
     }
 
     /// Per bond: ξ = (Δu_A − Δu_B − ΔE·l)·e3 (B15), the axial force `k_ax·ξ`, and the virial
@@ -436,6 +467,7 @@ impl BondedSystem {
         x: &[f64],
         de: &Matrix3<f64>,
         load: &[f64],
+        release: Option<&[Vector3<f64>]>,
         volume: f64,
         cs: &mut CellStep,
     ) -> (Vec<f64>, Vec<Vector3<f64>>) {
@@ -453,7 +485,11 @@ impl BondedSystem {
             let (ab, bb) = &cp.ends[c];
             let el = -(ab.tr_mul(&ya) + bb * yb);
             // the bond's total force on B: elastic restoring force and the sintering pair load
-            let f_b = Vector3::new(el[0], el[1], el[2]) - geom[c].e3 * load[c];
+            let mut f_b = Vector3::new(el[0], el[1], el[2]) - geom[c].e3 * load[c];
+            if let Some(q) = release {
+                // (B26): the release of the stored tangential force is part of the bond's force
+                f_b -= q[c];
+            }
             net[b] += f_b;
             net[a] -= f_b;
             virial -= f_b * branch[c].transpose();

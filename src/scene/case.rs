@@ -170,6 +170,20 @@ pub struct MechanicsSpec {
     pub boundary: String,
     /// The controls of the periodic cell's strain components (`boundary = "periodic"`).
     pub cell: Option<CellSpec>,
+    /// Grain-boundary sliding at the necks: "none" (default: the elastic link of
+    /// docs/mechanics.md (B5)) or "viscous" (the Maxwell link of (B24)–(B28)).
+    #[serde(default = "no_sliding")]
+    pub sliding: String,
+    /// The dimensionless factor f of the tangential viscosity (B24) (`sliding = "viscous"`;
+    /// default [`SLIDING_FACTOR_DEFAULT`]).
+    pub sliding_factor: Option<f64>,
+}
+
+/// Default sliding factor f of (B24) [1]: the contact law as derived, without a fitted
+/// reduction (docs/decisions-mechanics.md "Sliding").
+pub const SLIDING_FACTOR_DEFAULT: f64 = 1.0;
+fn no_sliding() -> String {
+    "none".into()
 }
 
 /// Default warm-start depth of compact runs [1]: the E14B compact (docs/coupled.md "Scaling",
@@ -232,6 +246,8 @@ impl Default for MechanicsSpec {
             amg_keep_on_new_bonds: false,
             boundary: walls(),
             cell: None,
+            sliding: no_sliding(),
+            sliding_factor: None,
         }
     }
 }

@@ -8,6 +8,39 @@ use crate::coupled::expansion::StepTerms;
 use crate::error::Error;
 use nalgebra::Vector3;
 
+/// The tangential viscosity (docs/mechanics.md (B24)) of every contact at time `t` [s] with the
+/// neck radius of its current state, at its own temperature (the furnace profile when isothermal,
+/// else the contact temperature of its particles) with the grain-boundary transport δ·D_gb and Ω
+/// its 7-DOF model uses [N·s/m]; None without sliding. A contact without grain-boundary transport
+/// gets +∞ (it does not slide).
+pub(in crate::coupled) fn sliding_viscosities(sim: &Simulation, t: f64) -> Option<Vec<f64>> {
+    let f = sim.settings.mechanics.sliding?;
+    let p = &sim.prep.scene.particles;
+    let mats = &sim.d7_materials;
+    let harmonic = sim.settings.harmonic;
+    let iso = sim.prep.isothermal.as_ref();
+    Some(
+        sim.contacts
+            .state
+            .iter()
+            .zip(&sim.contacts.pairs)
+            .map(|(c, &[i, j])| {
+                let (i, j) = (i as usize, j as usize);
+                let temp = iso.map_or_else(|| super::contact_temperature(harmonic, p.temperature[i], p.temperature[j]), |prof| prof.temperature(t));
+                let pm = crate::models::diffusion7::PairMaterials {
+                    a: &mats[p.material[i] as usize],
+                    b: &mats[p.material[j] as usize],
+                    factors: sim.settings.factors,
+                };
+                let cp = pm.params_at(temp);
+                // δ·n·D_gb of the grain boundary, the mean of its two sides as in k_gb (M4)
+                let dd = 0.5 * (cp.sides[0].delta_n_gb * cp.sides[0].gb.at(temp) + cp.sides[1].delta_n_gb * cp.sides[1].gb.at(temp));
+                if dd > 0.0 { crate::mechanics::sliding::tangential_viscosity(f, c.y[0], c.r0[0], c.r0[1], cp.omega, dd, temp) } else { f64::INFINITY }
+            })
+            .collect(),
+    )
+}
+
 /// What the mechanics stage gives the correction.
 pub(in crate::coupled) struct Motion {
     /// Unit axis e3 of each contact at the step's start (A → B).
@@ -49,6 +82,9 @@ pub(in crate::coupled) fn mechanics(sim: &mut Simulation, w: &Window, temps_old:
             *a = f * *a - dth;
         }
     }
+    let visc = sliding_viscosities(sim, t1);
+    sim.mechanics.set_sliding(visc.map(|v| (v, w.dt)));
+    let p = &sim.prep.scene.particles;
     let xi: Vec<f64> = if p.len() == 2 {
         if let Some(th) = &thermal {
             // the predictor (X7) moves both; B covers the rest of the approach in the correction

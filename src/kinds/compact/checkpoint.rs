@@ -76,6 +76,10 @@ pub struct Checkpoint {
     /// The periodic cell (docs/mechanics.md "Periodic cell"); absent for walled runs.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cell: Option<crate::coupled::cell::CellState>,
+    /// With `mechanics.sliding = "viscous"`: the stored tangential link force per contact [N]
+    /// (docs/mechanics.md (B27)); absent without sliding.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub sliding_tangential: Vec<[f64; 3]>,
 }
 
 /// Format tag of compact checkpoints.
@@ -114,6 +118,7 @@ impl Simulation {
             output,
             load: self.load.as_ref().map(|l| l.to_checkpoint()),
             cell: self.cell.clone(),
+            sliding_tangential: self.mechanics.tangential.iter().map(|x| [x.x, x.y, x.z]).collect(),
         }
     }
 
@@ -131,6 +136,7 @@ impl Simulation {
         p.position = ck.position.iter().map(|x| Vector3::new(x[0], x[1], x[2])).collect();
         p.temperature = ck.temperature.clone();
         sim.mechanics.rotation = ck.rotation.iter().map(|x| Vector3::new(x[0], x[1], x[2])).collect();
+        sim.mechanics.tangential = ck.sliding_tangential.iter().map(|x| Vector3::new(x[0], x[1], x[2])).collect();
         (sim.mechanics.newton_iterations, sim.mechanics.factorizations, sim.mechanics.max_residual) = ck.mechanics_counters;
         (sim.mechanics.profile.topology_changes, sim.mechanics.profile.cg_iterations) = ck.mechanics_profile_counts;
         let mut dose = ck.dose.clone();
