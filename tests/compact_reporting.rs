@@ -15,8 +15,9 @@ fn packing(dir: &Path, edge: f64, extra: &str) -> PathBuf {
     common::write_block(dir, "packing.csv", "x,y,z,r", rows.chain(extra.lines().map(String::from)))
 }
 
+/// `material` "copper" or "titanium" takes the seed paper's fitted set (`…-ivannikov2022`).
 fn isothermal(packing: &Path, material: &str, temperature: f64, end: f64) -> toml::Value {
-    let preset = format!("name = \"{material}\"\npreset = \"{material}\"");
+    let preset = format!("name = \"{material}\"\npreset = \"{material}-ivannikov2022\"");
     let text = common::compact_text(&common::time_to(end), &[&preset], &common::file_particles(packing), &format!("{{ constant = {temperature:?} }}"));
     common::case_value(&text, &[])
 }
@@ -39,13 +40,13 @@ fn a_compact_held_below_the_calibrated_range_warns_at_the_end_with_share_one() {
     assert_eq!(w.len(), 1, "{w:?}");
     assert!(w[0].contains("copper") && w[0].contains("100.000 %") && w[0].contains("below the calibrated range 1273.0–1353.0 K"), "{w:?}");
     assert!(w[0].contains("down to 1100.0 K") && w[0].contains("contact "), "{w:?}");
-    let v = &s.summary["extrapolated_below_range"]["copper"];
+    let v = &s.summary["extrapolated_below_range"]["copper-ivannikov2022"];
     assert_eq!(v["share"].as_f64(), Some(1.0), "{v}");
     assert_eq!(v["lowest_temperature_K"].as_f64(), Some(1100.0), "{v}");
     let log = std::fs::read_to_string(dir.join("cold/log.txt")).unwrap();
     // the first time below the range stays in log.txt (detail), the verdict is the warning
-    assert!(log.contains("material \"copper\": contact temperature below the calibrated range"), "{log}");
-    assert_eq!(log.matches("warning: material \"copper\"").count(), 1, "{log}");
+    assert!(log.contains("material \"copper-ivannikov2022\": contact temperature below the calibrated range"), "{log}");
+    assert_eq!(log.matches("warning: material \"copper-ivannikov2022\"").count(), 1, "{log}");
     let s = kinds::run(&isothermal(&p, "copper", 1293.0, 50.0), &[], &dir.join("ok"), &params(&dir)).unwrap();
     assert_eq!(s.summary["warnings"].as_array().unwrap().len(), 0);
     assert_eq!(s.summary["extrapolated_below_range"], serde_json::json!({}));
@@ -125,8 +126,8 @@ fn shrinkage_without_constrained_planes_agrees_with_the_constrained_run() {
     assert!((rf / rc - 1.0).abs() < 0.01, "relative density free {rf} vs constrained {rc}");
 }
 
-/// The dose accumulators are checkpointed: a run under a ramp through the lower end of copper's
-/// range (1100 → 1293 K), killed after its checkpoint and resumed, gives the uninterrupted run's
+/// The dose accumulators are checkpointed: a run under a ramp through the lower end of
+/// copper-ivannikov2022's range (1100 → 1293 K), killed after its checkpoint and resumed, gives the uninterrupted run's
 /// verdict bit for bit (a share strictly between 0 and 1, so that both integrals matter).
 #[test]
 fn the_below_range_verdict_survives_a_resume_bit_for_bit() {
@@ -144,7 +145,7 @@ fn the_below_range_verdict_survives_a_resume_bit_for_bit() {
     let part = dir.join("part");
     assert!(sinterdem::kinds::compact::run_from(prep(&case), &part, false, &mut |_| {}, None, Some(20)).unwrap().is_null());
     let resumed = sinterdem::kinds::compact::resume(&part, false, &mut |_| {}).unwrap();
-    let v = &full["extrapolated_below_range"]["copper"];
+    let v = &full["extrapolated_below_range"]["copper-ivannikov2022"];
     let share = v["share"].as_f64().unwrap();
     assert!(share > 1e-3 && share < 0.9, "{v}");
     assert_eq!(full["extrapolated_below_range"], resumed["extrapolated_below_range"]);
