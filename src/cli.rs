@@ -433,6 +433,45 @@ where
     }
 }
 
+/// `println!` to stdout that returns an i/o error (exit 5) when stdout is a closed pipe or a full
+/// device, instead of panicking (issue 38).
+macro_rules! say {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let mut o = std::io::stdout().lock();
+        writeln!(o, $($t)*).and_then(|_| o.flush()).map_err(|e| crate::error::IoError::new(std::path::Path::new("<standard output>"), e))?;
+    }};
+}
+
+/// [`say!`] without the line break (`print!`).
+macro_rules! say_raw {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let mut o = std::io::stdout().lock();
+        write!(o, $($t)*).and_then(|_| o.flush()).map_err(|e| crate::error::IoError::new(std::path::Path::new("<standard output>"), e))?;
+    }};
+}
+
+/// The largest `--threads` (and study `threads`/`jobs`) accepted: four per available core (at
+/// least 16) — more only adds threads that wait, and an absurd count spawns its OS threads first.
+pub fn max_threads() -> usize {
+    (4 * std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1)).max(16)
+}
+
+/// Checks a thread or job count `n` given as `key`: in [1, [`max_threads`]].
+pub fn check_threads(key: &str, n: usize) -> Result<usize, crate::ConfigError> {
+    let max = max_threads();
+    if n == 0 || n > max {
+        return Err(crate::ConfigError::OutOfRange {
+            key: key.into(),
+            value: n as f64,
+            range: format!("[1, {max}] (4 per available core, at least 16)"),
+            unit: "1".into(),
+        });
+    }
+    Ok(n)
+}
+
 fn real_main(cli: Cli) -> Result<(), Error> {
     let quiet = cli.quiet;
     match cli.command {
@@ -447,8 +486,8 @@ fn real_main(cli: Cli) -> Result<(), Error> {
             let value = crate::config::load_case(&case.case, &[])?;
             let extra = checkpoint_every.map(|n| format!("output.checkpoint_every={n}")).into_iter().collect();
             match threads {
-                Some(0) => Err(crate::ConfigError::OutOfRange { key: "--threads".into(), value: 0.0, range: "[1, inf)".into(), unit: "1".into() }.into()),
                 Some(n) => {
+                    let n = check_threads("--threads", n)?;
                     let pool = rayon::ThreadPoolBuilder::new()
                         .num_threads(n)
                         .build()
@@ -474,7 +513,7 @@ fn real_main(cli: Cli) -> Result<(), Error> {
         Command::Check { case } => located(&case, || {
             let value = crate::config::load_case(&case.case, &[])?;
             let what = crate::calibrate::check_file(&value, &case.set, &base_dir(&case.case))?;
-            println!("{}: ok ({what})", case.case.display());
+            say!("{}: ok ({what})", case.case.display());
             Ok(())
         }),
         Command::Titanium { out, full, diameter, force } => {
@@ -495,6 +534,9 @@ fn real_main(cli: Cli) -> Result<(), Error> {
                 EngineArg::Local => crate::study::Engine::Local,
                 EngineArg::Slurm => crate::study::Engine::Slurm,
             };
+            if let Some(j) = jobs.filter(|&j| j > 0) {
+                check_threads("--jobs", j)?;
+            }
             let slurm = crate::study::slurm::SlurmOverrides { partition, time, account, cpus_per_task, chunk, extra: sbatch };
             let opts = crate::study::StudyOptions { engine, jobs, out, wait, retry_failed, overrides: set, progress: !quiet, slurm, plots: true, force };
             let info = crate::study::run_study(&study, &opts, &mut study_log)?;
@@ -510,29 +552,29 @@ fn real_main(cli: Cli) -> Result<(), Error> {
         }
         Command::Neck { r1, r2, overlap, kappa, kappa2, conductance, factor, contact_conductance } => {
             let v = neck_report(&NeckArgs { r1, r2, overlap, kappa, kappa2, conductance, factor, contact_conductance })?;
-            println!("{}", serde_json::to_string_pretty(&v).unwrap());
+            say!("{}", serde_json::to_string_pretty(&v).unwrap());
             Ok(())
         }
         Command::Conductivity { case } => located(&case, || {
             let value = crate::config::load_case(&case.case, &case.set)?;
             let v = crate::kinds::conductivity::run_case(value, &base_dir(&case.case))?;
-            println!("{}", serde_json::to_string_pretty(&v).unwrap());
+            say!("{}", serde_json::to_string_pretty(&v).unwrap());
             Ok(())
         }),
         Command::Calibrate { case, out, generate_synthetic, validate_compact, force } => {
             located(&case, || crate::calibrate::run_file_forced(&case.case, &case.set, &out, quiet, generate_synthetic, validate_compact, force))
         }
         Command::Keys { study } => {
-            print!("{}", if study { crate::study::spec::markdown() } else { crate::config::ranges::markdown(&crate::calibrate::every_table()) });
+            say_raw!("{}", if study { crate::study::spec::markdown() } else { crate::config::ranges::markdown(&crate::calibrate::every_table()) });
             Ok(())
         }
         Command::Materials { markdown } => {
             use crate::models::diffusion7::library;
             if markdown {
-                print!("{}", library::markdown());
+                say_raw!("{}", library::markdown());
             } else {
                 for e in library::entries() {
-                    println!("{}: {}", e.name, e.description);
+                    say!("{}: {}", e.name, e.description);
                 }
             }
             Ok(())
@@ -599,40 +641,40 @@ pub fn neck_report(a: &NeckArgs) -> Result<serde_json::Value, Error> {
 fn run_bench(which: Bench) -> Result<(), Error> {
     match which {
         Bench::Study { runs, jobs, out } => {
-            println!("{}", crate::bench::study::bench_study(runs, jobs, &out)?);
+            say!("{}", crate::bench::study::bench_study(runs, jobs, &out)?);
             Ok(())
         }
         Bench::Heat { particles, repeat } => crate::bench::heat::bench_heat(&particles, repeat.max(1)),
         Bench::HeatStep { out, cells, end } => crate::bench::heat::bench_heat_step(&out, [cells[0], cells[1], cells[2]], end).map(|_| ()),
         Bench::Mechanics { particles, cholesky_max } => {
-            println!("{}", crate::bench::mechanics::bench_mechanics_with(&particles, cholesky_max)?);
+            say!("{}", crate::bench::mechanics::bench_mechanics_with(&particles, cholesky_max)?);
             Ok(())
         }
         Bench::Coupled { case, particles, packing, steps, set } => {
             let c = (case != "none").then(|| PathBuf::from(&case));
-            println!("{}", crate::bench::bench_coupled(c.as_deref(), &particles, &packing, steps, &set)?);
+            say!("{}", crate::bench::bench_coupled(c.as_deref(), &particles, &packing, steps, &set)?);
             Ok(())
         }
         Bench::Precision { copper, e14b, corner_edge, out } => {
             let path = |c: &str| (c != "none").then(|| PathBuf::from(c));
             let (c, e) = (path(&copper), path(&e14b));
             let report = crate::bench::precision::bench_precision(c.as_deref(), e.as_deref(), corner_edge, &out, &mut |m| eprintln!("bench precision: {m}"))?;
-            println!("{report}");
+            say!("{report}");
             Ok(())
         }
         Bench::Generate { particles, out, periodic } => {
             crate::io::ensure_dir(&out)?;
-            println!("{}", crate::bench::generate::bench_generate(&out, &particles, periodic)?);
+            say!("{}", crate::bench::generate::bench_generate(&out, &particles, periodic)?);
             Ok(())
         }
         Bench::Sweep { contacts, steps, dt } => {
-            println!("{}", crate::bench::diffusion7::bench_sweep(contacts, steps, dt)?);
+            say!("{}", crate::bench::diffusion7::bench_sweep(contacts, steps, dt)?);
             Ok(())
         }
         Bench::Pair { out } => {
             crate::io::ensure_dir(&out)?;
             let table = crate::bench::diffusion7::bench_pair(&out)?;
-            println!("{table}");
+            say!("{table}");
             Ok(())
         }
     }

@@ -50,7 +50,7 @@ fn a_heat_run_resumed_from_its_checkpoint_equals_the_uninterrupted_run() {
     std::fs::remove_file(part.join("summary.json")).unwrap();
     let mut bad = ck.clone();
     bad["state"]["t"] = serde_json::json!(-1.0);
-    std::fs::write(part.join("checkpoint.json"), bad.to_string()).unwrap();
+    std::fs::write(part.join("checkpoint.json"), sinterdem::io::seal_value(&bad)).unwrap();
     let e = kinds::resume(&part, &RunParams::default()).unwrap_err().to_string();
     assert!(e.contains("checkpoint.json") && e.contains("t = -1"), "{e}");
 }

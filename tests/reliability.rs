@@ -388,7 +388,7 @@ fn item03_corrupted_checkpoints_are_refused_before_resuming() {
         }
         let mut ck = good.clone();
         ck[k] = v.clone();
-        std::fs::write(dir.join("checkpoint.json"), ck.to_string()).unwrap();
+        std::fs::write(dir.join("checkpoint.json"), sinterdem::io::seal_value(&ck)).unwrap();
         let mut cmd = bin();
         cmd.arg("resume").arg(&dir).arg("--quiet");
         let o = run_with_limit(cmd, 60).unwrap_or_else(|| panic!("resume with {k} = {v} did not finish within 60 s"));

@@ -376,7 +376,7 @@ fn refused_edits(d: &Path, run: &Path, good: &serde_json::Value, edits: Vec<(&st
         let _ = std::fs::remove_file(dir.join("summary.json"));
         let mut ck = good.clone();
         *ck.pointer_mut(pointer).unwrap_or_else(|| panic!("{pointer} not in the checkpoint")) = v.clone();
-        std::fs::write(dir.join("checkpoint.json"), ck.to_string()).unwrap();
+        std::fs::write(dir.join("checkpoint.json"), sinterdem::io::seal_value(&ck)).unwrap();
         let o = bin().arg("resume").arg(&dir).arg("--quiet").output().unwrap();
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(1), "{pointer} = {v}: {err}");

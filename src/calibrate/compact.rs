@@ -456,6 +456,7 @@ pub fn validate(
     let (case, _) = derived_case(&case_path, material, factors, start_factors, &section.overrides)?;
     let case_file = dir.join("case.toml");
     let text = toml::to_string(&case).map_err(|e| IoError::new(&case_file, e))?;
+    crate::io::manifest::record(&case_file)?;
     std::fs::write(&case_file, format!("# {} with the pair-calibrated material (sinterdem calibrate --validate-compact)\n{text}", case_path.display()))
         .map_err(|e| IoError::new(&case_file, e))?;
     let list = |f: &dyn Fn(&Experiment) -> String| chosen.iter().map(|&i| f(&experiments[i])).collect::<Vec<_>>().join(", ");
@@ -471,6 +472,7 @@ pub fn validate(
         list(&|e| format!("{:?}", e.profile.duration()))
     );
     let study_file = dir.join("study.toml");
+    crate::io::manifest::record(&study_file)?;
     std::fs::write(&study_file, study_text).map_err(|e| IoError::new(&study_file, e))?;
     log(&format!("validate-compact: {} experiment(s) on {} ({})", chosen.len(), case_path.display(), study_file.display()));
     let opts = StudyOptions { out: Some(dir.join("study")), progress: true, ..Default::default() };
@@ -520,6 +522,7 @@ pub fn validate(
         ));
     }
     let path = out.join("compact_validation.csv");
+    crate::io::manifest::record(&path)?;
     std::fs::write(&path, csv).map_err(|e| IoError::new(&path, e))?;
     Ok(path)
 }

@@ -346,7 +346,13 @@ pub fn run(setup: Setup, out: &Path, log: &mut dyn FnMut(&str)) -> Result<report
     }
     // an unfinished calibration is continued; a finished one or another command's outputs need
     // --force (docs/outputs.md "Guarantees")
-    if let Some(note) = crate::io::outdir::claim(out, crate::io::outdir::Claimant::Calibration, setup.force, None)? {
+    if let Some(note) = crate::io::outdir::claim(
+        out,
+        crate::io::outdir::Claimant::Calibration,
+        setup.force,
+        None,
+        &[setup.data_path.clone()].into_iter().chain(setup.series_path.clone()).collect::<Vec<_>>(),
+    )? {
         log(&note);
     }
     let Setup {

@@ -309,6 +309,7 @@ pub fn write_material(path: &Path, m: &Material, factors: Option<&PathFactors>, 
     }
     text.push('\n');
     text.push_str(&material_toml(m, factors));
+    crate::io::manifest::record(path)?;
     std::fs::write(path, text).map_err(|e| IoError::new(path, e))?;
     Ok(())
 }

@@ -126,6 +126,7 @@ pub fn titanium_csv(seed: u64) -> Result<String, Error> {
 /// Writes [`titanium_csv`] with [`BUNDLED_SEED`] to `path`.
 pub fn write_titanium_synthetic(path: &Path) -> Result<(), Error> {
     let text = titanium_csv(BUNDLED_SEED)?;
+    crate::io::manifest::record(path)?;
     std::fs::write(path, text).map_err(|e| crate::error::IoError::new(path, e))?;
     Ok(())
 }

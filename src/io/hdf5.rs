@@ -341,6 +341,7 @@ pub struct H5Writer {
 impl H5Writer {
     pub fn create(path: &Path) -> Result<Self, H5Error> {
         let err = |e: hdf5_metno::Error| H5Error::Io(IoError::new(path, e));
+        crate::io::manifest::record(path).map_err(H5Error::Io)?;
         let file = hdf5_metno::File::create(path).map_err(err)?;
         imp::header(&file).map_err(err)?;
         file.close().map_err(err)?;
@@ -363,6 +364,7 @@ impl H5Writer {
             Ok(()) => Ok(H5Writer { path: path.to_path_buf(), note: None }),
             Err(e) => {
                 let moved = path.with_extension("h5.damaged");
+                crate::io::manifest::record(&moved).map_err(H5Error::Io)?;
                 std::fs::rename(path, &moved).map_err(|io| H5Error::Io(IoError::new(path, io)))?;
                 let mut w = Self::create(path)?;
                 w.note = Some(format!(

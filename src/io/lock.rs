@@ -68,6 +68,10 @@ impl Drop for OutputLock {
         // the holder line is cleared so that the next writer does not report a takeover after a
         // clean exit; the OS releases the lock when the file is closed
         let _ = self.file.set_len(0);
+        // the directory's output manifest is closed with its lock (crate::io::manifest)
+        if let Some(dir) = self.path.parent() {
+            crate::io::manifest::end(dir);
+        }
         let _ = self.file.unlock();
     }
 }

@@ -4,6 +4,7 @@
 pub mod hdf5;
 pub mod inputs;
 pub mod lock;
+pub mod manifest;
 pub mod outdir;
 pub mod progress;
 pub mod vtu;
@@ -51,11 +52,65 @@ pub fn write_atomic_bytes(path: &Path, bytes: &[u8]) -> Result<(), IoError> {
     let mut name = path.file_name().map(|n| n.to_os_string()).unwrap_or_default();
     name.push(format!(".tmp{}", std::process::id()));
     let tmp = path.with_file_name(name);
+    crate::io::manifest::record(path)?;
     if let Err(e) = std::fs::write(&tmp, bytes) {
         let _ = std::fs::remove_file(&tmp);
         return Err(IoError::new(&tmp, e));
     }
     std::fs::rename(&tmp, path).map_err(|e| IoError::new(path, e))
+}
+
+/// The key of a checkpoint's checksum: the SHA-256 (hex) of the checkpoint's JSON text without it
+/// (issue 38: a checkpoint changed or damaged after it was written is refused, not resumed).
+pub const CHECKSUM_KEY: &str = "content_sha256";
+
+fn sha256_hex(text: &str) -> String {
+    use sha2::{Digest, Sha256};
+    Sha256::digest(text.as_bytes()).iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// `json` (a JSON object's text) with its checksum appended as the last member [`CHECKSUM_KEY`].
+pub fn seal(json: &str) -> String {
+    let body = json.trim_end();
+    match body.strip_suffix('}') {
+        Some(open) if open.trim_end() != "{" => format!("{open},\"{CHECKSUM_KEY}\":\"{}\"}}", sha256_hex(body)),
+        _ => body.to_string(),
+    }
+}
+
+/// [`seal`] of a JSON value (an edited checkpoint: its old checksum dropped first).
+pub fn seal_value(v: &serde_json::Value) -> String {
+    let mut v = v.clone();
+    if let Some(m) = v.as_object_mut() {
+        m.remove(CHECKSUM_KEY);
+    }
+    seal(&v.to_string())
+}
+
+/// Writes a checkpoint's JSON text `json` atomically, sealed with its checksum ([`seal`]).
+pub fn write_checkpoint_json(path: &Path, json: &str) -> Result<(), IoError> {
+    write_atomic(path, &seal(json))
+}
+
+/// Reads a checkpoint written by [`write_checkpoint_json`] and returns its JSON text after checking
+/// its checksum: a checkpoint without one, or whose content does not match it, is refused.
+pub fn read_checkpoint_json(path: &Path) -> Result<String, IoError> {
+    let text = read_input(path)?;
+    let body = text.trim_end();
+    let tail = format!(",\"{CHECKSUM_KEY}\":\"");
+    let again = "sinterdem cannot continue it: run the case again (`--force`)";
+    let Some((head, sum)) = body.rsplit_once(&tail) else {
+        return Err(IoError::new(path, format!("has no checksum ({CHECKSUM_KEY}): written by an older sinterdem, or not by sinterdem; {again}")));
+    };
+    let sum = sum.strip_suffix("\"}").unwrap_or("");
+    let json = format!("{head}}}");
+    if sum.len() != 64 || sha256_hex(&json) != sum {
+        return Err(IoError::new(
+            path,
+            format!("does not match its checksum ({CHECKSUM_KEY}): the checkpoint was changed or damaged after it was written; {again}"),
+        ));
+    }
+    Ok(json)
 }
 
 /// Serde for `Vector3<f64>` as `[x, y, z]` (checkpoints; nalgebra's serde feature is off):
@@ -182,6 +237,7 @@ pub struct Series {
 impl Series {
     /// Creates the file and writes the header. Column names carry their unit, e.g. `time_s`.
     pub fn create(path: &Path, header: &[&str]) -> Result<Self, IoError> {
+        crate::io::manifest::record(path)?;
         let f = std::fs::File::create(path).map_err(|e| IoError::new(path, e))?;
         let counts = header.iter().map(|h| is_count_column(h)).collect();
         let mut s = Series { path: path.to_path_buf(), file: std::io::BufWriter::new(f), counts };

@@ -9,8 +9,9 @@
 //! `resume` continues its own run and is not concerned.
 
 use crate::error::IoError;
+use crate::io::manifest::MANIFEST;
 use sha2::{Digest, Sha256};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// The run marker: written by every run at its start, with the fingerprint of its case
 /// ([`case_fingerprint`]), so that a rerun of the same case is told from another run.
@@ -24,9 +25,6 @@ const RUN_MARKERS: &[&str] = &["summary.json", "checkpoint.json", "series.csv", 
 const STUDY_MARKERS: &[&str] = &["plan.json", "study.csv", "study.json", "executions.log"];
 /// Files that only a calibration writes at the top of its directory.
 const CALIBRATION_MARKERS: &[&str] = &["calibration.json", "residuals.csv"];
-
-/// Subdirectories a study or calibration writes whole (`plots/` holds images only).
-const OUTPUT_DIRS: &[&str] = &["plots", "runs", "slurm", "compact-fit"];
 
 /// What an output directory holds from an earlier command.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -70,7 +68,12 @@ pub fn is_snapshot_file(name: &str) -> bool {
 /// `log.txt`).
 pub fn held(dir: &Path) -> Held {
     let Ok(entries) = std::fs::read_dir(dir) else { return Held::Nothing };
-    let mut names: Vec<String> = entries.flatten().filter_map(|e| e.file_name().to_str().map(str::to_string)).collect();
+    let names: Vec<String> = entries.flatten().filter_map(|e| e.file_name().to_str().map(str::to_string)).collect();
+    held_names(names)
+}
+
+/// [`held`] of a directory holding the entries `names`.
+fn held_names(mut names: Vec<String>) -> Held {
     names.sort();
     let pick = |set: &[&str]| -> Vec<String> { names.iter().filter(|n| set.contains(&n.as_str())).cloned().collect() };
     let study = pick(STUDY_MARKERS);
@@ -89,30 +92,8 @@ pub fn held(dir: &Path) -> Held {
     if run.is_empty() { Held::Nothing } else { Held::Run(run) }
 }
 
-/// Whether `name` (a file at the top of an output directory) is of a kind sinterdem writes:
-/// data, plots, logs, snapshots, HDF5, and the temporary files of an interrupted atomic write.
-fn is_output_file(name: &str) -> bool {
-    if name == crate::io::lock::LOCK_FILE {
-        return false;
-    }
-    if name.contains(".tmp") {
-        return true;
-    }
-    let ext = name.rsplit_once('.').map(|(_, e)| e).unwrap_or("");
-    matches!(ext, "json" | "csv" | "vtu" | "pvd" | "h5" | "png" | "svg" | "txt" | "log" | "sh" | "out" | "err")
-}
-
-/// Whether the subdirectory `dir` holds sinterdem outputs, at any depth (a study's `runs/NNNN`,
-/// a calibration's `compact-fit/`).
-fn holds_outputs(dir: &Path, depth: usize) -> bool {
-    if held(dir) != Held::Nothing {
-        return true;
-    }
-    depth > 0 && std::fs::read_dir(dir).is_ok_and(|es| es.flatten().any(|e| e.file_type().is_ok_and(|t| t.is_dir()) && holds_outputs(&e.path(), depth - 1)))
-}
-
-/// What `--force` removed: counts for the log line, and the files kept because no sinterdem
-/// command writes them (a case file kept beside its outputs).
+/// What `--force` removed: counts for the log line, and what was kept (every file and folder no
+/// sinterdem command recorded as its output, and the inputs of the coming run).
 #[derive(Debug, Default, Clone, PartialEq, Eq)]
 pub struct Cleared {
     pub files: usize,
@@ -124,7 +105,7 @@ impl Cleared {
     /// The log line of a forced clear.
     pub fn note(&self, held: &Held) -> String {
         let mut s = format!(
-            "--force: removed {} ({} file{} and {} director{}) before this run",
+            "--force: removed {} ({} file{} and {} director{}, as listed in {MANIFEST}) before this run",
             held.describe(),
             self.files,
             if self.files == 1 { "" } else { "s" },
@@ -132,33 +113,59 @@ impl Cleared {
             if self.dirs == 1 { "y" } else { "ies" }
         );
         if !self.kept.is_empty() {
-            s.push_str(&format!("; kept {} (not written by sinterdem)", self.kept.join(", ")));
+            s.push_str(&format!("; kept {} (not written by sinterdem, or read by this run)", self.kept.join(", ")));
         }
         s
     }
 }
 
-/// Removes the earlier outputs in `dir`: the files sinterdem writes ([`is_output_file`]) and the
-/// subdirectories that hold sinterdem outputs; other files (a case file, notes) and the lock stay.
-pub fn clear(dir: &Path) -> Result<Cleared, IoError> {
+/// Removes the earlier outputs in `dir`: exactly the files its output manifest ([`MANIFEST`],
+/// `crate::io::manifest`) lists (and those of the nested output directories it lists), then the
+/// folders they leave empty. Every other file and folder stays, and so do the files of
+/// `protected` (what the coming run reads). Refused, before anything is removed, when outputs
+/// would remain that no manifest lists (a directory written by an older sinterdem, or files a
+/// user put there under sinterdem's names): which of them sinterdem wrote cannot be told.
+pub fn clear(dir: &Path, protected: &[PathBuf]) -> Result<Cleared, IoError> {
+    let removal = crate::io::manifest::removal(dir, protected)?.unwrap_or_default();
+    let top: Vec<String> = std::fs::read_dir(dir).into_iter().flatten().flatten().filter_map(|e| e.file_name().to_str().map(str::to_string)).collect();
+    let gone = |n: &str| removal.files.iter().any(|f| f.parent() == Some(dir) && f.file_name().is_some_and(|f| f == n));
+    let input = |n: &str| {
+        removal
+            .kept_inputs
+            .iter()
+            .chain(protected)
+            .any(|f| f.parent().is_some_and(|p| crate::io::manifest::same_dir(p, dir)) && f.file_name().is_some_and(|f| f == n))
+    };
+    let remaining: Vec<String> = top.iter().filter(|n| !gone(n) && !input(n) && n.as_str() != crate::io::lock::LOCK_FILE).cloned().collect();
+    let left = held_names(remaining);
+    if left != Held::Nothing {
+        return Err(IoError::new(
+            dir,
+            format!(
+                "holds {} that no sinterdem command recorded as its outputs ({MANIFEST} {}); sinterdem removes only the files it recorded: remove them yourself, or choose another --out",
+                left.describe(),
+                if dir.join(MANIFEST).exists() { "does not list them" } else { "is missing: written by an older sinterdem, or not by sinterdem" }
+            ),
+        ));
+    }
     let mut c = Cleared::default();
-    let Ok(entries) = std::fs::read_dir(dir) else { return Ok(c) };
-    for e in entries.flatten() {
+    for f in &removal.files {
+        match std::fs::remove_file(f) {
+            Ok(()) => c.files += usize::from(f.file_name().is_none_or(|n| n != MANIFEST)),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => return Err(IoError::new(f, e)),
+        }
+    }
+    for d in &removal.dirs {
+        // only a folder left empty goes: one holding anything else is the user's
+        if std::fs::remove_dir(d).is_ok() {
+            c.dirs += 1;
+        }
+    }
+    for e in std::fs::read_dir(dir).into_iter().flatten().flatten() {
         let name = e.file_name().to_string_lossy().to_string();
-        let path = e.path();
-        let Ok(t) = e.file_type() else { continue };
-        if t.is_dir() {
-            if OUTPUT_DIRS.contains(&name.as_str()) || holds_outputs(&path, 3) {
-                std::fs::remove_dir_all(&path).map_err(|err| IoError::new(&path, err))?;
-                c.dirs += 1;
-            } else {
-                c.kept.push(format!("{name}/"));
-            }
-        } else if is_output_file(&name) {
-            std::fs::remove_file(&path).map_err(|err| IoError::new(&path, err))?;
-            c.files += 1;
-        } else if name != crate::io::lock::LOCK_FILE {
-            c.kept.push(name);
+        if name != crate::io::lock::LOCK_FILE {
+            c.kept.push(if e.file_type().is_ok_and(|t| t.is_dir()) { format!("{name}/") } else { name });
         }
     }
     c.kept.sort();
@@ -216,27 +223,34 @@ pub enum Claimant {
 
 /// Claims `dir` for a command before it writes its first file (the caller holds the directory's
 /// lock): refuses a directory holding another command's outputs unless `force`, and with `force`
-/// removes them ([`clear`]). A run (`fingerprint`: its [`case_fingerprint`]) into a directory
-/// whose run marker names the same case is a rerun of that case: the earlier outputs are removed
-/// as with `force`. Returns the log line of what was removed, if anything.
-pub fn claim(dir: &Path, who: Claimant, force: bool, fingerprint: Option<&str>) -> Result<Option<String>, IoError> {
+/// removes them ([`clear`]: the files its output manifest lists, never `protected`, the files the
+/// command reads). A run (`fingerprint`: its [`case_fingerprint`]) into a directory whose run
+/// marker names the same case is a rerun of that case: the earlier outputs are removed as with
+/// `force`. The directory's output manifest is then opened (`crate::io::manifest::begin`), before
+/// anything else is written. Returns the log line of what was removed, if anything.
+pub fn claim(dir: &Path, who: Claimant, force: bool, fingerprint: Option<&str>, protected: &[PathBuf]) -> Result<Option<String>, IoError> {
     let h = held(dir);
     if let (Held::Run(_), Some(fp), false) = (&h, fingerprint, force)
         && same_case(dir, fp)
     {
-        let c = clear(dir)?;
+        let c = clear(dir, protected)?;
+        crate::io::manifest::begin(dir, false)?;
         return Ok(Some(format!(
             "a rerun of the same case ({RUN_MARKER}: the same resolved case and input files): {}",
             c.note(&h).trim_start_matches("--force: ")
         )));
     }
     let own = match (&h, who) {
-        (Held::Nothing, _) => return Ok(None),
+        (Held::Nothing, _) => {
+            crate::io::manifest::begin(dir, true)?;
+            return Ok(None);
+        }
         (Held::Study(_), Claimant::Study) => true,
         (Held::Calibration(_), Claimant::Calibration) => true,
         _ => false,
     };
     if own && !force {
+        crate::io::manifest::begin(dir, true)?;
         return Ok(None);
     }
     if !force {
@@ -250,13 +264,15 @@ pub fn claim(dir: &Path, who: Claimant, force: bool, fingerprint: Option<&str>) 
             format!("holds {}; {command} would mix its files with them: choose another --out, or add --force to remove them first", h.describe()),
         ));
     }
-    let c = clear(dir)?;
+    let c = clear(dir, protected)?;
+    crate::io::manifest::begin(dir, false)?;
     Ok(Some(c.note(&h)))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::io::manifest;
 
     fn dir(name: &str) -> std::path::PathBuf {
         let d = std::env::temp_dir().join(format!("sinterdem-outdir-{name}-{}", std::process::id()));
@@ -265,48 +281,67 @@ mod tests {
         d
     }
 
-    #[test]
-    fn a_run_directory_is_refused_then_cleared_with_force_keeping_foreign_files() {
-        let d = dir("run");
-        assert_eq!(claim(&d, Claimant::Run, false, None).unwrap(), None, "an empty directory is free");
-        // a run refused at its start leaves its log and input fingerprints only: not a result
-        std::fs::write(d.join("log.txt"), "x").unwrap();
-        std::fs::write(d.join("inputs.json"), "x").unwrap();
-        assert_eq!(held(&d), Held::Nothing);
-        for f in ["summary.json", "particles_000000.vtu", "particles_000001.vtu", "particles.pvd", "case.toml", "series.csv.tmp42"] {
+    /// Writes `names` in `d` as a command recording them would.
+    fn written(d: &Path, names: &[&str]) {
+        for f in names {
+            manifest::record(&d.join(f)).unwrap();
             std::fs::write(d.join(f), "x").unwrap();
         }
+    }
+
+    #[test]
+    fn a_run_directory_is_refused_then_cleared_with_force_keeping_every_unrecorded_file() {
+        let d = dir("run");
+        assert_eq!(claim(&d, Claimant::Run, false, None, &[]).unwrap(), None, "an empty directory is free");
+        // a run refused at its start leaves its log and input fingerprints only: not a result
+        written(&d, &["log.txt", "inputs.json"]);
+        assert_eq!(held(&d), Held::Nothing);
+        written(&d, &["summary.json", "particles_000000.vtu", "particles_000001.vtu", "particles.pvd", "series.csv"]);
+        std::fs::rename(d.join("series.csv"), d.join("series.csv.tmp42")).unwrap();
+        manifest::end(&d);
+        // the user's: a case file, a folder, a folder holding a summary.json
+        std::fs::write(d.join("case.toml"), "x").unwrap();
         std::fs::create_dir_all(d.join("runs/0000")).unwrap();
         std::fs::write(d.join("runs/0000/summary.json"), "{}").unwrap();
         std::fs::create_dir_all(d.join("notes")).unwrap();
-        let err = claim(&d, Claimant::Run, false, None).unwrap_err().to_string();
+        let err = claim(&d, Claimant::Run, false, None, &[]).unwrap_err().to_string();
         assert!(err.contains("the outputs of a run (summary.json, 3 snapshot files)") && err.contains("--force"), "{err}");
         // a study or calibration does not continue a run's directory either
-        assert!(claim(&d, Claimant::Study, false, None).is_err() && claim(&d, Claimant::Calibration, false, None).is_err());
-        let note = claim(&d, Claimant::Run, true, None).unwrap().unwrap();
-        assert!(note.contains("7 files and 1 directory") && note.contains("kept case.toml, notes/"), "{note}");
+        assert!(claim(&d, Claimant::Study, false, None, &[]).is_err() && claim(&d, Claimant::Calibration, false, None, &[]).is_err());
+        let note = claim(&d, Claimant::Run, true, None, &[]).unwrap().unwrap();
+        manifest::end(&d);
+        assert!(note.contains("7 files and 0 directories") && note.contains("kept case.toml, notes/, runs/"), "{note}");
         let mut left: Vec<String> = std::fs::read_dir(&d).unwrap().flatten().map(|e| e.file_name().to_string_lossy().to_string()).collect();
         left.sort();
-        assert_eq!(left, ["case.toml", "notes"]);
+        assert_eq!(left, ["case.toml", "notes", "outputs.json", "runs"]);
+        assert!(d.join("runs/0000/summary.json").exists());
         assert_eq!(held(&d), Held::Nothing);
+        // run files no manifest lists: refused, nothing removed
+        std::fs::write(d.join("summary.json"), "{}").unwrap();
+        let err = claim(&d, Claimant::Run, true, None, &[]).unwrap_err().to_string();
+        assert!(err.contains("no sinterdem command recorded") && err.contains("does not list them"), "{err}");
+        assert!(d.join("summary.json").exists() && d.join("case.toml").exists());
         let _ = std::fs::remove_dir_all(&d);
     }
 
     #[test]
-    fn a_rerun_of_the_same_case_replaces_its_outputs_and_another_case_is_refused() {
+    fn a_rerun_of_the_same_case_replaces_its_outputs_keeping_its_inputs_and_another_case_is_refused() {
         let d = dir("same");
         let case: toml::Value = toml::Value::Table("kind = \"heat\"\n[time]\nend = 10.0\n".parse().unwrap());
         let fp = case_fingerprint(&case, &d);
+        assert_eq!(claim(&d, Claimant::Run, false, Some(&fp), &[]).unwrap(), None);
         write_marker(&d, "heat", &fp).unwrap();
-        std::fs::write(d.join("summary.json"), "{}").unwrap();
-        std::fs::write(d.join("particles_000003.vtu"), "x").unwrap();
+        written(&d, &["summary.json", "particles_000003.vtu", "packing.csv"]);
+        manifest::end(&d);
         let other: toml::Value = toml::Value::Table("kind = \"heat\"\n[time]\nend = 11.0\n".parse().unwrap());
-        let e = claim(&d, Claimant::Run, false, Some(&case_fingerprint(&other, &d))).unwrap_err().to_string();
+        let e = claim(&d, Claimant::Run, false, Some(&case_fingerprint(&other, &d)), &[]).unwrap_err().to_string();
         assert!(e.contains("--force"), "{e}");
-        let note = claim(&d, Claimant::Run, false, Some(&fp)).unwrap().unwrap();
-        assert!(note.starts_with("a rerun of the same case") && note.contains("3 files"), "{note}");
-        assert_eq!(held(&d), Held::Nothing);
-        assert!(!d.join("particles_000003.vtu").exists() && !d.join(RUN_MARKER).exists());
+        // the earlier run wrote packing.csv, which this run reads: kept
+        let note = claim(&d, Claimant::Run, false, Some(&fp), &[d.join("packing.csv")]).unwrap().unwrap();
+        manifest::end(&d);
+        assert!(note.starts_with("a rerun of the same case") && note.contains("3 files") && note.contains("packing.csv"), "{note}");
+        assert_eq!(held(&d), Held::Run(vec!["packing.csv".into()]));
+        assert!(!d.join("particles_000003.vtu").exists() && !d.join(RUN_MARKER).exists() && d.join("packing.csv").exists());
         let _ = std::fs::remove_dir_all(&d);
     }
 
@@ -314,15 +349,19 @@ mod tests {
     fn a_study_and_a_calibration_continue_their_own_directories_only() {
         let d = dir("study");
         std::fs::write(d.join("plan.json"), "[]").unwrap();
-        assert_eq!(claim(&d, Claimant::Study, false, None).unwrap(), None);
-        assert!(claim(&d, Claimant::Run, false, None).unwrap_err().to_string().contains("the outputs of a study (plan.json)"));
-        assert!(claim(&d, Claimant::Calibration, false, None).is_err());
+        assert_eq!(claim(&d, Claimant::Study, false, None, &[]).unwrap(), None);
+        manifest::end(&d);
+        assert!(claim(&d, Claimant::Run, false, None, &[]).unwrap_err().to_string().contains("the outputs of a study (plan.json)"));
+        assert!(claim(&d, Claimant::Calibration, false, None, &[]).is_err());
         let c = dir("calibration");
-        std::fs::write(c.join("residuals.csv"), "").unwrap();
-        std::fs::write(c.join("calibration.json"), "{}").unwrap();
-        assert_eq!(claim(&c, Claimant::Calibration, false, None).unwrap(), None, "continued");
-        assert!(claim(&c, Claimant::Run, false, None).is_err() && claim(&c, Claimant::Study, false, None).is_err());
-        assert!(claim(&c, Claimant::Calibration, true, None).unwrap().is_some());
+        assert_eq!(claim(&c, Claimant::Calibration, false, None, &[]).unwrap(), None);
+        written(&c, &["residuals.csv", "calibration.json"]);
+        manifest::end(&c);
+        assert_eq!(claim(&c, Claimant::Calibration, false, None, &[]).unwrap(), None, "continued");
+        manifest::end(&c);
+        assert!(claim(&c, Claimant::Run, false, None, &[]).is_err() && claim(&c, Claimant::Study, false, None, &[]).is_err());
+        assert!(claim(&c, Claimant::Calibration, true, None, &[]).unwrap().is_some());
+        manifest::end(&c);
         assert_eq!(held(&c), Held::Nothing);
         let _ = std::fs::remove_dir_all(&d);
         let _ = std::fs::remove_dir_all(&c);

@@ -140,6 +140,7 @@ pub fn write_snapshot(dir: &Path, index: usize, snap: &Snapshot) -> Result<(Path
     pd.vectors.extend(snap.particle_vectors.iter().copied());
     let p_path = dir.join(format!("particles_{index:06}.vtu"));
     let cells: Vec<u32> = (0..n as u32).collect();
+    crate::io::manifest::record(&p_path)?;
     std::fs::write(&p_path, grid(snap.position, &cells, 1, VTK_VERTEX, &pd, &Data::default())).map_err(|e| IoError::new(&p_path, e))?;
     let lines: Vec<u32> = snap.contacts.iter().flat_map(|c| [c[0], c[1]]).collect();
     let mut cd = Data::default();
@@ -147,6 +148,7 @@ pub fn write_snapshot(dir: &Path, index: usize, snap: &Snapshot) -> Result<(Path
     cd.ints.push(("particle_b", snap.contacts.iter().map(|c| c[1] as i32).collect()));
     cd.scalars.extend(snap.contact_data.iter().copied());
     let c_path = dir.join(format!("contacts_{index:06}.vtu"));
+    crate::io::manifest::record(&c_path)?;
     std::fs::write(&c_path, grid(snap.position, &lines, 2, VTK_LINE, &Data::default(), &cd)).map_err(|e| IoError::new(&c_path, e))?;
     Ok((p_path, c_path))
 }
@@ -184,6 +186,7 @@ impl PvdIndex {
             }
             s.push_str("</Collection>\n</VTKFile>\n");
             let path = dir.join(file);
+            crate::io::manifest::record(&path)?;
             std::fs::write(&path, s).map_err(|e| IoError::new(&path, e))?;
         }
         Ok(())

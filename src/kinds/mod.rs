@@ -167,7 +167,12 @@ impl RunLog {
     /// Opens `dir/log.txt`; `append` keeps earlier lines (resume).
     pub fn open(dir: &Path, append: bool, echo: bool) -> RunLog {
         let path = dir.join("log.txt");
-        let file = std::fs::OpenOptions::new().create(true).write(true).append(append).truncate(!append).open(path).ok().map(|f| Arc::new(Mutex::new(f)));
+        // a log that cannot be recorded is not opened: the run's first output write reports why
+        let recorded = crate::io::manifest::record(&path).is_ok();
+        let file = recorded
+            .then(|| std::fs::OpenOptions::new().create(true).write(true).append(append).truncate(!append).open(&path).ok())
+            .flatten()
+            .map(|f| Arc::new(Mutex::new(f)));
         let route = file.clone().map(crate::logging::RunFile::enter);
         RunLog { file, echo, _route: route, lock: None }
     }
@@ -205,13 +210,28 @@ pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunPar
     let (value, kind, mut log) = open_run(case, overrides, out, params)?;
     if matches!(kind, Kind::Heat | Kind::Compact | Kind::ExplicitSinter) {
         let mut s = Stepper::opened(value, kind, log, out, params, wall)?;
-        while s.step()? {}
-        return s.finish();
+        loop {
+            match s.step() {
+                Ok(true) => {}
+                Ok(false) => return s.finish(),
+                Err(e) => return Err(s.fail(e, out)),
+            }
+        }
     }
+    let result = run_unstepped(kind, &value, out, params, &mut log);
+    if let Err(e) = &result {
+        // the error in log.txt too (issue 39)
+        log.line(&format!("error: {e}"));
+    }
+    Ok(RunSummary { kind, wall_seconds: wall.elapsed().as_secs_f64(), summary: result? })
+}
+
+/// The body of a pair or generate run (their summary).
+fn run_unstepped(kind: Kind, value: &toml::Value, out: &Path, params: &RunParams, log: &mut RunLog) -> Result<serde_json::Value, Error> {
     let mut logf = |m: &str| log.line(m);
     let summary = match kind {
         Kind::Pair => {
-            let mut spec = crate::kinds::pair::parse_pair_case(&value)?;
+            let mut spec = crate::kinds::pair::parse_pair_case(value)?;
             if !params.plots && spec.plot {
                 spec.plot = false;
                 logf("plot skipped (turned off by the caller)");
@@ -224,7 +244,7 @@ pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunPar
             serde_json::to_value(&s).map_err(|e| IoError::new(out.join("summary.json"), e))?
         }
         Kind::Generate => {
-            let s = crate::kinds::generate::generate_case(&value, out, params.progress)?;
+            let s = crate::kinds::generate::generate_case(value, out, params.progress)?;
             logf(&format!("done: {} particles, solid fraction {:.4}, coordination {:.3}", s.particles, s.solid_fraction, s.coordination_mean));
             let mut v = serde_json::to_value(&s).map_err(|e| IoError::new(out.join("summary.json"), e))?;
             // a packing that stops short of its target (the jamming limit, the wall layers of a
@@ -241,7 +261,7 @@ pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunPar
             return Err(ConfigError::invalid("internal: heat, compact and explicit_sinter runs are stepped").into());
         }
     };
-    Ok(RunSummary { kind, wall_seconds: wall.elapsed().as_secs_f64(), summary })
+    Ok(summary)
 }
 
 /// The checks of `sinterdem check` that a kind's run path does not make by itself (the step-count
@@ -276,12 +296,15 @@ pub(crate) fn open_run(case: &toml::Value, overrides: &[String], out: &Path, par
     config::expand_includes(&mut case, &params.base_dir)?;
     let (value, end_note) = resolve_noting(&case, overrides)?;
     let kind = Kind::of(&value)?;
-    let lock = crate::io::lock::OutputLock::acquire(out, "run")?;
+    // the holder's command as the user typed it (issue 38: a generate was named "sinterdem run")
+    let lock = crate::io::lock::OutputLock::acquire(out, if kind == Kind::Generate { "generate" } else { "run" })?;
     // a new run owns its directory: it refuses one holding another run's outputs (a checkpoint
     // `resume` would continue, a snapshot series ParaView would mix with this run's) unless
     // `force`, which removes them first (docs/outputs.md "Guarantees")
     let fingerprint = crate::io::outdir::case_fingerprint(&value, &params.base_dir);
-    let cleared = crate::io::outdir::claim(out, crate::io::outdir::Claimant::Run, params.force, Some(&fingerprint))?;
+    // the files the case reads are never removed, even when an earlier run wrote them
+    let inputs: Vec<PathBuf> = crate::io::inputs::referenced_files(&value, &params.base_dir).into_iter().map(|(_, p)| p).collect();
+    let cleared = crate::io::outdir::claim(out, crate::io::outdir::Claimant::Run, params.force, Some(&fingerprint), &inputs)?;
     crate::io::outdir::write_marker(out, kind.name(), &fingerprint)?;
     let mut log = RunLog::open(out, false, params.echo_log);
     log.line(&format!("sinterdem {}: {} case → {}", env!("CARGO_PKG_VERSION"), kind.name(), out.display()));
@@ -345,7 +368,23 @@ pub fn compact_only_keys(case: &toml::Value) -> Vec<String> {
 pub fn resume(dir: &Path, params: &RunParams) -> Result<RunSummary, Error> {
     let wall = Instant::now();
     let path = dir.join("checkpoint.json");
-    let text = crate::io::read_input(&path)?;
+    if !path.exists() && dir.is_dir() {
+        // a kind without checkpoints (pair, generate, titanium), checkpoints turned off, or killed
+        // before its first: nothing to continue from (issue 38: refused, never exit 0)
+        let kind = std::fs::read_to_string(dir.join(crate::io::outdir::RUN_MARKER))
+            .ok()
+            .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+            .and_then(|v| v.get("kind").and_then(|k| k.as_str()).map(str::to_string));
+        let what = kind.map(|k| format!("this {k} run")).unwrap_or_else(|| "this directory".into());
+        return Err(IoError::new(
+            &path,
+            format!(
+                "is missing: {what} has no checkpoint to continue from (pair and generate runs write none; compact, heat, explicit_sinter and rve runs write one every output.checkpoint_every steps, unless 0): run the case again with --force"
+            ),
+        )
+        .into());
+    }
+    let text = crate::io::read_checkpoint_json(&path)?;
     #[derive(serde::Deserialize)]
     struct Head {
         format: Option<String>,
@@ -354,8 +393,9 @@ pub fn resume(dir: &Path, params: &RunParams) -> Result<RunSummary, Error> {
     // a run that finished has nothing to continue: say so instead of running again from its last
     // checkpoint (issue 25); an interrupted or stopped run's summary says `completed = false`
     if let Some((kind, summary, t)) = finished_run(dir) {
+        let command = if summary.get("kind").and_then(|k| k.as_str()) == Some("rve") { "rve" } else { "run" };
         let line = format!(
-            "{}: the run finished (summary.json: completed{}); nothing to resume — `sinterdem run CASE --out {} --force` runs it again",
+            "{}: the run finished (summary.json: completed{}); nothing to resume — `sinterdem {command} CASE --out {} --force` runs it again",
             dir.display(),
             t.map(|t| format!(" at t = {} s", crate::error::fmt_value(t))).unwrap_or_default(),
             dir.display()
@@ -364,12 +404,20 @@ pub fn resume(dir: &Path, params: &RunParams) -> Result<RunSummary, Error> {
         return Ok(RunSummary { kind, wall_seconds: wall.elapsed().as_secs_f64(), summary });
     }
     let lock = crate::io::lock::OutputLock::acquire(dir, "resume")?;
+    // the resumed run's files join those its start recorded (crate::io::manifest)
+    crate::io::manifest::begin(dir, true)?;
     let mut log = RunLog::open(dir, true, params.echo_log);
     if let Some(note) = lock.takeover_note() {
         log.line(&note);
     }
     if let Some(n) = crate::io::inputs::verify(dir)? {
         log.line(&format!("inputs unchanged since the run started ({n} file{} checked)", if n == 1 { "" } else { "s" }));
+    }
+    // an rve run continues with its branch points, table, fit and plots (issue 38)
+    if format == crate::kinds::compact::CHECKPOINT_FORMAT && rve::is_rve_dir(dir) {
+        let mut s = rve::resume(dir, params, log)?;
+        s.wall_seconds = wall.elapsed().as_secs_f64();
+        return Ok(s);
     }
     let mut logf = |m: &str| log.line(m);
     let (kind, summary) = match format.as_str() {
@@ -398,7 +446,13 @@ fn finished_run(dir: &Path) -> Option<(Kind, serde_json::Value, Option<f64>)> {
     if summary.get("completed").and_then(|c| c.as_bool()) == Some(false) {
         return None;
     }
-    let kind = match summary.get("kind").and_then(|k| k.as_str()) {
+    // an rve run is finished only when its own summary (kind "rve") is written, after the free
+    // run's (kind "compact")
+    let kind_name = summary.get("kind").and_then(|k| k.as_str());
+    if rve::is_rve_dir(dir) && kind_name != Some("rve") {
+        return None;
+    }
+    let kind = match kind_name {
         Some("heat") => Kind::Heat,
         Some("compact") | Some("rve") => Kind::Compact,
         Some("explicit_sinter") => Kind::ExplicitSinter,
@@ -427,8 +481,15 @@ pub fn check(case: &toml::Value, overrides: &[String], base: &Path) -> Result<St
             format!("heat case, {} particles, {} contacts", prep.scene.particles.len(), prep.pipes.pairs.len())
         }
         Kind::Compact => {
+            let rve = value.get("rve").is_some();
+            let at = value.clone();
             let sim = crate::coupled::prepare(value, base, &mut |_| {})?;
-            format!("compact case, {} particles, {} contacts", sim.prep.scene.particles.len(), sim.contacts.len())
+            // an rve case: [rve] checked as `sinterdem rve` checks it (issue 38)
+            if rve {
+                rve::RveSettings::from_case(&at, sim.settings.end)?;
+                rve::check_free_periodic(&sim)?;
+            }
+            format!("{} case, {} particles, {} contacts", if rve { "compact (rve)" } else { "compact" }, sim.prep.scene.particles.len(), sim.contacts.len())
         }
         Kind::Generate => {
             crate::kinds::generate::check_generate_case(&value)?;

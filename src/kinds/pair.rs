@@ -359,8 +359,15 @@ impl PairRun {
 /// Integrates the pair of `spec` from 0 to its end time. `record` keeps every `series_every`-th
 /// accepted substep; `progress` prints a line every 10 % of the simulated time to stderr.
 pub fn run_pair(spec: &PairSpec, record: bool, progress: bool) -> Result<PairRun, ModelError> {
-    let mut contact = spec.new_contact()?;
-    let (v0, _) = crate::models::diffusion7::geometry::volume_and_areas(&contact.y).map(|(v, a, g)| (v, a + g))?;
+    run_pair_keeping(spec, record, progress).map_err(|(e, _)| e)
+}
+
+/// [`run_pair`] that, when the integration fails part-way, returns with the error the run up to
+/// the failure (its rows so far; `interrupted_at`: the last accepted time), so that a failed run
+/// keeps what it computed (issue 39).
+pub fn run_pair_keeping(spec: &PairSpec, record: bool, progress: bool) -> Result<PairRun, (ModelError, Option<Box<PairRun>>)> {
+    let mut contact = spec.new_contact().map_err(|e| (e, None))?;
+    let (v0, _) = crate::models::diffusion7::geometry::volume_and_areas(&contact.y).map(|(v, a, g)| (v, a + g)).map_err(|e| (e, None))?;
     let mats = spec.materials();
     let path = spec.temperature.path();
     let mut times = Vec::new();
@@ -396,7 +403,15 @@ pub fn run_pair(spec: &PairSpec, record: bool, progress: bool) -> Result<PairRun
     });
     bar.finish();
     let wall_seconds = start.elapsed().as_secs_f64();
-    let interrupted_at = res?;
+    let interrupted_at = match res {
+        Ok(t) => t,
+        Err(e) => {
+            let last = times.last().copied().unwrap_or(0.0);
+            let run =
+                PairRun { times, states, temperatures: temps, contact, volume0: v0, stats, wall_seconds, warnings: Vec::new(), interrupted_at: Some(last) };
+            return Err((e, Some(Box::new(run))));
+        }
+    };
     let mut warnings = Vec::new();
     for m in [&spec.material_a, &spec.material_b] {
         if let Some(w) = calibrated_range_warning(m, tlo, thi)
@@ -432,9 +447,12 @@ pub struct PairSummary {
     /// false when the run stopped before `end_time` (absent: it reached it).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub completed: Option<bool>,
-    /// Why it stopped early ("interrupted").
+    /// Why it stopped early ("interrupted"; "error": a model error, in `error`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub stop_reason: Option<String>,
+    /// The error that ended a failed run (absent: none).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
 }
 
 /// Validates a pair case without running it (`sinterdem check`).
@@ -452,7 +470,23 @@ pub fn run_pair_case(case: &toml::Value, out_dir: &Path, progress: bool) -> Resu
 /// go to `warn`.
 pub fn run_pair_spec(spec: &PairSpec, out_dir: &Path, progress: bool, warn: &mut dyn FnMut(&str)) -> Result<PairSummary, Error> {
     std::fs::create_dir_all(out_dir).map_err(|e| IoError::new(out_dir, e))?;
-    let run = run_pair(spec, true, progress)?;
+    let run = match run_pair_keeping(spec, true, progress) {
+        Ok(run) => run,
+        Err((e, partial)) => {
+            // a failed run keeps what it computed: the rows up to the failure and a summary
+            // with completed = false and the error (issue 39); the error is the run's result
+            if let Some(run) = partial {
+                let _ = write_series(spec, &run, &out_dir.join("series.csv"));
+                let mut summary = summarize(spec, &run);
+                summary.stop_reason = Some(format!("model error after t = {} s", run.interrupted_at.unwrap_or(0.0)));
+                summary.error = Some(e.to_string());
+                if let Ok(json) = serde_json::to_string_pretty(&summary) {
+                    let _ = crate::io::write_atomic(&out_dir.join("summary.json"), &(json + "\n"));
+                }
+            }
+            return Err(e.into());
+        }
+    };
     for w in &run.warnings {
         warn(w);
     }
@@ -489,11 +523,13 @@ pub fn summarize(spec: &PairSpec, run: &PairRun) -> PairSummary {
         warnings: run.warnings.clone(),
         completed: run.interrupted_at.map(|_| false),
         stop_reason: run.interrupted_at.map(|_| "interrupted".to_string()),
+        error: None,
     }
 }
 
 fn write_series(spec: &PairSpec, run: &PairRun, path: &Path) -> Result<(), Error> {
     let io = |e: std::io::Error| IoError::new(path, e);
+    crate::io::manifest::record(path)?;
     let f = std::fs::File::create(path).map_err(io)?;
     let mut w = std::io::BufWriter::new(f);
     writeln!(w, "time_s,temperature_K,neck_ratio,shrinkage,y1_m,y2_m,y3_m,y4_m,y5_m,y6_m,y7_m,free_energy_J,volume_drift_rel").map_err(io)?;

@@ -44,6 +44,12 @@ impl Stepper {
         Ok(Stepper { kind, inner, log, wall })
     }
 
+    /// A stepper over a compact run already started (a resumed one: `sinterdem resume` of an rve
+    /// run), with its log; `wall`: when the resume started.
+    pub(crate) fn from_compact(run: CompactRun, log: RunLog, wall: Instant) -> Stepper {
+        Stepper { kind: Kind::Compact, inner: Inner::Compact(Box::new(run)), log, wall }
+    }
+
     fn build(kind: Kind, value: toml::Value, out: &Path, params: &RunParams, log: &mut dyn FnMut(&str)) -> Result<Inner, Error> {
         let base = &params.base_dir;
         Ok(match kind {
@@ -238,6 +244,27 @@ impl Stepper {
             Inner::Compact(r) => r.stop(reason, &mut logf),
             Inner::Explicit(r) => r.stop(reason, &mut logf),
         }
+    }
+
+    /// Ends a run whose step failed with `e` so that it keeps what it computed (issue 39): the
+    /// error in `log.txt`, then the end of the run as a stop (series and snapshots up to the last
+    /// accepted step, `summary.json` with `completed = false`, `stop_reason = "error"` and the
+    /// error). Returns `e` (a failure while writing the end is logged, not returned).
+    pub fn fail(mut self, e: Error, out: &Path) -> Error {
+        self.log.line(&format!("error: {e}"));
+        let written = self.stop("error").and_then(|_| {
+            let mut s = self.finish()?;
+            s.summary["completed"] = serde_json::json!(false);
+            if s.summary.get("stop_reason").is_none_or(|r| r.is_null() || r == "error") {
+                s.summary["stop_reason"] = serde_json::json!(format!("error: {e}"));
+            }
+            s.summary["error"] = serde_json::json!(e.to_string());
+            Ok(crate::io::write_json(&out.join("summary.json"), &s.summary)?)
+        });
+        if let Err(w) = written {
+            tracing::warn!(target: "sinterdem::kinds", "the failed run's summary could not be written: {w}");
+        }
+        e
     }
 
     /// Writes the end of the run (`summary.json`, plots) and returns its summary; a run not yet

@@ -161,6 +161,7 @@ pub fn run_all_titanium(out_dir: &Path, start_temperature: f64, common_diameter:
     }
     let path = out_dir.join("titanium.csv");
     let io = |err: std::io::Error| IoError::new(&path, err);
+    crate::io::manifest::record(&path)?;
     let mut w = std::io::BufWriter::new(std::fs::File::create(&path).map_err(io)?);
     writeln!(w, "id,diameter_m,peak_temperature_K,rate_K_per_min,hold_time_s,start_temperature_K,neck_ratio,shrinkage,steps,rhs_evaluations,wall_seconds,volume_drift_rel").map_err(io)?;
     for r in &out {

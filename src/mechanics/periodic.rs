@@ -538,10 +538,14 @@ fn solve_cell(s: &DMatrix<f64>, g: &DVector<f64>, controls: &[CellControl], volu
     let small = (0..m).map(|p| sss[(p, p)]).fold(f64::INFINITY, f64::min);
     let Some(chol) = chol.filter(|_| small > 1e-12 * scale && scale.is_finite() && scale > 0.0) else {
         let names: Vec<&str> = free.iter().map(|&k| COMPONENTS[k]).collect();
+        // the diagonal as numbers, not the matrix's debug dump (issue 38)
+        let diag: Vec<String> = (0..m).map(|p| format!("{:.3e}", sss[(p, p)])).collect();
         return Err(SolveError::new(
             "periodic mechanics",
             format!(
-                "the cell has no stiffness against the stress-controlled components {names:?} (Schur complement {sss:?} N·m): the bonded network does not span the cell in those directions"
+                "the cell has no stiffness against the stress-controlled components {} (Schur complement diagonal [{}] N·m): the bonded network does not span the cell in those directions",
+                names.join(", "),
+                diag.join(", ")
             ),
         )
         .into());

@@ -147,6 +147,7 @@ pub fn write_vtu(
     let snap = crate::io::Snapshot { position: pos, radius: rad, temperature, contacts, contact_data: vec![("gap_m", &gap)], ..Default::default() };
     let (p, c) = crate::io::vtu::write_snapshot(dir, 0, &snap)?;
     for (from, to) in [(p, dir.join(format!("{stem}.vtu"))), (c, dir.join(format!("{stem}_contacts.vtu")))] {
+        crate::io::manifest::record(&to)?;
         std::fs::rename(&from, &to).map_err(|e| IoError::new(&to, e))?;
     }
     Ok(())

@@ -352,13 +352,19 @@ pub fn tick_label_on(v: f64, axis_max: f64) -> String {
     }
 }
 
+/// The most decades a log axis spans (points further below its top are left out of the range).
+const LOG_DECADES: f64 = 40.0;
+
 /// Plot-area range of the points: x exactly the data, y padded by 4 % (a decade fraction on a log axis).
 fn range(lo: f64, hi: f64, log: bool, pad: f64) -> (f64, f64) {
     if !(lo.is_finite() && hi.is_finite()) {
         return if log { (1.0, 10.0) } else { (0.0, 1.0) };
     }
     if log {
-        let (a, b) = (lo.log10(), hi.log10());
+        // at most LOG_DECADES decades, none below 1e-300: the tick search of a log axis over a
+        // range reaching subnormal numbers never ends (issue 38: an output time of 1e-310 s)
+        let b = hi.log10().min(300.0);
+        let a = lo.log10().max(b - LOG_DECADES).max(-300.0);
         let (a, b) = if b - a < 1e-9 { (a - 0.5, b + 0.5) } else { (a, b) };
         let p = pad * (b - a);
         (10f64.powf(a - p), 10f64.powf(b + p))

@@ -107,7 +107,7 @@ pub fn run_study(path: &Path, opts: &StudyOptions, log: &mut dyn FnMut(&str)) ->
     }
     // a study continues its own directory; another command's outputs need --force
     // (docs/outputs.md "Guarantees")
-    if let Some(note) = crate::io::outdir::claim(&dir, crate::io::outdir::Claimant::Study, opts.force, None)? {
+    if let Some(note) = crate::io::outdir::claim(&dir, crate::io::outdir::Claimant::Study, opts.force, None, &study.cases)? {
         log(&note);
     }
     store::write_plan(&dir, &plan)?;

@@ -134,6 +134,7 @@ fn submit(study: &Study, dir: &Path, todo: &[usize], chunk: usize, retry_failed:
         dir.display()
     ));
     let job = sdir.join(format!("job-{n}.sh"));
+    crate::io::manifest::record(&job)?;
     std::fs::write(&job, &script).map_err(|e| IoError::new(&job, e))?;
     // the batch file exists before the tasks can start
     let mut batch = Batch { batch: n, job_id: String::new(), chunks, retry_failed };

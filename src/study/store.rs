@@ -128,7 +128,9 @@ pub fn pending(dir: &Path, run: &PlannedRun, retry_failed: bool) -> bool {
 }
 
 fn log_execution(dir: &Path, line: &str) {
-    if let Ok(mut f) = std::fs::OpenOptions::new().create(true).append(true).open(dir.join("executions.log")) {
+    let path = dir.join("executions.log");
+    let _ = crate::io::manifest::record(&path);
+    if let Ok(mut f) = std::fs::OpenOptions::new().create(true).append(true).open(path) {
         // one write per line: appends of a short line are not interleaved between processes
         let _ = f.write_all(format!("{line}\n").as_bytes());
     }

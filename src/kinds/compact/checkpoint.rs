@@ -168,22 +168,56 @@ impl Simulation {
         if ck.cell.is_some() {
             sim.cell = ck.cell.clone();
         }
+        validate_contact_geometry(&sim)?;
         log(&format!("resumed from the checkpoint at t = {} s (step {}, {} contacts)", sim.t, sim.step, sim.contacts.len()));
         Ok((sim, ck.output.clone()))
     }
+}
+
+/// Checks every stored contact against the restored positions and radii (issue 38): the centre
+/// distance (minimum image in a periodic cell) of a pair must lie in (|r_a − r_b|, 1.5·(r_a + r_b)]
+/// (the bound of `checkpoint.contacts[k].l0`; a contact is found touching and stays bonded near
+/// it), and the contact's initial radii are those of its two particles.
+fn validate_contact_geometry(sim: &Simulation) -> Result<(), ConfigError> {
+    let r = &sim.prep.scene.particles.radius;
+    for (k, (&[i, j], c)) in sim.contacts.pairs.iter().zip(&sim.contacts.state).enumerate() {
+        let (ra, rb) = (r[i as usize], r[j as usize]);
+        let d = sim.distance(i, j);
+        let (lo, hi) = ((ra - rb).abs(), 1.5 * (ra + rb));
+        if !(d > lo && d <= hi) {
+            return Err(ConfigError::OutOfRange {
+                key: format!("checkpoint.pairs[{k}] = [{i}, {j}]"),
+                value: d,
+                range: format!(
+                    "({}, {}] (centre distance of a contact: |r_a − r_b|, 1.5·(r_a + r_b) for the radii of particles {i} and {j})",
+                    crate::error::fmt_value(lo),
+                    crate::error::fmt_value(hi)
+                ),
+                unit: "m".into(),
+            });
+        }
+        let same = |a: f64, b: f64| (a - b).abs() <= 1e-9 * a.abs().max(b.abs());
+        if !(same(c.r0[0], ra) && same(c.r0[1], rb)) && !(same(c.r0[0], rb) && same(c.r0[1], ra)) {
+            return Err(ConfigError::inconsistent(
+                format!("checkpoint.contacts[{k}].r0"),
+                format!("[{}, {}] m are not the radii of particles {i} and {j} ({} m, {} m)", c.r0[0], c.r0[1], ra, rb),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// Writes `dir/checkpoint.json` atomically (temporary file, then rename).
 pub(crate) fn write_checkpoint(dir: &Path, ck: &Checkpoint) -> Result<(), IoError> {
     let path = dir.join("checkpoint.json");
     let text = serde_json::to_string(ck).map_err(|e| IoError::new(&path, e))?;
-    crate::io::write_atomic(&path, &text)
+    crate::io::write_checkpoint_json(&path, &text)
 }
 
 /// Reads `dir/checkpoint.json`.
 pub fn read_checkpoint(dir: &Path) -> Result<Checkpoint, Error> {
     let path = dir.join("checkpoint.json");
-    let text = crate::io::read_input(&path)?;
+    let text = crate::io::read_checkpoint_json(&path)?;
     Ok(serde_json::from_str(&text).map_err(|e| IoError::new(&path, e))?)
 }
 

@@ -223,7 +223,7 @@ impl<M: SinterLaw> Machine<M> {
         let ck = self.checkpoint(&sink.case_toml, model, wall);
         let path = sink.dir.join("checkpoint.json");
         let json = serde_json::to_string(&ck).map_err(|e| IoError::new(&path, e))?;
-        crate::io::write_atomic(&path, &json)?;
+        crate::io::write_checkpoint_json(&path, &json)?;
         tracing::debug!("checkpoint at step {} ({:?}, pressure {}) written to {}", self.clock.steps, self.stage, self.pressure_index + 1, path.display());
         Ok(sink.stop_after.is_some_and(|k| self.clock.steps >= k))
     }

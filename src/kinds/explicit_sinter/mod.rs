@@ -151,7 +151,7 @@ pub fn resume(dir: &Path, log: &mut dyn FnMut(&str)) -> Result<serde_json::Value
         model: String,
     }
     let path = dir.join("checkpoint.json");
-    let text = crate::io::read_input(&path)?;
+    let text = crate::io::read_checkpoint_json(&path)?;
     let head: Head = serde_json::from_str(&text).map_err(|e| IoError::new(&path, e))?;
     if head.format != EXPLICIT_CHECKPOINT_FORMAT {
         return Err(ConfigError::invalid(format!("{}: format \"{}\" is not {EXPLICIT_CHECKPOINT_FORMAT}", path.display(), head.format)).into());

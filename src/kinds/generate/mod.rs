@@ -53,7 +53,7 @@ const fn rg(key: &'static str, lo: f64, hi: f64, lo_open: bool, unit: &'static s
 /// Range table of the `kind = "generate"` case keys (listed in `crate::kinds::keys::tables`).
 pub static RANGES: &[Range] = &[
     rg("packing.particles", 2.0, 1e8, false, "1", "number of particles"),
-    rg("packing.seed", 0.0, 9.2e18, false, "1", "random seed (a TOML integer: 0 to 2^63 - 1)"),
+    rg("packing.seed", 0.0, 9.223_372_036_854_776e18, false, "1", "random seed (a TOML integer: 0 to 2^63 - 1)"),
     rg(
         "packing.target_solid_fraction",
         0.05,

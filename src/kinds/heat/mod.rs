@@ -86,7 +86,7 @@ pub fn run(prep: Prepared, out: &Path, progress: bool, log: &mut dyn FnMut(&str)
 /// temperatures, BDF2 history and loop state, and continues bit for bit.
 pub fn resume(dir: &Path, progress: bool, log: &mut dyn FnMut(&str)) -> Result<serde_json::Value, Error> {
     let path = dir.join("checkpoint.json");
-    let text = std::fs::read_to_string(&path).map_err(|e| IoError::new(&path, e))?;
+    let text = crate::io::read_checkpoint_json(&path)?;
     let ck: HeatCheckpoint = serde_json::from_str(&text).map_err(|e| IoError::new(&path, e))?;
     if ck.format != HEAT_CHECKPOINT_FORMAT {
         return Err(ConfigError::invalid(format!("{}: format \"{}\" is not {HEAT_CHECKPOINT_FORMAT}", path.display(), ck.format)).into());

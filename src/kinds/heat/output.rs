@@ -146,7 +146,7 @@ pub(super) fn write_checkpoint(
     };
     let path = out.join("checkpoint.json");
     let json = serde_json::to_string(&hc).map_err(|e| IoError::new(&path, e))?;
-    io::write_atomic(&path, &json)?;
+    io::write_checkpoint_json(&path, &json)?;
     Ok(())
 }
 

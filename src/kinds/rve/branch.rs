@@ -11,7 +11,7 @@ use crate::kinds::compact::OutputState;
 
 /// One row of `constitutive.csv` (docs/rve.md "Output"); stresses tension positive, strain rates
 /// d ln L/dt (negative while shrinking).
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Point {
     /// Time of the free run [s], mean particle temperature [K].
     pub time: f64,
@@ -81,6 +81,13 @@ fn branch(sim: &Simulation, stress: [f64; 3], interval: f64, steps: u32) -> Resu
             out.push(strain(&b));
         }
         b.dt = h;
+    }
+    if out.len() < steps as usize + 1 {
+        return Err(ModelError::new(format!(
+            "rve branch from t = {t0} s: {} of {steps} planned steps of {h:e} s taken (the step is below the time resolution)",
+            out.len() - 1
+        ))
+        .into());
     }
     Ok(out)
 }

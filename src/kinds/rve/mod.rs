@@ -88,16 +88,41 @@ impl RveSettings {
         for (k, &t) in spec.at.iter().enumerate() {
             check("rve.at", t).map_err(|e| rename(e, format!("rve.at[{k}]")))?;
             if t > end {
-                return Err(ConfigError::inconsistent(format!("rve.at[{k}]"), format!("{t} s is after time.end = {end} s")));
+                return Err(ConfigError::inconsistent(
+                    format!("rve.at[{k}]"),
+                    format!("{} s is after time.end = {} s", crate::error::fmt_value(t), crate::error::fmt_value(end)),
+                ));
             }
             if k > 0 && t <= spec.at[k - 1] {
-                return Err(ConfigError::invalid(format!("rve.at[{k}]: {t} s is not after the previous time {} s (strictly increasing)", spec.at[k - 1])));
+                return Err(ConfigError::invalid(format!(
+                    "rve.at[{k}]: {} s is not after the previous time {} s (strictly increasing)",
+                    crate::error::fmt_value(t),
+                    crate::error::fmt_value(spec.at[k - 1])
+                )));
             }
         }
         let interval = check("rve.interval", spec.interval)?;
         let steps = check("rve.steps", spec.steps.unwrap_or(4.0))?;
         if steps.fract() != 0.0 {
-            return Err(ConfigError::invalid(format!("rve.steps = {steps}: expected a whole number of steps in [2, 1000]")));
+            return Err(ConfigError::invalid(format!("rve.steps = {}: expected a whole number of steps in [2, 1000]", crate::error::fmt_value(steps))));
+        }
+        // a branch step must advance the clock at every branch time: far above its resolution
+        // (the branch loop compares times to 1e-12 relative; issue 38: 1e-15 s indexed past the
+        // strains of a branch that never stepped)
+        let h = interval / steps;
+        for (k, &t) in spec.at.iter().enumerate() {
+            if !(h >= 1e-9 * t) {
+                return Err(ConfigError::inconsistent(
+                    "rve.interval",
+                    format!(
+                        "{} s over rve.steps = {steps} is a branch step of {} s, below the time resolution at rve.at[{k}] = {} s: give rve.interval ≥ {} s (a step of at least 1e-9 × the branch time)",
+                        crate::error::fmt_value(interval),
+                        crate::error::fmt_value(h),
+                        crate::error::fmt_value(t),
+                        crate::error::fmt_value(1e-9 * t * steps)
+                    ),
+                ));
+            }
         }
         let perturbation = check("rve.perturbation", spec.perturbation.unwrap_or(0.2))?;
         let fit_temperature = spec.fit_temperature.map(|t| check("rve.fit_temperature", t)).transpose()?;
@@ -166,13 +191,78 @@ pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunPar
     let rve = RveSettings::from_case(&value, end)?;
     let mut sets = overrides.to_vec();
     sets.push(conductivity_override(&value, &rve.at));
-    let mut stepper = Stepper::start(&expanded, &sets, out, params)?;
-    let mut points = Vec::with_capacity(rve.at.len());
+    let stepper = Stepper::start(&expanded, &sets, out, params)?;
     {
         let sim = stepper.compact_simulation().ok_or_else(|| ConfigError::invalid("sinterdem rve: kind must be \"compact\""))?;
         check_free_periodic(sim)?;
     }
-    for (k, &t) in rve.at.iter().enumerate() {
+    // the points file marks the directory as an rve run's before the first step (a checkpoint
+    // may follow): `sinterdem resume` then completes the branches, table, fit and plots
+    write_points(out, &[])?;
+    complete(stepper, &rve, Vec::with_capacity(rve.at.len()), out, params, wall)
+}
+
+/// The branch points measured so far (`DIR/rve_points.json`, rewritten atomically after each
+/// point): an rve run's directory holds it from its start, and `resume` continues from it.
+pub const POINTS_FILE: &str = "rve_points.json";
+
+fn write_points(out: &Path, points: &[Point]) -> Result<(), Error> {
+    let path = out.join(POINTS_FILE);
+    let text = serde_json::to_string(points).map_err(|e| crate::error::IoError::new(&path, e))?;
+    Ok(crate::io::write_atomic(&path, &text)?)
+}
+
+/// Whether `dir` holds an rve run (its points file).
+pub fn is_rve_dir(dir: &Path) -> bool {
+    dir.join(POINTS_FILE).is_file()
+}
+
+/// `sinterdem resume DIR` of an rve run: the free run continued from its checkpoint, the points
+/// not yet measured measured on it, then the table, fit, plots and summary, as the uninterrupted
+/// run writes them (a point measured before the kill is kept: it depends on the free run's state
+/// at its time only, which the resumed run reproduces bit for bit).
+pub(crate) fn resume(dir: &Path, params: &RunParams, mut log: super::RunLog) -> Result<RunSummary, Error> {
+    let wall = Instant::now();
+    let ck = crate::kinds::compact::read_checkpoint(dir)?;
+    let value: toml::Value = toml::Value::Table(ck.case_toml.parse::<toml::Table>().map_err(|e| ConfigError::invalid(format!("checkpoint case: {e}")))?);
+    let end = value.get("time").and_then(|t| t.get("end")).and_then(|e| e.as_float().or_else(|| e.as_integer().map(|i| i as f64))).unwrap_or(f64::INFINITY);
+    let rve = RveSettings::from_case(&value, end)?;
+    let path = dir.join(POINTS_FILE);
+    let text = crate::io::read_input(&path)?;
+    let points: Vec<Point> = serde_json::from_str(&text).map_err(|e| crate::error::IoError::new(&path, format!("not an rve points file: {e}")))?;
+    if points.len() > rve.at.len() || points.iter().zip(&rve.at).any(|(p, &t)| p.time < t * (1.0 - 1e-12)) {
+        return Err(crate::error::IoError::new(
+            &path,
+            format!("does not match rve.at of the checkpoint's case ({} points for {} times)", points.len(), rve.at.len()),
+        )
+        .into());
+    }
+    let stepper = {
+        let mut logf = |m: &str| log.line(m);
+        let (sim, state) = crate::coupled::Simulation::from_checkpoint(&ck, &mut logf)?;
+        if let Some(&t) = rve.at.get(points.len())
+            && sim.t > t * (1.0 + 1e-12)
+        {
+            return Err(ConfigError::invalid(format!(
+                "{}: the checkpoint (t = {} s) is past rve.at = {t} s, whose point is not in {POINTS_FILE}: the point cannot be measured again; run the case again with `sinterdem rve CASE --out {} --force`",
+                dir.display(),
+                sim.t,
+                dir.display()
+            ))
+            .into());
+        }
+        logf(&format!("rve: {} of {} points measured before the interruption", points.len(), rve.at.len()));
+        let run = crate::kinds::compact::CompactRun::start(sim, dir, params.progress, Some(state), &mut logf)?;
+        Stepper::from_compact(run, log, wall)
+    };
+    complete(stepper, &rve, points, dir, params, wall)
+}
+
+/// The rest of an rve run from `stepper` (free run at its start, or resumed) with the points
+/// `points` measured: the remaining points, the free run to its end, then the outputs.
+fn complete(mut stepper: Stepper, rve: &RveSettings, mut points: Vec<Point>, out: &Path, params: &RunParams, wall: Instant) -> Result<RunSummary, Error> {
+    let first = points.len();
+    for (k, &t) in rve.at.iter().enumerate().skip(first) {
         stepper.advance(t)?;
         let sim = stepper.compact_simulation().ok_or_else(|| ConfigError::invalid("sinterdem rve: kind must be \"compact\""))?;
         if stepper.done() && sim.t < t * (1.0 - 1e-12) {
@@ -180,7 +270,7 @@ pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunPar
             break;
         }
         let tic = Instant::now();
-        let point = measure_point(sim, &rve)?;
+        let point = measure_point(sim, rve)?;
         tracing::info!(
             "rve point {}/{} at t = {:.6e} s: relative density {:.4}, K = {:.4e} Pa s, E_p = {:.4e} Pa s, nu_p = {:.4}, sigma_s = {:.4e} Pa (B23 {:.4e} Pa), {:.2} s",
             k + 1,
@@ -195,6 +285,7 @@ pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunPar
             tic.elapsed().as_secs_f64()
         );
         points.push(point);
+        write_points(out, &points)?;
     }
     while stepper.step()? {}
     let (r0, header) = {
@@ -205,7 +296,7 @@ pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunPar
     let fit = output::fit_rows(&points, r0, rve.fit_temperature);
     output::write(out, &points, &fit, params.plots.then_some(&header))?;
     summary.summary["kind"] = serde_json::json!("rve");
-    summary.summary["rve"] = output::summary_block(&rve, &points, &fit);
+    summary.summary["rve"] = output::summary_block(rve, &points, &fit);
     crate::io::write_json(&out.join("summary.json"), &summary.summary)?;
     summary.wall_seconds = wall.elapsed().as_secs_f64();
     Ok(summary)
