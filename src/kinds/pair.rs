@@ -407,6 +407,10 @@ pub fn run_pair_keeping(spec: &PairSpec, record: bool, progress: bool) -> Result
         Ok(t) => t,
         Err(e) => {
             let last = times.last().copied().unwrap_or(0.0);
+            // the contact as at the last row (the summary's neck ratio, shrinkage, drift)
+            if let Some(y) = states.last() {
+                contact.y = *y;
+            }
             let run =
                 PairRun { times, states, temperatures: temps, contact, volume0: v0, stats, wall_seconds, warnings: Vec::new(), interrupted_at: Some(last) };
             return Err((e, Some(Box::new(run))));
