@@ -36,9 +36,12 @@ __all__ = [
     "Case", "Simulation",
     "run", "rve", "generate", "study", "calibrate", "conductivity", "neck", "materials", "read_csv",
     "RunResult", "RveResult", "GenerateResult", "CalibrationResult", "Conductivity", "Neck",
-    "Error", "ConfigError", "ModelError", "SolveError", "IoError", "SinterdemWarning", "__version__",
+    "Error", "ConfigError", "ModelError", "SolveError", "IoError", "SinterdemWarning", "__version__", "HDF5",
 ]
 __version__ = _native.__version__
+#: Whether this build writes HDF5 output (``output.hdf5``): built with ``--features h5``
+#: (``bash scripts/pip-install.sh`` where libhdf5 is installed; docs/python.md "Install").
+HDF5: bool = _native.HDF5
 
 
 def __dir__():

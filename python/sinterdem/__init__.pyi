@@ -11,6 +11,7 @@ from ._errors import ConfigError as ConfigError, Error as Error, IoError as IoEr
 class SinterdemWarning(UserWarning): ...
 
 __version__: str
+HDF5: bool
 PathLike = Union[str, "os.PathLike[str]"]
 
 def read_csv(path: PathLike, frame: Optional[bool] = None) -> Any: ...

@@ -3,6 +3,7 @@
 from typing import Any, Callable, Dict, List, Optional, Tuple
 
 __version__: str
+HDF5: bool
 
 class CaseCore:
     @staticmethod

@@ -962,5 +962,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(parse_toml, m)?)?;
     m.add_function(wrap_pyfunction!(dump_toml, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    // whether this build writes HDF5 (H5MD) output: built with `--features h5` (docs/python.md "Install")
+    m.add("HDF5", cfg!(feature = "h5"))?;
     Ok(())
 }

@@ -326,3 +326,9 @@ def test_a_rust_panic_reaches_python_as_one_sinterdem_error(tmp_path, capfd):
         assert "\n" not in str(e) and "panicked" not in str(e)
     err = capfd.readouterr().err
     assert "panicked" not in err and "RUST_BACKTRACE" not in err, err
+
+
+def test_the_hdf5_flag_says_what_the_build_writes(tmp_path):
+    assert isinstance(sinterdem.HDF5, bool)
+    sinterdem.run(small_heat(**{"time.end": 2.0, "output.snapshots": 2, "output.hdf5": True}), out=tmp_path, progress=False)
+    assert bool(list(tmp_path.glob("*.h5"))) == sinterdem.HDF5
