@@ -100,8 +100,8 @@ enum Command {
         /// Thermal conductivity of particle 2 [W/(m K)] (default: --kappa).
         #[arg(long, allow_hyphen_values = true)]
         kappa2: Option<f64>,
-        /// Conductance law: linear (1.064 κ π a) or fe_fit.
-        #[arg(long, default_value = "linear")]
+        /// Conductance law: fe_fit (the FE-fitted factor, default) or linear (1.064 κ π a).
+        #[arg(long, default_value = "fe_fit")]
         conductance: String,
         /// c_K of the linear law.
         #[arg(long, default_value_t = 1.064, allow_hyphen_values = true)]

@@ -34,6 +34,12 @@ pub struct MaterialSpec {
     /// (a library entry with an α(T) table: "copper", "titanium"); replaces `thermal_expansion`
     /// (docs/coupled.md (X1)).
     pub thermal_expansion_table: Option<toml::Value>,
+    /// Electrical resistivity ρ_e [Ω·m] of `sinterdem conductivity` with `quantity = "electrical"`
+    /// (default: the preset's bundled ρ_e(T) table).
+    pub electrical_resistivity: Option<f64>,
+    /// ρ_e(T) as a piecewise-linear table `[[T, ρ_e], ...]` ([K], [Ω·m]) or the name of a bundled
+    /// table (docs/materials.md); replaces `electrical_resistivity`.
+    pub electrical_resistivity_table: Option<toml::Value>,
     /// Young's modulus E [Pa].
     pub young_modulus: Option<f64>,
     /// Poisson's ratio ν [1].
@@ -107,6 +113,35 @@ pub fn preset(name: &str) -> Option<Material> {
 }
 
 impl MaterialSpec {
+    /// The electrical resistivity ρ_e [Ω·m] at temperature `t` [K] (`sinterdem conductivity` with
+    /// `quantity = "electrical"`): the material's `electrical_resistivity_table` at t, else its
+    /// `electrical_resistivity`, else the bundled table of its preset at t (linear between the
+    /// points, constant beyond the ends); an error naming the key when none is given.
+    pub fn electrical_resistivity_at(&self, t: f64) -> Result<f64, ConfigError> {
+        let key = |k: &str| format!("materials.{}.{k}", self.name);
+        if let Some(v) = &self.electrical_resistivity_table {
+            if self.electrical_resistivity.is_some() {
+                return Err(ConfigError::inconsistent(
+                    key("electrical_resistivity_table"),
+                    format!("give either {} or electrical_resistivity_table, not both", key("electrical_resistivity")),
+                ));
+            }
+            return Ok(Table::from_value(v, &key("electrical_resistivity_table"), Quantity::ElectricalResistivity)?.at(t));
+        }
+        if let Some(r) = self.electrical_resistivity {
+            return config::check(&key("electrical_resistivity"), r);
+        }
+        match self.preset.as_deref().and_then(|p| bundled_table(p, Quantity::ElectricalResistivity)) {
+            Some(tab) => Ok(tab.at(t)),
+            None => Err(ConfigError::invalid(format!(
+                "{} (or {}) is required for conductivity.quantity = \"electrical\": the preset has no bundled table (bundled: {})",
+                key("electrical_resistivity"),
+                key("electrical_resistivity_table"),
+                table_names(Quantity::ElectricalResistivity)
+            ))),
+        }
+    }
+
     /// Resolves presets and checks every value against the range table.
     pub fn resolve(&self) -> Result<Material, ConfigError> {
         let key = |k: &str| format!("materials.{}.{k}", self.name);
@@ -240,6 +275,8 @@ pub enum Quantity {
     HeatCapacity,
     /// α [1/K], (0, 1e-3].
     ThermalExpansion,
+    /// ρ_e [Ω·m], (0, 1e16].
+    ElectricalResistivity,
 }
 
 impl Quantity {
@@ -248,6 +285,7 @@ impl Quantity {
             Quantity::Conductivity => (1e4, "W/(m K)", "conductivity"),
             Quantity::HeatCapacity => (1e5, "J/(kg K)", "heat capacity"),
             Quantity::ThermalExpansion => (1e-3, "1/K", "thermal expansion coefficient"),
+            Quantity::ElectricalResistivity => (1e16, "ohm m", "electrical resistivity"),
         }
     }
     fn constant_key(self) -> &'static str {
@@ -255,6 +293,7 @@ impl Quantity {
             Quantity::Conductivity => "conductivity",
             Quantity::HeatCapacity => "heat_capacity",
             Quantity::ThermalExpansion => "thermal_expansion",
+            Quantity::ElectricalResistivity => "electrical_resistivity",
         }
     }
 }
@@ -282,6 +321,7 @@ pub fn bundled_table(name: &str, quantity: Quantity) -> Option<Table> {
         Quantity::Conductivity => tables.conductivity_table.as_ref(),
         Quantity::HeatCapacity => tables.heat_capacity_table.as_ref(),
         Quantity::ThermalExpansion => tables.thermal_expansion_table.as_ref(),
+        Quantity::ElectricalResistivity => tables.electrical_resistivity_table.as_ref(),
     }?;
     Some(Table { temperature: points.iter().map(|p| p[0]).collect(), value: points.iter().map(|p| p[1]).collect() })
 }

@@ -97,7 +97,7 @@ fn steady_chain_with_linear_conductivity_matches_the_kirchhoff_transform() {
         }));
         let pipes: Vec<[u32; 2]> = (0..=n as u32).map(|i| [i, i + 1]).collect();
         net.set_topology(&pipes).unwrap();
-        let parts = vec![PipeConductance { half_i: 2.0 * s * kref, half_j: 2.0 * s * kref, pair: s * kref }; pipes.len()];
+        let parts = vec![PipeConductance { half_i: 2.0 * s * kref, half_j: 2.0 * s * kref, pair: s * kref, boundary: 0.0 }; pipes.len()];
         // plain conductances are refused: κ(T) needs the halves
         assert!(net.step(0.0, 1.0, &mut vec![500.0; n + 2], &vec![1.0; pipes.len()]).is_err());
         let mut temps = vec![500.0; n + 2];
@@ -151,7 +151,7 @@ fn energy_balance_closes_with_tables_ramp_and_radiation() {
         }));
         let pipes: Vec<[u32; 2]> = (0..n as u32 - 1).map(|i| [i, i + 1]).collect();
         net.set_topology(&pipes).unwrap();
-        let parts = vec![PipeConductance { half_i: 2e-3, half_j: 2e-3, pair: 1.0 / (1.0 / 2e-3 + 1.0 / 2e-3 + 1.0) }; pipes.len()];
+        let parts = vec![PipeConductance { half_i: 2e-3, half_j: 2e-3, pair: 1.0 / (1.0 / 2e-3 + 1.0 / 2e-3 + 1.0), boundary: 0.0 }; pipes.len()];
         let mut temps = vec![300.0; n];
         net.apply_fixed(0.0, &mut temps);
         let (mut t, mut heat_in, mut stored, mut scale) = (0.0, 0.0, 0.0, 0.0);

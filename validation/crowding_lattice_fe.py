@@ -18,8 +18,10 @@ import fe_random as fr  # noqa: E402
 import random_packing as rp  # noqa: E402
 
 LATTICES = {"sc-h012": ("sc", 0.12), "fcc-h006": ("fcc", 0.06), "fcc-h012": ("fcc", 0.12),
-            "bcc-h006": ("bcc", 0.06), "bcc-h012": ("bcc", 0.12)}
-OUT = os.path.join(fr.DATA, "lattice_crowding.csv")
+            "bcc-h006": ("bcc", 0.06), "bcc-h012": ("bcc", 0.12),
+            # late stage (issue 42), written with FE_OUT=lattice_late.csv: beyond the fitted range
+            "fcc-h016": ("fcc", 0.16), "bcc-h020": ("bcc", 0.20), "sc-h030": ("sc", 0.30)}
+OUT = os.path.join(fr.DATA, os.environ.get("FE_OUT", "lattice_crowding.csv"))
 
 
 def lattice(kind: str, h: float) -> rp.Packing:

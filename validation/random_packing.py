@@ -354,11 +354,31 @@ def network_kappa_py(pk: Packing, half):
     n = len(pk.r)
     b = pk.branch()
     i, j = pk.bonds[:, 0], pk.bonds[:, 1]
-    K = np.empty(len(i))
+    hi, hj = np.empty(len(i)), np.empty(len(i))
     for e, (ii, jj) in enumerate(zip(i, j)):
         h = pk.r[ii] + pk.r[jj] - np.linalg.norm(b[e])
         a = neck_radius(pk.r[ii], pk.r[jj], h)[0]
-        K[e] = 1.0 / (1.0 / half(a, pk.r[ii], e, "i") + 1.0 / half(a, pk.r[jj], e, "j"))
+        hi[e], hj[e] = half(a, pk.r[ii], e, "i"), half(a, pk.r[jj], e, "j")
+    # the bound of docs/heat-model.md (H8d), as src/heat/pipes.rs::bound_halves (kappa_s = 1):
+    # C_p = sum K_half l^2 n n^T per particle, l = |b| r_p/(r_i + r_j); scale all halves of p by
+    # min(1, V_p phi_c/lambda_max(C_p), 3 V_p 2 phi_c/(3 - phi_c)/tr C_p), V_p = v_p/phi
+    C = np.zeros((n, 3, 3))
+    for e, (ii, jj) in enumerate(zip(i, j)):
+        d = float(np.linalg.norm(b[e]))
+        nn = np.outer(b[e], b[e]) / (d * d)
+        li = d * pk.r[ii] / (pk.r[ii] + pk.r[jj])
+        C[ii] += nn * hi[e] * li * li
+        C[jj] += nn * hj[e] * (d - li) ** 2
+    v = 4.0 / 3.0 * math.pi * pk.r ** 3
+    phi = float(v.sum() / pk.L ** 3)
+    pc = min(phi, 1.0)
+    s = np.ones(n)
+    for p_ in range(n):
+        tr = np.trace(C[p_])
+        if tr > 0:
+            vp = v[p_] / phi
+            s[p_] = min(1.0, vp * pc / np.linalg.eigvalsh(C[p_]).max(), 3.0 * vp * 2.0 * pc / (3.0 - pc) / tr)
+    K = 1.0 / (1.0 / (hi * s[i]) + 1.0 / (hj * s[j]))
     Lp = sps.coo_matrix((np.concatenate([K, K, -K, -K]),
                          (np.concatenate([i, j, i, j]), np.concatenate([i, j, j, i]))),
                         shape=(n, n)).tocsc()

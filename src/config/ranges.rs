@@ -115,6 +115,13 @@ pub static TABLE: &[Range] = &[
     p("materials.*.density", 0.0, 1e5, "kg/m^3", "mass density rho"),
     p("materials.*.heat_capacity", 0.0, 1e5, "J/(kg K)", "specific heat capacity c"),
     p("materials.*.conductivity", 0.0, 1e4, "W/(m K)", "thermal conductivity kappa"),
+    p(
+        "materials.*.electrical_resistivity",
+        0.0,
+        1e16,
+        "ohm m",
+        "electrical resistivity rho_e of `sinterdem conductivity` with conductivity.quantity = \"electrical\"",
+    ),
     p("materials.*.young_modulus", 0.0, 1e13, "Pa", "Young's modulus E"),
     c("materials.*.poisson_ratio", -0.99, 0.4999, "1", "Poisson's ratio nu"),
     c("materials.*.emissivity", 0.0, 1.0, "1", "total hemispherical emissivity"),
@@ -135,6 +142,13 @@ pub static TABLE: &[Range] = &[
     // thermal
     p("thermal.conductance_factor", 0.0, 100.0, "1", "c_K of K_i = c_K kappa pi a (docs/heat-model.md (H6))"),
     p("thermal.contact_conductance", 0.0, INF, "W/K", "interface conductance K_c in series (eq. 8)"),
+    c(
+        "thermal.boundary_resistance",
+        0.0,
+        1.0,
+        "m^2 K/W",
+        "interface (Kapitza / grain-boundary) resistance per unit neck area R_b, R_b/(pi a^2) in series with each pipe (docs/heat-model.md (H7))",
+    ),
     c("thermal.furnace.convection_coefficient", 0.0, 1e6, "W/(m^2 K)", "convective heat transfer coefficient h_c"),
     c("thermal.furnace.emissivity", 0.0, 1.0, "1", "emissivity used for radiation to the furnace walls"),
     c("thermal.furnace.exposure", 0.0, 1.0, "1", "fraction of an exposed particle's sphere area facing the furnace"),

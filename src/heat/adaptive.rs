@@ -238,7 +238,7 @@ mod tests {
                     HeatSources { fixed: vec![None, Some(0)], profiles: vec![crate::profile::Profile::constant(100.0).unwrap()], ..Default::default() };
                 let mut net = HeatNetwork::new(vec![1.0, 1.0], sources, scheme, 1e-12);
                 net.set_topology(&[[0, 1]]).unwrap();
-                let pipes = [PipeConductance { half_i: 2.0 * lam, half_j: 2.0 * lam, pair: lam }];
+                let pipes = [PipeConductance { half_i: 2.0 * lam, half_j: 2.0 * lam, pair: lam, boundary: 0.0 }];
                 let exact = |t: f64| 100.0 + 100.0 * (-lam * t).exp();
                 // three exact history points with unequal spacing, then one step of size h
                 let ts = [0.0, 0.7 * h, 1.5 * h, 2.5 * h];

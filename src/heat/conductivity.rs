@@ -345,7 +345,8 @@ pub fn periodic_pipes(p: &Particles, bbox: Vector3<f64>, materials: &[Material],
         pairs.push([c.i, c.j]);
         branch.push((wrap(&p.position[c.j as usize]) + s) - wrap(&p.position[c.i as usize]));
     }
-    let pipes = pipes::pipes_from_pairs(pairs, &branch, p, materials, law)?;
+    let phi = pipes::solid_fraction(&p.radius, bbox.x * bbox.y * bbox.z);
+    let pipes = pipes::pipes_from_pairs_in(pairs, &branch, p, materials, law, Some(phi))?;
     Ok((pipes, branch))
 }
 

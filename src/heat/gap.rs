@@ -247,7 +247,7 @@ impl GapPipes {
     }
     /// The gas pipes as network pipes: halves 2G_g (the gas split at the mid-gap), pipe G_g [W/K].
     pub fn parts(&self) -> impl Iterator<Item = PipeConductance> + '_ {
-        self.gas.iter().map(|&g| PipeConductance { half_i: 2.0 * g, half_j: 2.0 * g, pair: g })
+        self.gas.iter().map(|&g| PipeConductance { half_i: 2.0 * g, half_j: 2.0 * g, pair: g, boundary: 0.0 })
     }
 }
 

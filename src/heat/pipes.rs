@@ -23,6 +23,8 @@ pub struct Pipes {
     pub parts: Vec<crate::heat::PipeConductance>,
     /// Pipes whose a/r_min exceeds 0.7 (the linear law is extrapolated there).
     pub extrapolated: usize,
+    /// Particles whose halves the bound (H8d) scaled down.
+    pub bounded: usize,
 }
 
 /// The neck fabric of every particle, `M_i = Σ_l a_l n_l n_lᵀ` [m], and its summed neck radii
@@ -56,8 +58,23 @@ pub fn crowding(pairs: &[[u32; 2]], branch: &[Vector3<f64>], neck: &[f64], n: us
     pairs.iter().zip(branch).zip(neck).map(|((&[i, j], b), &a)| [phi(i, b, a), phi(j, b, a)]).collect()
 }
 
-/// Pipes from explicit pairs with their branch vectors `d_ij = x_j − x_i` (periodic images allowed).
+/// Pipes from explicit pairs with their branch vectors `d_ij = x_j − x_i` (periodic images allowed),
+/// bounded by (H8d) without a known solid fraction (each component of κ_eff at most φκ_s).
 pub fn pipes_from_pairs(pairs: Vec<[u32; 2]>, branch: &[Vector3<f64>], p: &Particles, materials: &[Material], law: &Conductance) -> Result<Pipes, ModelError> {
+    pipes_from_pairs_in(pairs, branch, p, materials, law, None)
+}
+
+/// [`pipes_from_pairs`] in a cell of solid fraction `solid_fraction` = Σ (4/3)π r³ / V [1] (a
+/// periodic box): the bound (H8d) then also keeps the mean of the diagonal of κ_eff at or below
+/// the Hashin–Shtrikman upper bound of that solid fraction.
+pub fn pipes_from_pairs_in(
+    pairs: Vec<[u32; 2]>,
+    branch: &[Vector3<f64>],
+    p: &Particles,
+    materials: &[Material],
+    law: &Conductance,
+    solid_fraction: Option<f64>,
+) -> Result<Pipes, ModelError> {
     let mut out = Pipes { pairs, ..Default::default() };
     for (k, &[i, j]) in out.pairs.iter().enumerate() {
         let (i, j) = (i as usize, j as usize);
@@ -74,11 +91,84 @@ pub fn pipes_from_pairs(pairs: Vec<[u32; 2]>, branch: &[Vector3<f64>], p: &Parti
     for (k, &[i, j]) in out.pairs.iter().enumerate() {
         let (i, j) = (i as usize, j as usize);
         let (ki, kj) = (materials[p.material[i] as usize].conductivity, materials[p.material[j] as usize].conductivity);
-        let pipe = law.pipe_crowded(ki, kj, p.radius[i], p.radius[j], out.neck[k], phi[k]);
-        out.conductance.push(pipe.pair);
-        out.parts.push(pipe);
+        out.parts.push(law.pipe_crowded(ki, kj, p.radius[i], p.radius[j], out.neck[k], phi[k]));
     }
+    let kappa: Vec<f64> = p.material.iter().map(|&m| materials[m as usize].conductivity).collect();
+    out.bounded = bound_halves(&mut out.parts, &out.pairs, branch, &out.neck, &p.radius, &kappa, law, solid_fraction);
+    out.conductance = out.parts.iter().map(|pc| pc.pair).collect();
     Ok(out)
+}
+
+/// The solid fraction of spheres of radii `radius` [m] in a cell of volume `volume` [m³]:
+/// Σ (4/3)π r³ / V (the volume-conserving neck keeps each particle's volume) [1].
+pub fn solid_fraction(radius: &[f64], volume: f64) -> f64 {
+    radius.iter().map(|r| 4.0 / 3.0 * std::f64::consts::PI * r * r * r).sum::<f64>() / volume
+}
+
+/// The bound on the half pipes of every particle (docs/heat-model.md (H8d)); returns the number of
+/// particles whose halves it scaled.
+///
+/// Particle i's halves make the tensor `C_i = Σ_k K_ik l_ik² n_k n_kᵀ` [W·m], l_ik = |b| r_i/(r_i + r_j)
+/// its share of the branch vector b and n_k = b/|b|. The uniform-gradient (Voigt) flux of the network
+/// bounds κ_eff from above (minimum energy), and by Cauchy–Schwarz `K_ij |b|² ≤ K_i l_i² + K_j l_j²`
+/// (any interface resistance only lowers K_ij), so `e·κ_eff·e ≤ (1/V) Σ_i e·C_i·e`. With the
+/// particle's share of the cell `V_i = v_i/φ` (v_i = (4/3)π r_i³, φ = `solid_fraction`, or 1 when
+/// unknown) and φ_c = min(φ, 1), scaling the particle's halves by
+/// `s_i = min(1, κ_i V_i φ_c / λ_max(C_i), 3 κ_i V_i·2φ_c/(3 − φ_c) / tr C_i)`
+/// makes every diagonal component of κ_eff at most φ_c κ_s ≤ κ_s (Wiener) and the mean of the
+/// diagonal at most 2φ_c/(3 − φ_c)·κ_s (Hashin–Shtrikman) in a one-material cell. `s_i = 1`
+/// leaves the pipe bit for bit.
+#[allow(clippy::too_many_arguments)]
+pub fn bound_halves(
+    parts: &mut [crate::heat::PipeConductance],
+    pairs: &[[u32; 2]],
+    branch: &[Vector3<f64>],
+    neck: &[f64],
+    radius: &[f64],
+    kappa: &[f64],
+    law: &Conductance,
+    solid_fraction: Option<f64>,
+) -> usize {
+    let n = radius.len();
+    let mut c = vec![Matrix3::<f64>::zeros(); n];
+    for ((pc, &[i, j]), b) in parts.iter().zip(pairs).zip(branch) {
+        let (i, j) = (i as usize, j as usize);
+        let d2 = b.norm_squared();
+        if !(d2 > 0.0 && pc.pair > 0.0) {
+            continue;
+        }
+        let nn = (b * b.transpose()) / d2;
+        let d = d2.sqrt();
+        let li = d * radius[i] / (radius[i] + radius[j]);
+        let lj = d - li;
+        c[i] += nn * (pc.half_i * li * li);
+        c[j] += nn * (pc.half_j * lj * lj);
+    }
+    let (share, phi_c) = match solid_fraction {
+        Some(f) if f > 0.0 && f.is_finite() => (1.0 / f, f.min(1.0)),
+        _ => (1.0, 1.0),
+    };
+    let scale: Vec<f64> = (0..n)
+        .map(|i| {
+            let tr = c[i].trace();
+            if !(tr > 0.0) {
+                return 1.0;
+            }
+            let v = 4.0 / 3.0 * std::f64::consts::PI * radius[i].powi(3) * share;
+            let lmax = c[i].symmetric_eigenvalues().max();
+            let cap_axis = kappa[i] * v * phi_c;
+            let cap_trace = 3.0 * kappa[i] * v * 2.0 * phi_c / (3.0 - phi_c);
+            (cap_axis / lmax).min(cap_trace / tr).min(1.0)
+        })
+        .collect();
+    for (k, pc) in parts.iter_mut().enumerate() {
+        let [i, j] = pairs[k];
+        let (si, sj) = (scale[i as usize], scale[j as usize]);
+        if si < 1.0 || sj < 1.0 {
+            *pc = law.series(pc.half_i * si, pc.half_j * sj, neck[k]);
+        }
+    }
+    scale.iter().filter(|&&s| s < 1.0).count()
 }
 
 /// Pipes between all touching particles (no periodicity).

@@ -7,7 +7,7 @@
 //!   `C_i(T^n, T)(T − T^n) = H_i(T) − H_i(T^n)` exactly.
 //! - Pipe conductance with κ(T): each half is rescaled by `κ̄(T_i, T_j)/κ_ref`, κ̄ the mean of the
 //!   half's κ over [T_i, T_j] (eq. P3; on one linear piece, κ at the contact temperature
-//!   (T_i + T_j)/2), then in series as in eq. 8 (eq. P4). For a one-material pipe the flux is
+//!   (T_i + T_j)/2), then in series as in eq. 8 with the neck's boundary resistance (H7) (eq. P4). For a one-material pipe the flux is
 //!   `G (Φ(T_i) − Φ(T_j))` with the Kirchhoff transform `Φ(T) = ∫ κ dT`: exact in steady state
 //!   for any piecewise-linear κ.
 
@@ -71,6 +71,10 @@ impl ThermalProperties {
         let mut inv = 1.0 / hi + 1.0 / hj;
         if let Some(kc) = self.contact {
             inv += 1.0 / kc;
+        }
+        if pc.boundary > 0.0 {
+            // the neck's boundary resistance R_b/(π a²) (H7) does not scale with κ(T)
+            inv += pc.boundary;
         }
         1.0 / inv
     }

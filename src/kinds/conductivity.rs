@@ -6,11 +6,42 @@ use crate::error::{ConfigError, Error};
 use crate::heat::conductivity::{cut_face_warning, faces, periodic, periodic_pipes};
 use nalgebra::Matrix3;
 
-/// `sinterdem conductivity CASE`: the tensor [W/(m·K)] and κ_eff/κ as JSON.
+/// International Annealed Copper Standard: 100 %IACS = 58.0 MS/m, annealed copper at 1.72e-8 Ω·m
+/// at 20 °C (docs/references.md [WP-RES]; copper.org's 1.71 µΩ·cm = 101 %IACS agrees) [S/m].
+pub const IACS_S_PER_M: f64 = 58.0e6;
+
+/// `sinterdem conductivity CASE`: the tensor [W/(m·K)] and κ_eff/κ as JSON; with
+/// `conductivity.quantity = "electrical"` the electrical conductivity tensor [S/m] of the same
+/// network with σ_e = 1/ρ_e(T) for κ (docs/heat-model.md "Electrical conductivity").
 pub fn run_case(value: toml::Value, base: &std::path::Path) -> Result<serde_json::Value, Error> {
-    let prep = crate::scene::prepare(value, base)?;
-    let spec = &prep.case.conductivity;
+    let mut prep = crate::scene::prepare(value, base)?;
+    let spec = prep.case.conductivity.clone();
     let dt = config::check("conductivity.temperature_difference", spec.temperature_difference)?;
+    let electrical = match spec.quantity.as_str() {
+        "thermal" => false,
+        "electrical" => true,
+        o => return Err(ConfigError::invalid(format!("conductivity.quantity = \"{o}\": expected thermal or electrical")).into()),
+    };
+    let mut notes: Vec<String> = Vec::new();
+    let mut temperature = None;
+    if electrical {
+        // the same network with σ_e for κ (the thermal–electrical analogy): every material's κ is
+        // replaced by 1/ρ_e at the particles' mean temperature; the thermal interface terms do not
+        // apply to a current
+        let ps = &prep.scene.particles;
+        let t = ps.temperature.iter().sum::<f64>() / ps.temperature.len().max(1) as f64;
+        for (m, s) in prep.scene.materials.iter_mut().zip(&prep.case.materials) {
+            m.conductivity = 1.0 / s.electrical_resistivity_at(t)?;
+        }
+        if prep.conductance.contact.is_some() || prep.conductance.boundary_resistance > 0.0 {
+            notes.push("thermal.contact_conductance and thermal.boundary_resistance are thermal interface terms: not applied to the electrical network".into());
+            prep.conductance.contact = None;
+            prep.conductance.boundary_resistance = 0.0;
+        }
+        prep.pipes = crate::heat::pipes(&prep.scene.particles, &prep.scene.materials, &prep.conductance)?;
+        temperature = Some(t);
+    }
+    let prep = prep;
     let p = &prep.scene.particles;
     let kappa_mat = prep.scene.materials[0].conductivity;
     let axes: Vec<usize> = spec
@@ -24,6 +55,7 @@ pub fn run_case(value: toml::Value, base: &std::path::Path) -> Result<serde_json
         })
         .collect::<Result<_, _>>()?;
     let mut out = serde_json::Map::new();
+    let mut hr_periodic = None;
     let tensor = match spec.boundary.as_str() {
         "faces" => {
             let depth = match config::check_opt("conductivity.layer_fraction", spec.layer_fraction)? {
@@ -55,6 +87,7 @@ pub fn run_case(value: toml::Value, base: &std::path::Path) -> Result<serde_json
                 )
             })?;
             let (pipes, branch) = periodic_pipes(p, bbox, &prep.scene.materials, &prep.conductance)?;
+            hr_periodic = Some(mean_overlap_ratio(&pipes, p));
             out.insert("periodic_contacts".into(), pipes.pairs.len().into());
             // the contacts of the run are the periodic ones (the walled count misses those across
             // the box faces); `walled_contacts` keeps the count without periodic images
@@ -67,11 +100,46 @@ pub fn run_case(value: toml::Value, base: &std::path::Path) -> Result<serde_json
     let rows: Vec<Vec<f64>> = (0..3).map(|i| (0..3).map(|j| tensor[(i, j)]).collect()).collect();
     let ratio: Vec<Vec<f64>> = rows.iter().map(|r| r.iter().map(|v| v / kappa_mat).collect()).collect();
     out.insert("boundary".into(), spec.boundary.clone().into());
-    out.insert("kappa_eff_W_per_mK".into(), serde_json::to_value(rows).unwrap());
-    out.insert("kappa_eff_over_kappa".into(), serde_json::to_value(ratio).unwrap());
-    out.insert("kappa_material_W_per_mK".into(), kappa_mat.into());
+    out.insert("quantity".into(), spec.quantity.clone().into());
+    if let Some(t) = temperature {
+        out.insert("sigma_eff_S_per_m".into(), serde_json::to_value(&rows).unwrap());
+        out.insert("sigma_eff_over_sigma".into(), serde_json::to_value(&ratio).unwrap());
+        out.insert("sigma_material_S_per_m".into(), kappa_mat.into());
+        out.insert("resistivity_material_ohm_m".into(), (1.0 / kappa_mat).into());
+        out.insert("temperature_K".into(), t.into());
+        // %IACS for copper: every material from the copper preset
+        let copper = |s: &crate::material::MaterialSpec| s.preset.as_deref().is_some_and(|p| p.eq_ignore_ascii_case("copper"));
+        if prep.case.materials.iter().all(copper) {
+            let iacs: Vec<f64> = (0..3).map(|a| 100.0 * tensor[(a, a)] / IACS_S_PER_M).collect();
+            out.insert("iacs_percent".into(), serde_json::to_value(iacs).unwrap());
+        }
+    } else {
+        out.insert("kappa_eff_W_per_mK".into(), serde_json::to_value(&rows).unwrap());
+        out.insert("kappa_eff_over_kappa".into(), serde_json::to_value(&ratio).unwrap());
+        out.insert("kappa_material_W_per_mK".into(), kappa_mat.into());
+    }
     out.insert("particles".into(), p.len().into());
     out.entry("contacts").or_insert(prep.pipes.pairs.len().into());
+    // the validated range of the law (docs/validation-conductance.md): mean h/r of the contacts
+    let hr = hr_periodic.unwrap_or_else(|| mean_overlap_ratio(&prep.pipes, p));
+    let extrapolated = crate::heat::conductance::beyond_validated(hr);
+    out.insert("mean_overlap_over_radius".into(), hr.into());
+    out.insert("extrapolated".into(), extrapolated.into());
+    if extrapolated {
+        let w = extrapolated_warning(hr);
+        tracing::warn!(target: "sinterdem::kinds", "{w}");
+        notes.push(w);
+    }
+    if let Some(bbox) = prep.scene.periodic_box {
+        let phi = crate::heat::pipes::solid_fraction(&p.radius, bbox.x * bbox.y * bbox.z);
+        out.insert("solid_fraction".into(), phi.into());
+        out.insert("hashin_shtrikman_upper".into(), hashin_shtrikman_upper(phi).into());
+    }
+    if !notes.is_empty() {
+        let mut w: Vec<serde_json::Value> = out.get("warnings").and_then(|w| w.as_array()).cloned().unwrap_or_default();
+        w.extend(notes.into_iter().map(serde_json::Value::from));
+        out.insert("warnings".into(), w.into());
+    }
     if let Some((lat, d)) = prep.scene.lattice {
         // closed forms of docs/heat-model.md for the pipe conductance of the lattice's nearest neighbours
         let r = p.radius[0];
@@ -83,8 +151,49 @@ pub fn run_case(value: toml::Value, base: &std::path::Path) -> Result<serde_json
             crate::scene::Lattice::BodyCentred => (3f64.sqrt(), 4.0 / 3.0),
             crate::scene::Lattice::FaceCentred => (2.0 * 2f64.sqrt(), 2.0),
         };
-        let kp = prep.conductance.pipe_crowded(kappa_mat, kappa_mat, r, r, neck.a, [phi, phi]).pair;
-        out.insert("lattice_closed_form_W_per_mK".into(), (f * kp / d).into());
+        let (z, cell) = match lat {
+            crate::scene::Lattice::SimpleCubic => (6.0, d * d * d),
+            crate::scene::Lattice::BodyCentred => (8.0, 4.0 * d * d * d / (3.0 * 3f64.sqrt())),
+            crate::scene::Lattice::FaceCentred => (12.0, d * d * d / 2f64.sqrt()),
+        };
+        let pc = prep.conductance.pipe_crowded(kappa_mat, kappa_mat, r, r, neck.a, [phi, phi]);
+        // the bound (H8d) on the lattice's particle: tr C = Z K_half (d/2)², C isotropic
+        let solid = 4.0 / 3.0 * std::f64::consts::PI * r.powi(3) / cell;
+        let s = lattice_bound(kappa_mat, cell, solid, z * pc.half_i * d * d / 4.0);
+        let kp = if s < 1.0 { prep.conductance.series(pc.half_i * s, pc.half_j * s, neck.a).pair } else { pc.pair };
+        let key = if electrical { "lattice_closed_form_S_per_m" } else { "lattice_closed_form_W_per_mK" };
+        out.insert(key.into(), (f * kp / d).into());
     }
     Ok(serde_json::Value::Object(out))
+}
+
+/// The Hashin–Shtrikman upper bound of a porous solid of solid fraction φ (voids non-conducting)
+/// over the solid's conductivity, 2φ/(3 − φ) (docs/heat-model.md (H8d); φ capped at 1) [1].
+pub fn hashin_shtrikman_upper(phi: f64) -> f64 {
+    let f = phi.clamp(0.0, 1.0);
+    2.0 * f / (3.0 - f)
+}
+
+/// The scale (H8d) of a cubic lattice's halves: particle cell volume `cell` [m³], solid fraction
+/// `solid` [1], tr C = `trace` [W·m] of the particle's isotropic half tensor, κ [W/(m·K)].
+fn lattice_bound(kappa: f64, cell: f64, solid: f64, trace: f64) -> f64 {
+    let phi_c = solid.min(1.0);
+    (3.0 * kappa * cell * 2.0 * phi_c / (3.0 - phi_c) / trace).min(kappa * cell * phi_c / (trace / 3.0)).min(1.0)
+}
+
+/// Mean over the contacts of h/min(r_i, r_j) (h the overlap) [1]; 0 without contacts.
+pub fn mean_overlap_ratio(pipes: &crate::heat::Pipes, p: &crate::particles::Particles) -> f64 {
+    let n = pipes.pairs.len();
+    if n == 0 {
+        return 0.0;
+    }
+    pipes.pairs.iter().zip(&pipes.overlap).map(|(&[i, j], h)| h / p.radius[i as usize].min(p.radius[j as usize])).sum::<f64>() / n as f64
+}
+
+/// The message of a result beyond the FE-validated range of the law.
+pub fn extrapolated_warning(mean_ratio: f64) -> String {
+    format!(
+        "conductivity: mean overlap h/r = {mean_ratio:.3} of the contacts is beyond the range the conductance law was validated against 3-D FE (mean h/r <= {}, docs/validation-conductance.md): the result is extrapolated (held below the Hashin-Shtrikman bound by (H8d))",
+        crate::heat::conductance::VALIDATED_MEAN_OVERLAP_RATIO
+    )
 }

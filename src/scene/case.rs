@@ -456,7 +456,8 @@ pub struct ThermalSpec {
     /// "network" (default) or "isothermal" (every particle at the furnace profile; no heat solve).
     #[serde(default = "network")]
     pub mode: String,
-    /// "linear" (default, c_K κ π a) or "fe_fit".
+    /// "fe_fit" (default: the FE-fitted factor f(a/r), docs/heat-model.md (H8)) or "linear"
+    /// (c_K κ π a, the seed paper's eq. 43).
     #[serde(default)]
     pub conductance: ConductanceLaw,
     /// c_K of the linear law (default 1.064).
@@ -464,8 +465,12 @@ pub struct ThermalSpec {
     pub conductance_factor: f64,
     /// Interface conductance in series [W/K] (default none).
     pub contact_conductance: Option<f64>,
-    /// Multi-neck correction of the half pipes: "none" (default: every half pipe the pair's) or
-    /// "fabric" (docs/heat-model.md (H8a)–(H8c), validated within 2 % of 3-D FE).
+    /// Interface resistance per unit neck area R_b [m²·K/W] in series with each pipe as
+    /// R_b/(π a²) (docs/heat-model.md (H7); default 0).
+    #[serde(default)]
+    pub boundary_resistance: f64,
+    /// Multi-neck correction of the half pipes: "fabric" (default; docs/heat-model.md
+    /// (H8a)–(H8c), validated within 2 % of 3-D FE) or "none" (every half pipe the pair's).
     #[serde(default)]
     pub multi_neck: crate::heat::MultiNeck,
     /// Radiation Newton tolerance (default 1e-9).
@@ -489,9 +494,10 @@ impl Default for ThermalSpec {
     fn default() -> Self {
         ThermalSpec {
             mode: network(),
-            conductance: ConductanceLaw::Linear,
+            conductance: ConductanceLaw::default(),
             conductance_factor: ck(),
             contact_conductance: None,
+            boundary_resistance: 0.0,
             multi_neck: crate::heat::MultiNeck::default(),
             radiation_tolerance: rad_tol(),
             contact_temperature: arith(),
@@ -533,12 +539,21 @@ pub struct ConductivitySpec {
     /// Dirichlet layer thickness as a fraction of the extent along the axis; default: one mean
     /// radius (particles whose sphere touches the face).
     pub layer_fraction: Option<f64>,
+    /// "thermal" (default: κ_eff from each material's κ) or "electrical" (σ_eff from each
+    /// material's electrical resistivity ρ_e(T) at the particles' temperature, the same network:
+    /// docs/heat-model.md "Electrical conductivity").
+    #[serde(default = "thermal")]
+    pub quantity: String,
 }
 
 impl Default for ConductivitySpec {
     fn default() -> Self {
-        ConductivitySpec { boundary: faces(), axes: xyz(), temperature_difference: 1.0, layer_fraction: None }
+        ConductivitySpec { boundary: faces(), axes: xyz(), temperature_difference: 1.0, layer_fraction: None, quantity: thermal() }
     }
+}
+
+fn thermal() -> String {
+    "thermal".into()
 }
 
 fn faces() -> String {

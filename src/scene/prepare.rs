@@ -46,6 +46,7 @@ pub fn conductance_of(case: &Case) -> Result<Conductance, ConfigError> {
         law: case.thermal.conductance,
         factor: config::check("thermal.conductance_factor", case.thermal.conductance_factor)?,
         contact: config::check_opt("thermal.contact_conductance", case.thermal.contact_conductance)?,
+        boundary_resistance: config::check("thermal.boundary_resistance", case.thermal.boundary_resistance)?,
         multi_neck: case.thermal.multi_neck,
     })
 }

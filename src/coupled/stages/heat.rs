@@ -64,13 +64,13 @@ impl Simulation {
                 })
             })
             .collect::<Result<_, ModelError>>()?;
+        let branch: Vec<nalgebra::Vector3<f64>> = self.contacts.pairs.iter().map(|&[i, j]| self.branch(i, j)).collect();
         let phi = if law.multi_neck == crate::heat::MultiNeck::None {
             vec![[1.0, 1.0]; necks.len()]
         } else {
-            let branch: Vec<nalgebra::Vector3<f64>> = self.contacts.pairs.iter().map(|&[i, j]| self.branch(i, j)).collect();
             crate::heat::pipes::crowding(&self.contacts.pairs, &branch, &necks, p.len(), law)
         };
-        Ok(self
+        let mut parts: Vec<crate::heat::PipeConductance> = self
             .contacts
             .pairs
             .iter()
@@ -80,6 +80,11 @@ impl Simulation {
                 let (ki, kj) = (mats[p.material[i as usize] as usize].conductivity, mats[p.material[j as usize] as usize].conductivity);
                 law.pipe_crowded(ki, kj, ri, rj, a, ph)
             })
-            .collect())
+            .collect();
+        // the bound (H8d): with the cell's solid fraction in a periodic cell
+        let solid = self.cell.as_ref().map(|c| crate::heat::pipes::solid_fraction(&p.radius, c.volume()));
+        let kappa: Vec<f64> = p.material.iter().map(|&m| mats[m as usize].conductivity).collect();
+        crate::heat::pipes::bound_halves(&mut parts, &self.contacts.pairs, &branch, &necks, &p.radius, &kappa, law, solid);
+        Ok(parts)
     }
 }

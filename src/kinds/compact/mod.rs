@@ -13,5 +13,5 @@ pub use checkpoint::{CHECKPOINT_FORMAT, Checkpoint, OutputState, read_checkpoint
 pub use driver::{CompactRun, run, run_from};
 pub(crate) use output::plot_header;
 pub(crate) use output::{Due, write_snapshot};
-pub use output::{compact_conductivity, periodic_conductivity, write_correction_histogram, write_plots};
+pub use output::{compact_conductivity, mean_overlap_ratio, periodic_conductivity, write_correction_histogram, write_plots};
 pub use validate::MAX_CHECKPOINT_STEP;

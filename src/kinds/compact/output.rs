@@ -43,9 +43,15 @@ impl Due {
                     k[(1, 1)],
                     k[(2, 2)]
                 ));
-                self.cond_results.push(json!({"time_s": sim.t, "method": "periodic", "kappa_eff_W_per_mK": rows}));
+                let hr = mean_overlap_ratio(sim);
+                let extrapolated = crate::heat::conductance::beyond_validated(hr);
+                self.cond_results.push(
+                    json!({"time_s": sim.t, "method": "periodic", "kappa_eff_W_per_mK": rows, "mean_overlap_over_radius": hr, "extrapolated": extrapolated}),
+                );
             } else {
                 let (k, cut) = compact_conductivity(sim)?;
+                let hr = mean_overlap_ratio(sim);
+                let extrapolated = crate::heat::conductance::beyond_validated(hr);
                 log(&format!("t = {}: effective conductivity diag = [{:.4e}, {:.4e}, {:.4e}] W/(m K)", crate::units::fmt_seconds(sim.t), k[0], k[1], k[2]));
                 match cut {
                     Some(w) => {
@@ -54,9 +60,13 @@ impl Due {
                         if !self.cond_results.iter().any(|c| c.get("warning").is_some()) {
                             log(&format!("warning: {w}"));
                         }
-                        self.cond_results.push(json!({"time_s": sim.t, "kappa_eff_W_per_mK": k, "warning": w}));
+                        self.cond_results.push(
+                            json!({"time_s": sim.t, "kappa_eff_W_per_mK": k, "mean_overlap_over_radius": hr, "extrapolated": extrapolated, "warning": w}),
+                        );
                     }
-                    None => self.cond_results.push(json!({"time_s": sim.t, "kappa_eff_W_per_mK": k})),
+                    None => {
+                        self.cond_results.push(json!({"time_s": sim.t, "kappa_eff_W_per_mK": k, "mean_overlap_over_radius": hr, "extrapolated": extrapolated}))
+                    }
                 }
             }
             self.next_cond += 1;
@@ -119,6 +129,26 @@ pub(crate) fn write_snapshot(sim: &Simulation, snaps: &mut SnapshotWriter) -> Re
         particle_vectors: vec![("displacement_m", &disp), ("velocity_m_per_s", &sim.velocity)],
         parameters: Some(crate::io::Parameters { case_toml: sim.source.0.clone(), materials_json }),
     })
+}
+
+/// Mean over the contacts of the compact of h/min(r_i, r_j), h = r_i + r_j − |b_ij| the overlap of
+/// the current centre distance (minimum image in a periodic cell) [1]: the measure of the law's
+/// validated range (`heat::conductance::VALIDATED_MEAN_OVERLAP_RATIO`); 0 without contacts.
+pub fn mean_overlap_ratio(sim: &Simulation) -> f64 {
+    let r = &sim.prep.scene.particles.radius;
+    let n = sim.contacts.pairs.len();
+    if n == 0 {
+        return 0.0;
+    }
+    sim.contacts
+        .pairs
+        .iter()
+        .map(|&[i, j]| {
+            let (ri, rj) = (r[i as usize], r[j as usize]);
+            (ri + rj - sim.branch(i, j).norm()) / ri.min(rj)
+        })
+        .sum::<f64>()
+        / n as f64
 }
 
 /// Effective conductivity (faces method, diagonal) of the compact in its current state [W/(m·K)],

@@ -46,6 +46,10 @@ pub struct Point {
     pub sintering_stress_b23: f64,
     /// Effective conductivity tensor [W/(m·K)] `[xx, yy, zz, yz, xz, xy]` (periodic homogenisation).
     pub kappa: [f64; 6],
+    /// Mean h/r of the contacts [1] and whether it lies beyond the FE-validated range of the
+    /// conductance law (`heat::conductance::VALIDATED_MEAN_OVERLAP_RATIO`): κ then extrapolated.
+    pub mean_overlap_over_radius: f64,
+    pub kappa_extrapolated: bool,
 }
 
 /// A clone of `sim` (its checkpoint state rebuilt, as `sinterdem resume` does) with every normal
@@ -150,6 +154,7 @@ pub fn measure_point(sim: &Simulation, rve: &RveSettings) -> Result<Point, Error
         None => [0.0; 6],
     };
     let sh = sim.shrinkage();
+    let hr = crate::kinds::compact::mean_overlap_ratio(sim);
     let temps = &sim.prep.scene.particles.temperature;
     let point = Point {
         time: sim.t,
@@ -171,6 +176,8 @@ pub fn measure_point(sim: &Simulation, rve: &RveSettings) -> Result<Point, Error
         sintering_stress: -bulk * ev_free,
         sintering_stress_b23: b23_mean,
         kappa,
+        mean_overlap_over_radius: hr,
+        kappa_extrapolated: crate::heat::conductance::beyond_validated(hr),
     };
     let values = [point.bulk_viscosity, point.bulk_viscosity_half, point.uniaxial_viscosity, point.uniaxial_viscosity_x_half, point.sintering_stress];
     crate::finite::ensure_finite("rve branches", sim.step, sim.t, "quantity", "constitutive value", values.iter().copied())?;

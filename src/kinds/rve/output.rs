@@ -35,6 +35,8 @@ pub const COLUMNS: &[&str] = &[
     "kappa_yz_W_per_mK",
     "kappa_xz_W_per_mK",
     "kappa_xy_W_per_mK",
+    "mean_overlap_over_radius",
+    "kappa_extrapolated",
 ];
 
 fn values(p: &Point) -> Vec<f64> {
@@ -59,6 +61,8 @@ fn values(p: &Point) -> Vec<f64> {
         p.shear_viscosity,
     ];
     v.extend_from_slice(&p.kappa);
+    v.push(p.mean_overlap_over_radius);
+    v.push(if p.kappa_extrapolated { 1.0 } else { 0.0 });
     v
 }
 

@@ -40,6 +40,8 @@ pub struct Tables {
     pub heat_capacity_table: Option<Vec<[f64; 2]>>,
     /// α(T) [1/K].
     pub thermal_expansion_table: Option<Vec<[f64; 2]>>,
+    /// ρ_e(T) [Ω·m] (`sinterdem conductivity` with `quantity = "electrical"`).
+    pub electrical_resistivity_table: Option<Vec<[f64; 2]>>,
     pub source: String,
 }
 
@@ -303,14 +305,17 @@ pub fn markdown() -> String {
             e.range_source
         ));
         if let Some(tb) = &e.tables {
+            // the ρ_e(T) line cites its source in its own comment in materials.toml
+            let rho_source = "the comment on the line in src/models/diffusion7/materials.toml; docs/references.md";
             let rows = [
-                ("κ(T) table", "W/(m·K)", &tb.conductivity_table),
-                ("c(T) table", "J/(kg·K)", &tb.heat_capacity_table),
-                ("α(T) table", "1/K", &tb.thermal_expansion_table),
+                ("κ(T) table", "W/(m·K)", &tb.conductivity_table, tb.source.as_str()),
+                ("c(T) table", "J/(kg·K)", &tb.heat_capacity_table, tb.source.as_str()),
+                ("α(T) table", "1/K", &tb.thermal_expansion_table, tb.source.as_str()),
+                ("ρ_e(T) table", "Ω·m", &tb.electrical_resistivity_table, rho_source),
             ];
-            for (what, unit, tab) in rows {
+            for (what, unit, tab, source) in rows {
                 if let Some(tab) = tab {
-                    s.push_str(&format!("| {what} | {} | {unit} | {} |\n", table_points(tab), tb.source));
+                    s.push_str(&format!("| {what} | {} | {unit} | {source} |\n", table_points(tab)));
                 }
             }
         }
