@@ -21,7 +21,7 @@ fn validate_compact_runs_the_fitted_material_on_a_packing() {
     std::fs::write(
         dir.join("compact.toml"),
         "kind = \"compact\"\n[time]\nend = 100.0\ndt = 1.0e-3\ndt_max = 10.0\nsubsteps_allowed = 100\n[output]\nsnapshots = 0\nvtu = false\nhdf5 = false\n\
-         [[materials]]\nname = \"titanium\"\npreset = \"titanium-ivannikov2022\"\n[particles]\nsource = \"file\"\nfile = \"corner.csv\"\n\
+         [[materials]]\nname = \"titanium-ivannikov2022\"\npreset = \"titanium-ivannikov2022\"\n[particles]\nsource = \"file\"\nfile = \"corner.csv\"\n\
          [thermal]\nmode = \"isothermal\"\nfurnace = { profile = { constant = 1373.0 } }\n",
     )
     .unwrap();

@@ -44,7 +44,7 @@ fn compact_case(dir: &Path, model: &str) {
         dir.join("compact.toml"),
         format!(
             "kind = \"compact\"\n[time]\nend = 100.0\ndt = 1.0e-3\ndt_max = 10.0\nsubsteps_allowed = 100\n[output]\nsnapshots = 0\nvtu = false\nhdf5 = false\n\
-             [[materials]]\nname = \"titanium\"\npreset = \"titanium-ivannikov2022\"\n[particles]\nsource = \"file\"\nfile = \"corner.csv\"\n\
+             [[materials]]\nname = \"titanium-ivannikov2022\"\npreset = \"titanium-ivannikov2022\"\n[particles]\nsource = \"file\"\nfile = \"corner.csv\"\n\
              [thermal]\nmode = \"isothermal\"\nfurnace = {{ profile = {{ constant = 1373.0 }} }}\n{model}"
         ),
     )
@@ -240,7 +240,7 @@ fn included_material_path_factors_reach_the_compact() {
             dir.join("compact.toml"),
             format!(
                 "kind = \"compact\"\n[time]\nend = 100.0\ndt = 1.0e-3\ndt_max = 10.0\n[output]\nsnapshots = 0\nvtu = false\nhdf5 = false\n\
-                 [[materials]]\nname = \"titanium\"\npreset = \"titanium-ivannikov2022\"\n{}[particles]\nsource = \"file\"\nfile = \"corner.csv\"\n\
+                 [[materials]]\nname = \"titanium-ivannikov2022\"\npreset = \"titanium-ivannikov2022\"\n{}[particles]\nsource = \"file\"\nfile = \"corner.csv\"\n\
                  [thermal]\nmode = \"isothermal\"\nfurnace = {{ profile = {{ constant = 1373.0 }} }}\n{model}",
                 inc(file)
             ),
@@ -284,7 +284,7 @@ fn included_material_path_factors_reach_the_compact() {
     .unwrap();
     let calib = |extra: &str| {
         let p = dir.join("calib.toml");
-        std::fs::write(&p, format!("data = \"data.csv\"\nmaterial = \"titanium-ivannikov2022\"\ninclude = \"with-model.toml\"\n[[parameters]]\nkey = \"beta.q_gb\"\nmin = 2.0e5\nmax = 2.4e5\n{extra}")).unwrap();
+        std::fs::write(&p, format!("data = \"data.csv\"\nmaterial = \"titanium\"\ninclude = \"with-model.toml\"\n[[parameters]]\nkey = \"beta.q_gb\"\nmin = 2.0e5\nmax = 2.4e5\n{extra}")).unwrap();
         parse(&load_case(&p, &[]).unwrap(), &dir).unwrap().factors
     };
     assert_eq!(calib("").path_factor_gb, 0.5);

@@ -49,7 +49,7 @@ fn pair_plot_has_the_case_title_settings_plain_labels_and_two_line_styles() {
     let s = svg(&dir.join("neck_shrinkage.svg"));
     let t = texts(&s);
     assert!(t.contains(&"copper pair, 1293 K: neck growth and shrinkage".to_string()), "{t:?}");
-    assert!(t.contains(&"copper, two spheres of radius 25 µm, up to 1293 K, 83.3 min".to_string()), "{t:?}");
+    assert!(t.contains(&"copper-ivannikov2022, two spheres of radius 25 µm, up to 1293 K, 83.3 min".to_string()), "{t:?}");
     assert!(t.contains(&"neck radius / smaller particle radius".to_string()));
     assert_plain("neck_shrinkage", &t);
     // neck ratio solid, shrinkage dashed: one dash array, on its line and its legend sample
@@ -68,7 +68,7 @@ fn compact_plots_carry_the_case_title_and_read_in_plain_units() {
         let s = svg(&dir.join(format!("{file}.svg")));
         let t = texts(&s);
         assert!(t.iter().any(|x| x.starts_with("fcc block: ")), "{file}: {t:?}");
-        assert!(t.iter().any(|x| x.starts_with("32 particles of copper, mean radius 25 µm")), "{file}: {t:?}");
+        assert!(t.iter().any(|x| x.starts_with("32 particles of copper-ivannikov2022, mean radius 25 µm")), "{file}: {t:?}");
         assert_plain(file, &t);
         if !["layer_profile", "dl_bar_histogram", "neck_ratio"].contains(&file) {
             assert!(t.contains(&"time [min]".to_string()), "{file}: {t:?}");
