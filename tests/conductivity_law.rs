@@ -225,7 +225,7 @@ fn boundary_resistance_is_in_series_with_each_pipe() {
         let pc = law.pipe(394.0, 394.0, r, r, neck.a);
         assert!((pc.boundary - rb / (std::f64::consts::PI * neck.a * neck.a)).abs() < 1e-12 * pc.boundary);
         let mat = sinterdem::material::parse_one(toml::from_str("name = \"cu\"\npreset = \"copper\"\nconductivity_table = \"copper\"\n").unwrap()).unwrap();
-        let props = sinterdem::heat::properties::ThermalProperties::of(&[1.0, 1.0], &[0, 0], &[mat.clone()], None).unwrap();
+        let props = sinterdem::heat::properties::ThermalProperties::of(&[1.0, 1.0], &[0, 0], std::slice::from_ref(&mat), None).unwrap();
         let t = 900.0;
         let s = mat.conductivity_table.as_ref().unwrap().at(t) / mat.conductivity;
         let want_t = 1.0 / (2.0 / (pc.half_i * s) + pc.boundary);
