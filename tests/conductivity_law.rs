@@ -73,7 +73,7 @@ fn lattices_never_exceed_hashin_shtrikman_up_to_the_second_neighbour_limit() {
         for k in 1..=n {
             let h = limit * k as f64 / (n as f64 + 0.5);
             let case = format!(
-                "[time]\nend = 1.0\ndt = 0.1\n[[materials]]\nname = \"copper\"\npreset = \"copper\"\n[particles]\nsource = \"lattice\"\nlattice = \"{lat}\"\ncells = [3, 3, 3]\nradius = 25e-6\noverlap = {h}\n[conductivity]\nboundary = \"periodic\"\n"
+                "[time]\nend = 1.0\ndt = 0.1\n[[materials]]\nname = \"copper\"\npreset = \"copper-ivannikov2022\"\n[particles]\nsource = \"lattice\"\nlattice = \"{lat}\"\ncells = [3, 3, 3]\nradius = 25e-6\noverlap = {h}\n[conductivity]\nboundary = \"periodic\"\n"
             );
             let name = format!("{lat}-{k}");
             let out = run_case(&dir, &name, &case);
@@ -197,7 +197,7 @@ fn heat_model_doc_quotes_the_codes_constants() {
 
 fn lattice_case(lat: &str, h: f64, extra: &str) -> String {
     format!(
-        "[time]\nend = 1.0\ndt = 0.1\n[[materials]]\nname = \"copper\"\npreset = \"copper\"\n[particles]\nsource = \"lattice\"\nlattice = \"{lat}\"\ncells = [3, 3, 3]\nradius = 25e-6\noverlap = {h}\n{extra}[conductivity]\nboundary = \"periodic\"\n"
+        "[time]\nend = 1.0\ndt = 0.1\n[[materials]]\nname = \"copper\"\npreset = \"copper-ivannikov2022\"\n[particles]\nsource = \"lattice\"\nlattice = \"{lat}\"\ncells = [3, 3, 3]\nradius = 25e-6\noverlap = {h}\n{extra}[conductivity]\nboundary = \"periodic\"\n"
     )
 }
 

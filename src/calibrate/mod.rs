@@ -344,15 +344,9 @@ pub fn run(setup: Setup, out: &Path, log: &mut dyn FnMut(&str)) -> Result<report
     if let Some(note) = lock.takeover_note() {
         log(&note);
     }
-    // an unfinished calibration is continued; a finished one or another command's outputs need
-    // --force (docs/outputs.md "Guarantees")
-    if let Some(note) = crate::io::outdir::claim(
-        out,
-        crate::io::outdir::Claimant::Calibration,
-        setup.force,
-        None,
-        &[setup.data_path.clone()].into_iter().chain(setup.series_path.clone()).collect::<Vec<_>>(),
-    )? {
+    // an unfinished calibration is continued; finished or foreign outputs need --force (docs/outputs.md)
+    let inputs: Vec<_> = [setup.data_path.clone()].into_iter().chain(setup.series_path.clone()).collect();
+    if let Some(note) = crate::io::outdir::claim(out, crate::io::outdir::Claimant::Calibration, setup.force, None, &inputs)? {
         log(&note);
     }
     let Setup {

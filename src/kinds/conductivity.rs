@@ -25,9 +25,7 @@ pub fn run_case(value: toml::Value, base: &std::path::Path) -> Result<serde_json
     let mut notes: Vec<String> = Vec::new();
     let mut temperature = None;
     if electrical {
-        // the same network with σ_e for κ (the thermal–electrical analogy): every material's κ is
-        // replaced by 1/ρ_e at the particles' mean temperature; the thermal interface terms do not
-        // apply to a current
+        // the same network with σ_e for κ (thermal–electrical analogy): κ → 1/ρ_e at the particles' mean temperature, no thermal interface terms
         let ps = &prep.scene.particles;
         let t = ps.temperature.iter().sum::<f64>() / ps.temperature.len().max(1) as f64;
         for (m, s) in prep.scene.materials.iter_mut().zip(&prep.case.materials) {
@@ -89,8 +87,7 @@ pub fn run_case(value: toml::Value, base: &std::path::Path) -> Result<serde_json
             let (pipes, branch) = periodic_pipes(p, bbox, &prep.scene.materials, &prep.conductance)?;
             hr_periodic = Some(mean_overlap_ratio(&pipes, p));
             out.insert("periodic_contacts".into(), pipes.pairs.len().into());
-            // the contacts of the run are the periodic ones (the walled count misses those across
-            // the box faces); `walled_contacts` keeps the count without periodic images
+            // the run's contacts are the periodic ones (`walled_contacts`: the count without periodic images)
             out.insert("contacts".into(), pipes.pairs.len().into());
             out.insert("walled_contacts".into(), prep.pipes.pairs.len().into());
             periodic(p, &pipes, &branch, bbox)?
@@ -107,8 +104,8 @@ pub fn run_case(value: toml::Value, base: &std::path::Path) -> Result<serde_json
         out.insert("sigma_material_S_per_m".into(), kappa_mat.into());
         out.insert("resistivity_material_ohm_m".into(), (1.0 / kappa_mat).into());
         out.insert("temperature_K".into(), t.into());
-        // %IACS for copper: every material from the copper preset
-        let copper = |s: &crate::material::MaterialSpec| s.preset.as_deref().is_some_and(|p| p.eq_ignore_ascii_case("copper"));
+        // %IACS for copper: every material from a copper preset (`copper`, `copper-ivannikov2022`)
+        let copper = |s: &crate::material::MaterialSpec| s.preset.as_deref().is_some_and(|p| p.to_ascii_lowercase().starts_with("copper"));
         if prep.case.materials.iter().all(copper) {
             let iacs: Vec<f64> = (0..3).map(|a| 100.0 * tensor[(a, a)] / IACS_S_PER_M).collect();
             out.insert("iacs_percent".into(), serde_json::to_value(iacs).unwrap());
@@ -144,8 +141,7 @@ pub fn run_case(value: toml::Value, base: &std::path::Path) -> Result<serde_json
         // closed forms of docs/heat-model.md for the pipe conductance of the lattice's nearest neighbours
         let r = p.radius[0];
         let neck = crate::neck::solve(r, r, 2.0 * r - d)?;
-        // the crowding of every neck of the lattice (heat-model.md (H8c)): nᵀMn/(2a) = 1 (SC),
-        // (2 + 6/9)/2 = 4/3 (BCC), (2 + 8/4)/2 = 2 (FCC)
+        // the crowding of every neck (heat-model.md (H8c)): nᵀMn/(2a) = 1 (SC), (2 + 6/9)/2 = 4/3 (BCC), (2 + 8/4)/2 = 2 (FCC)
         let (f, phi) = match lat {
             crate::scene::Lattice::SimpleCubic => (1.0, 1.0),
             crate::scene::Lattice::BodyCentred => (3f64.sqrt(), 4.0 / 3.0),
