@@ -162,12 +162,12 @@ def conductivity(case: CaseLike) -> Conductivity:
     return Conductivity(json.loads(text))
 
 
-def neck(r1: float, r2: float, overlap: float, kappa: float, kappa2: Optional[float] = None, conductance: str = "linear",
+def neck(r1: float, r2: float, overlap: float, kappa: float, kappa2: Optional[float] = None, conductance: str = "fe_fit",
          factor: float = 1.064, contact_conductance: Optional[float] = None) -> Neck:
     """Neck geometry and pipe conductance of two spheres, as ``sinterdem neck`` (SI units):
     radii ``r1``, ``r2`` [m], overlap h = r1 + r2 − d [m], conductivities ``kappa``, ``kappa2``
-    [W/(m K)] (default ``kappa``), ``conductance`` law ``"linear"`` (c_K = ``factor``) or
-    ``"fe_fit"``, ``contact_conductance`` in series [W/K]. Returns a :class:`Neck`."""
+    [W/(m K)] (default ``kappa``), ``conductance`` law ``"fe_fit"`` (the default, as the command) or ``"linear"`` (c_K = ``factor``);
+    ``contact_conductance`` in series [W/K]. Returns a :class:`Neck`."""
     with _logs.captured():
         text = _native.neck(float(r1), float(r2), float(overlap), float(kappa),
                             None if kappa2 is None else float(kappa2), str(conductance), float(factor),

@@ -890,7 +890,7 @@ fn take_log() -> Vec<(u8, String)> {
 
 /// `sinterdem neck`: the JSON object the command prints, as text (parsed by the Python layer).
 #[pyfunction]
-#[pyo3(signature = (r1, r2, overlap, kappa, kappa2=None, conductance="linear".to_string(), factor=1.064, contact_conductance=None))]
+#[pyo3(signature = (r1, r2, overlap, kappa, kappa2=None, conductance="fe_fit".to_string(), factor=1.064, contact_conductance=None))]
 #[allow(clippy::too_many_arguments)]
 fn neck(
     py: Python<'_>,

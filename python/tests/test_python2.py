@@ -317,7 +317,7 @@ def test_a_rust_panic_reaches_python_as_one_sinterdem_error(tmp_path, capfd):
     # rve.interval = 1e-15 (inside its documented range) panicked in the branch runs (issue 38
     # item 6); whether it panics or is refused, a user gets a sinterdem.Error, no Rust text
     c = sinterdem.Case.load(CASES / "rve-copper.toml")
-    for k, v in {"time.end": 5.0, "rve.at": [2.0], "output.conductivity_at": [0.0], "output.snapshots": 0}.items():
+    for k, v in {"rve.at": [2.0], "time.end": 5.0, "output.conductivity_at": [0.0], "output.snapshots": 0}.items():
         c[k] = v
     try:
         c["rve.interval"] = 1e-15

@@ -177,7 +177,7 @@ def test_preset_material_spelled_out_gives_the_same_heat_run():
         sinterdem.Case.preset_material("unobtainium")
 
 
-RVE_SETS = {"time.end": 2.0, "rve.at": [2.0], "rve.interval": 0.2, "output.snapshots": 0, "output.checkpoint_every": 0}
+RVE_SETS = {"rve.at": [2.0], "time.end": 2.0, "rve.interval": 0.2, "output.snapshots": 0, "output.checkpoint_every": 0}
 
 
 def test_rve_equals_the_command_line(tmp_path):
