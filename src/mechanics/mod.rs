@@ -506,7 +506,6 @@ impl BondedSystem {
         // geometry, link stiffness, assembly, loads
         let t0 = Instant::now();
         let r_scale = inp.radii.iter().sum::<f64>() / n.max(1) as f64;
-        let (e, nu) = (self.params.young_modulus, self.params.poisson_ratio);
         let geom: Result<Vec<BondGeometry>, Error> = self
             .pairs
             .par_iter()
@@ -519,17 +518,7 @@ impl BondedSystem {
             })
             .collect();
         let geom = geom?;
-        let k: Vec<[f64; 6]> = if self.relaxation.is_some() {
-            self.link_k(inp.radii)
-        } else {
-            self.pairs
-                .iter()
-                .map(|&[a, b]| {
-                    let [e, nu] = if self.elastic.is_some() { self.link_elastic(a, b) } else { [e, nu] };
-                    link_stiffness(e, nu, 0.5 * (inp.radii[a as usize] + inp.radii[b as usize]))
-                })
-                .collect()
-        };
+        let k = self.link_k(inp.radii);
         let blocks = BlockMatrix::assemble(n, &self.pairs, &self.inc, &geom, &k, r_scale);
         let release = self.release_loads(&geom, inp.radii);
         let mut rhs = vec![0.0; 6 * n];

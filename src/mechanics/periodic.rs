@@ -14,7 +14,7 @@
 //! fixed by a gauge (one particle's translation held, then the mean fluctuation of the
 //! component removed, (B19)), which carries no reaction because every load is self-equilibrated.
 
-use super::bond::{BondGeometry, element_blocks, link_stiffness};
+use super::bond::{BondGeometry, element_blocks};
 use super::constraints::{TopologyReport, dof};
 use super::{BondedSystem, MechInfo, MechStep, StepInput};
 use crate::error::{ConfigError, Error, ModelError, SolveError};
@@ -305,18 +305,7 @@ impl BondedSystem {
         nc: usize,
         release: Option<&[Vector3<f64>]>,
     ) -> Coupling {
-        let (e, nu) = (self.params.young_modulus, self.params.poisson_ratio);
-        let k: Vec<[f64; 6]> = if self.relaxation.is_some() {
-            self.link_k(inp.radii)
-        } else {
-            self.pairs
-                .iter()
-                .map(|&[a, b]| {
-                    let [e, nu] = if self.elastic.is_some() { self.link_elastic(a, b) } else { [e, nu] };
-                    link_stiffness(e, nu, 0.5 * (inp.radii[a as usize] + inp.radii[b as usize]))
-                })
-                .collect()
-        };
+        let k = self.link_k(inp.radii);
         let ends: Vec<(Matrix6<f64>, Matrix6<f64>)> = geom
             .par_iter()
             .zip(k.par_iter())

@@ -4,7 +4,7 @@
 //! controls, and the result does not depend on the solver.
 
 use super::*;
-use crate::mechanics::{Constraints, LinearSolver, MechParams, fixtures::rng};
+use crate::mechanics::{Constraints, LinearSolver, MechParams, fixtures::rng, link_stiffness};
 
 const R: f64 = 25e-6;
 const E: f64 = 1.0e11;
