@@ -17,16 +17,17 @@ fn rel(a: f64, b: f64) -> f64 {
     (a - b).abs() / b.abs()
 }
 
-/// (B24) written out for a 25 µm copper-like neck: f·π a² R² k_B T/(8 Ω δD).
+/// (B24) written out: f·(R*/a)²/M_c, R* = 2 R_A R_B/(R_A + R_B); no mobility, no sliding.
 #[test]
 fn tangential_viscosity_is_the_contact_law() {
-    let (a, omega, dd, t) = (5e-6, 1.18e-29, 1e-20, 1293.0);
-    let eta = tangential_viscosity(1.0, a, R, R, omega, dd, t);
-    let by_hand = std::f64::consts::PI * a * a * R * R * 1.380649e-23 * t / (8.0 * omega * dd);
+    let (a, mobility) = (5e-6, 4.5e-6);
+    let eta = tangential_viscosity(1.0, a, R, R, mobility);
+    let by_hand = (R / a).powi(2) / mobility;
     assert!(rel(eta, by_hand) < 1e-14, "{eta} vs {by_hand}");
-    // R* = 2 R_A R_B/(R_A + R_B); the factor scales it
-    let mixed = tangential_viscosity(0.01, a, R, 2.0 * R, omega, dd, t);
+    // R* = 2 R_A R_B/(R_A + R_B) = 4R/3 for R and 2R; the factor scales it
+    let mixed = tangential_viscosity(0.01, a, R, 2.0 * R, mobility);
     assert!(rel(mixed, 0.01 * by_hand * (4.0 / 3.0f64).powi(2)) < 1e-14);
+    assert_eq!(tangential_viscosity(1.0, a, R, R, 0.0), f64::INFINITY);
     assert_eq!(maxwell_factor(1.0, f64::INFINITY, 1.0), 1.0);
     assert_eq!(maxwell_factor(2.0, 3.0, 0.0), 1.0);
     assert!(rel(maxwell_factor(2.0, 3.0, 0.5), 0.75) < 1e-15);
@@ -51,7 +52,7 @@ fn pair_under_a_constant_tangential_force_slides_at_f_over_eta() {
     let x = pos;
     for step in 0..6 {
         let ext = [NodalLoad::default(), NodalLoad { force: Vector3::new(if step == 0 { f } else { 0.0 }, 0.0, 0.0), moment: Vector3::zeros() }];
-        sys.set_relaxation(Some(Relaxation { dt, viscosity: vec![eta], stored: stored.clone() }));
+        sys.set_relaxation(Some(Relaxation { dt, viscosity: vec![eta], stored: stored.clone(), ..Default::default() }));
         let out = sys.step(&StepInput { positions: &x, radii: &[R, R], y4_y7: &[[R, R]], load: &[0.0], external: Some(&ext) }).unwrap();
         // the link force P_t with ε = u_A − u_B: B is held by −P_t = −F, so P_t = −F along x
         assert!(rel(out.tangential[0].x, -f) < 1e-9 && out.tangential[0].yz().norm() < 1e-12 * f, "step {step}: {:?}", out.tangential[0]);
@@ -75,8 +76,55 @@ fn pair_under_a_constant_tangential_force_slides_at_f_over_eta() {
         let ext = [NodalLoad::default(), NodalLoad { force: Vector3::new(f, 0.3 * f, -0.2 * f), moment: Vector3::new(0.0, 1e-3 * f * R, 0.0) }];
         s.step(&StepInput { positions: &pos, radii: &[R, R], y4_y7: &[[R, R]], load: &[1e-4], external: Some(&ext) }).unwrap()
     };
-    let (el, inf) = (step(None), step(Some(Relaxation { dt, viscosity: vec![f64::INFINITY], stored: vec![Vector3::new(2.0 * f, 0.0, 0.0)] })));
+    let (el, inf) =
+        (step(None), step(Some(Relaxation { dt, viscosity: vec![f64::INFINITY], stored: vec![Vector3::new(2.0 * f, 0.0, 0.0)], ..Default::default() })));
     assert!(el.tangential.is_empty());
+    assert_eq!((el.du, el.dtheta, el.xi), (inf.du, inf.dtheta, inf.xi));
+}
+
+/// (B30): particle 0 held, particle 1 free, the bond along z, rolling viscosities [η_b, η_tw]
+/// and a tangential η_t = ∞ (no sliding). A moment (M_x, 0, M_z) applied at step 1 and held:
+/// after the elastic jump the particle rolls about x at M_x/η_b and twists about z at M_z/η_tw
+/// per unit time (its centre translates so that the bond point does not slide), the stored
+/// moment stays −M; without rolling viscosities the same step is the elastic link bit for bit.
+#[test]
+fn pair_under_a_constant_moment_rolls_and_twists_at_m_over_eta() {
+    let pos = [Vector3::zeros(), Vector3::new(0.0, 0.0, 2.0 * R)];
+    let params = MechParams { young_modulus: E, poisson_ratio: NU, solver: LinearSolver::Cholesky, rtol: 1e-13, ..Default::default() };
+    let system = || {
+        let mut cons = Constraints::none(2);
+        cons.fix(0, dof::ALL).unwrap();
+        let mut sys = BondedSystem::new(2, params, cons).unwrap();
+        sys.set_topology(&[[0, 1]]).unwrap();
+        sys
+    };
+    let mut sys = system();
+    let (m, eta_b, eta_tw, dt) = (Vector3::new(2e-9, 0.0, -3e-9), 4.0e-7, 9.0e-7, 0.3);
+    let mut stored_moment = Vec::new();
+    for step in 0..6 {
+        let ext = [NodalLoad::default(), NodalLoad { force: Vector3::zeros(), moment: if step == 0 { m } else { Vector3::zeros() } }];
+        let relax =
+            Relaxation { dt, viscosity: vec![f64::INFINITY], rolling: vec![[eta_b, eta_tw]], stored_moment: stored_moment.clone(), ..Default::default() };
+        sys.set_relaxation(Some(relax));
+        let out = sys.step(&StepInput { positions: &pos, radii: &[R, R], y4_y7: &[[R, R]], load: &[0.0], external: Some(&ext) }).unwrap();
+        assert!((out.moment[0] + m).norm() < 1e-9 * m.norm(), "step {step}: {:?}", out.moment[0]);
+        if step > 0 {
+            let (wx, wz) = (out.dtheta[1].x, out.dtheta[1].z);
+            assert!(rel(wx, m.x * dt / eta_b) < 1e-9, "step {step}: {wx} vs {}", m.x * dt / eta_b);
+            assert!(rel(wz, m.z * dt / eta_tw) < 1e-9, "step {step}: {wz} vs {}", m.z * dt / eta_tw);
+            // the centre follows the rolling so that the bond point does not slide: u_y = R θ_x
+            assert!(rel(out.du[1].y, -R * wx) < 1e-9 || rel(out.du[1].y, R * wx) < 1e-9, "{} vs {}", out.du[1].y, R * wx);
+        }
+        stored_moment = out.moment;
+    }
+    let step = |relax: Option<Relaxation>| {
+        let mut s = system();
+        s.set_relaxation(relax);
+        let ext = [NodalLoad::default(), NodalLoad { force: Vector3::new(1e-3, 0.0, 0.0), moment: m }];
+        s.step(&StepInput { positions: &pos, radii: &[R, R], y4_y7: &[[R, R]], load: &[1e-4], external: Some(&ext) }).unwrap()
+    };
+    let (el, inf) = (step(None), step(Some(Relaxation { dt, viscosity: vec![f64::INFINITY], rolling: vec![[f64::INFINITY; 2]], ..Default::default() })));
+    assert!(el.moment.is_empty());
     assert_eq!((el.du, el.dtheta, el.xi), (inf.du, inf.dtheta, inf.xi));
 }
 
@@ -122,7 +170,7 @@ fn sc_cell_under_shear_has_the_closed_form_shear_viscosity() {
             if step == 0 {
                 controls[5] = CellControl::Stress(sigma);
             }
-            sys.set_relaxation(Some(Relaxation { dt, viscosity: vec![eta; pairs.len()], stored: stored.clone() }));
+            sys.set_relaxation(Some(Relaxation { dt, viscosity: vec![eta; pairs.len()], stored: stored.clone(), ..Default::default() }));
             let y = vec![[R, R]; pairs.len()];
             let zero = vec![0.0; pairs.len()];
             let (out, cs) = sys

@@ -97,10 +97,10 @@ pub static TABLE: &[Range] = &[
     c("mechanics.plane_margin", 1.0, 2.0, "1", "a particle touches a principal plane when its centre is within margin * r"),
     c(
         "mechanics.sliding_factor",
-        1e-4,
-        1e2,
+        1e-3,
+        10.0,
         "1",
-        "sliding = \"viscous\": factor f of the tangential neck viscosity f pi a^2 R*^2 kT/(8 Omega delta D_gb) (docs/mechanics.md (B24); 1: the law as derived, 0.01: MUSEN's default)",
+        "sliding = \"viscous\": factor f of the tangential neck viscosity f (R*/a)^2 / M_c, M_c the contact's normal mobility (docs/mechanics.md (B24); default 0.01, MUSEN's)",
     ),
     c("load.stress", 0.0, 1e9, "Pa", "compact runs: applied compressive stress (also every stress of load.stress_table; docs/pressure.md)"),
     p(

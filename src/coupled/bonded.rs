@@ -18,9 +18,12 @@ pub struct MechanicsStage {
     /// With sliding: the stored tangential link force per contact, global axes [N] (B27)
     /// (checkpointed); empty without sliding.
     pub tangential: Vec<Vector3<f64>>,
-    /// With sliding: the tangential viscosity per contact [N·s/m] (B24) and the step [s] of the
+    /// With sliding: the stored link moment per contact, global axes [N·m] (B30)
+    /// (checkpointed); empty without sliding.
+    pub moment: Vec<Vector3<f64>>,
+    /// With sliding: the viscosities of every neck ((B24), (B29), (B30)) and the step [s] of the
     /// next solves, set by the caller before each ([`Self::set_sliding`]).
-    sliding: Option<(Vec<f64>, f64)>,
+    sliding: Option<(crate::mechanics::sliding::NeckViscosities, f64)>,
     /// Newton iterations and factorisations so far.
     pub newton_iterations: u64,
     pub factorizations: u64,
@@ -55,6 +58,7 @@ impl MechanicsStage {
             bonds: 0,
             rotation: vec![Vector3::zeros(); n],
             tangential: Vec::new(),
+            moment: Vec::new(),
             sliding: None,
             newton_iterations: 0,
             factorizations: 0,
@@ -86,9 +90,9 @@ impl MechanicsStage {
         Ok(())
     }
 
-    /// The tangential viscosities [N·s/m] per contact and the step `dt` [s] of the next solves
-    /// (docs/mechanics.md (B24)–(B28)); None: elastic links.
-    pub(super) fn set_sliding(&mut self, sliding: Option<(Vec<f64>, f64)>) {
+    /// The viscosities of every neck and the step `dt` [s] of the next solves (docs/mechanics.md
+    /// (B24)–(B30)); None: elastic links.
+    pub(super) fn set_sliding(&mut self, sliding: Option<(crate::mechanics::sliding::NeckViscosities, f64)>) {
         self.sliding = sliding;
     }
 
@@ -97,12 +101,25 @@ impl MechanicsStage {
     /// load distribution (P3), which sees the effective links only).
     fn relaxation_for(&self, commit: bool, contacts: usize) -> Option<crate::mechanics::sliding::Relaxation> {
         let (visc, dt) = self.sliding.as_ref()?;
-        let mut stored = Vec::new();
+        let (mut stored, mut stored_moment, mut network) = (Vec::new(), Vec::new(), Vec::new());
         if commit {
             stored = self.tangential.clone();
             stored.resize(contacts, Vector3::zeros());
+            if !visc.rolling.is_empty() {
+                stored_moment = self.moment.clone();
+                stored_moment.resize(contacts, Vector3::zeros());
+            }
+        } else if visc.network.len() == contacts {
+            network = visc.network.clone();
         }
-        Some(crate::mechanics::sliding::Relaxation { dt: *dt, viscosity: visc.clone(), stored })
+        Some(crate::mechanics::sliding::Relaxation {
+            dt: *dt,
+            viscosity: visc.tangential.clone(),
+            stored,
+            network,
+            rolling: visc.rolling.clone(),
+            stored_moment,
+        })
     }
 
     /// Forgets the cached factor, so that the next step factorises afresh (done at checkpoints, so
@@ -140,6 +157,7 @@ impl MechanicsStage {
         }
         if sliding {
             self.tangential = out.tangential.clone();
+            self.moment = out.moment.clone();
         }
         self.count(&out.info);
         Ok((out.du, out.xi))
@@ -173,11 +191,18 @@ impl MechanicsStage {
             let g = crate::mechanics::BondGeometry::new(&p.position[a], &p.position[b], y4, y7)?;
             let [e, nu] = sys.link_elastic(a as u32, b as u32);
             let mut kl = crate::mechanics::link_stiffness(e, nu, 0.5 * (p.radius[a] + p.radius[b]));
-            if let Some(r) = &sliding {
-                // the effective shear springs of the solve (B25)
+            if let Some(r) = sliding.as_ref().filter(|r| !r.network.is_empty()) {
+                // the viscous network of the solve (B29)
+                kl = r.network[k];
+            } else if let Some(r) = &sliding {
+                // the effective shear, bending and torsion springs of the solve (B25), (B30)
                 let phi = crate::mechanics::sliding::maxwell_factor(kl[0], r.viscosity[k], r.dt);
                 kl[0] *= phi;
                 kl[1] *= phi;
+                let [pb, pt] = r.rolling_factors(k, kl[3], kl[5]);
+                kl[3] *= pb;
+                kl[4] *= pb;
+                kl[5] *= pt;
             }
             let mut y = nalgebra::SMatrix::<f64, 12, 1>::zeros();
             for d in 0..3 {
@@ -244,6 +269,7 @@ impl MechanicsStage {
             }
             if sliding {
                 self.tangential = out.tangential.clone();
+                self.moment = out.moment.clone();
             }
         }
         self.count(&out.info);

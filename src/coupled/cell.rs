@@ -379,7 +379,7 @@ impl super::Simulation {
                 })
                 .collect();
             let l = cell.matrix();
-            let visc = super::stages::sliding_viscosities(self, t0);
+            let visc = super::stages::sliding_viscosities(self, t0)?;
             self.mechanics.set_sliding(visc.map(|v| (v, self.dt)));
             let normal = self.mechanics.distribute_periodic(&self.prep.scene.particles, &self.contacts, &l, &controls)?;
             crate::finite::ensure_finite("load distribution", self.step + 1, t0, "contact", "normal force", normal.iter().copied())?;

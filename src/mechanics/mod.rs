@@ -85,6 +85,9 @@ pub struct MechStep {
     /// With sliding ([`BondedSystem::set_relaxation`]): the stored tangential link force per
     /// contact at the step's end, global axes [N] ((B27)); empty otherwise.
     pub tangential: Vec<Vector3<f64>>,
+    /// With rolling viscosities (B30): the stored link moment per contact at the step's end,
+    /// global axes [N·m]; empty otherwise.
+    pub moment: Vec<Vector3<f64>>,
     /// Solver report.
     pub info: MechInfo,
 }
@@ -163,6 +166,10 @@ impl BondedSystem {
     /// The link stiffnesses (B5) of every bond for the radii `radii` [m], the shear entries
     /// multiplied by the Maxwell factor (B25) when sliding is on.
     fn link_k(&self, radii: &[f64]) -> Vec<[f64; 6]> {
+        if let Some(r) = self.relaxation.as_ref().filter(|r| !r.network.is_empty()) {
+            // a load distribution's viscous network (B29)
+            return r.network.clone();
+        }
         let (e, nu) = (self.params.young_modulus, self.params.poisson_ratio);
         self.pairs
             .iter()
@@ -174,17 +181,23 @@ impl BondedSystem {
                     let phi = sliding::maxwell_factor(k[0], r.viscosity[c], r.dt);
                     k[0] *= phi;
                     k[1] *= phi;
+                    // (B30): bending and torsion relax too when rolling viscosities are given
+                    let [pb, pt] = r.rolling_factors(c, k[3], k[5]);
+                    k[3] *= pb;
+                    k[4] *= pb;
+                    k[5] *= pt;
                 }
                 k
             })
             .collect()
     }
 
-    /// The release loads (B26) of the stored tangential forces, per bond: `q = (1 − φ)·P_t`
-    /// (global axes, ⟂ e3) [N], the force on A (−q on B) with the moments `l × q` at the bond
-    /// point; None without sliding or with nothing stored.
-    fn release_loads(&self, geom: &[BondGeometry], radii: &[f64]) -> Option<Vec<Vector3<f64>>> {
-        let r = self.relaxation.as_ref().filter(|r| !r.stored.is_empty())?;
+    /// The release loads (B26) of the stored link forces, per bond: `q = (1 − φ)·P_t` (global
+    /// axes, ⟂ e3) [N], the force on A (−q on B) with the moments `l × q` at the bond point, and
+    /// the release moment (B30) `m = (1 − φ_b)·M_⟂ + (1 − φ_tw)·M_∥` [N·m] on A (−m on B); None
+    /// without sliding or with nothing stored.
+    fn release_loads(&self, geom: &[BondGeometry], radii: &[f64]) -> Option<Vec<(Vector3<f64>, Vector3<f64>)>> {
+        let r = self.relaxation.as_ref().filter(|r| !(r.stored.is_empty() && r.stored_moment.is_empty()))?;
         let (e, nu) = (self.params.young_modulus, self.params.poisson_ratio);
         Some(
             self.pairs
@@ -194,35 +207,54 @@ impl BondedSystem {
                     let [e, nu] = if self.elastic.is_some() { self.link_elastic(a, b) } else { [e, nu] };
                     let k = link_stiffness(e, nu, 0.5 * (radii[a as usize] + radii[b as usize]));
                     let phi = sliding::maxwell_factor(k[0], r.viscosity[c], r.dt);
-                    r.stored_tangential(c, &geom[c].e3) * (1.0 - phi)
+                    let q = r.stored_tangential(c, &geom[c].e3) * (1.0 - phi);
+                    let [pb, pt] = r.rolling_factors(c, k[3], k[5]);
+                    let (m, e3) = (r.stored_moment(c), geom[c].e3);
+                    let m_axial = e3 * m.dot(&e3);
+                    (q, (m - m_axial) * (1.0 - pb) + m_axial * (1.0 - pt))
                 })
                 .collect(),
         )
     }
 
     /// The stored tangential force of every bond after the step (B27), `P_t − q + φk_t·Δε_t`
-    /// [N], from the scaled element vectors `y_e(c)` = `[Δu_A, r̄θ_A, Δu_B(+ΔE·l), r̄θ_B]`; empty
-    /// without sliding.
+    /// [N], and the stored moment (B30), `M − m + φ_b k_b Δθ_⟂ + φ_tw k_tw Δθ_∥` [N·m] with the
+    /// relative rotation Δθ = Δθ_A − Δθ_B, from the scaled element vectors `y_e(c)` =
+    /// `[Δu_A, r̄θ_A, Δu_B(+ΔE·l), r̄θ_B]` and the step's links `k` (Maxwell factors applied);
+    /// empty without sliding (the moments also without rolling viscosities).
     fn relaxed_state(
         &self,
         geom: &[BondGeometry],
         k: &[[f64; 6]],
-        release: Option<&[Vector3<f64>]>,
+        release: Option<&[(Vector3<f64>, Vector3<f64>)]>,
         r_scale: f64,
         y_e: impl Fn(usize) -> [Vector3<f64>; 4],
-    ) -> Vec<Vector3<f64>> {
-        let Some(r) = &self.relaxation else { return Vec::new() };
-        (0..self.pairs.len())
+    ) -> (Vec<Vector3<f64>>, Vec<Vector3<f64>>) {
+        let Some(r) = &self.relaxation else { return (Vec::new(), Vec::new()) };
+        let rolling = !r.rolling.is_empty();
+        let (force, mut moment): (Vec<_>, Vec<_>) = (0..self.pairs.len())
             .map(|c| {
                 let g = &geom[c];
                 let [ua, ta, ub, tb] = y_e(c);
                 // (B3): ε = u_A − u_B − l_A0 × θ_A + l_B0 × θ_B, its part ⟂ e3
                 let eps = ua - ub - g.l_a.cross(&(ta / r_scale)) + g.l_b.cross(&(tb / r_scale));
                 let eps_t = eps - g.e3 * eps.dot(&g.e3);
-                let q = release.map_or(Vector3::zeros(), |q| q[c]);
-                r.stored_tangential(c, &g.e3) - q + eps_t * k[c][0]
+                let (q, m) = release.map_or((Vector3::zeros(), Vector3::zeros()), |q| q[c]);
+                let force = r.stored_tangential(c, &g.e3) - q + eps_t * k[c][0];
+                let moment = if rolling {
+                    let dth = (ta - tb) / r_scale;
+                    let dth_axial = g.e3 * dth.dot(&g.e3);
+                    r.stored_moment(c) - m + (dth - dth_axial) * k[c][3] + dth_axial * k[c][5]
+                } else {
+                    Vector3::zeros()
+                };
+                (force, moment)
             })
-            .collect()
+            .unzip();
+        if !rolling {
+            moment.clear();
+        }
+        (force, moment)
     }
 
     /// Gives each particle its own elastic constants `[E, ν]` ([Pa], [1]); a link takes
@@ -410,7 +442,7 @@ impl BondedSystem {
         if let Some(c) = xi.iter().position(|v| !v.is_finite()) {
             return Err(SolveError::new("mechanics", format!("non-finite approach at contact {c}")).into());
         }
-        let tangential = if self.relaxation.is_some() {
+        let (tangential, moment) = if self.relaxation.is_some() {
             let k = self.link_k(inp.radii);
             let release = self.release_loads(&geom, inp.radii);
             self.relaxed_state(&geom, &k, release.as_deref(), r_scale, |c| {
@@ -419,10 +451,10 @@ impl BondedSystem {
                 [v(a, 0), v(a, 3), v(b, 0), v(b, 3)]
             })
         } else {
-            Vec::new()
+            (Vec::new(), Vec::new())
         };
         info.total_seconds = t_start.elapsed().as_secs_f64();
-        Ok(MechStep { du, dtheta, xi, e3: geom.iter().map(|g| g.e3).collect(), tangential, info })
+        Ok(MechStep { du, dtheta, xi, e3: geom.iter().map(|g| g.e3).collect(), tangential, moment, info })
     }
 
     /// Solves the assembled system `blocks` (topology `rep`) for the scaled right-hand side `rhs`
@@ -530,15 +562,16 @@ impl BondedSystem {
             }
             let mut moment = Vector3::zeros();
             if let Some(q) = &release {
-                // (B26): the release of the stored tangential force, (B7) at the bond point
+                // (B26): the release of the stored tangential force, (B7) at the bond point, and
+                // of the stored moment (B30)
                 for &(c, side) in &self.inc.bonds[self.inc.start[i] as usize..self.inc.start[i + 1] as usize] {
-                    let (g, qc) = (&geom[c as usize], q[c as usize]);
+                    let (g, (qc, mc)) = (&geom[c as usize], q[c as usize]);
                     if side == 0 {
                         force += qc;
-                        moment += g.l_a.cross(&qc) / r_scale;
+                        moment += (g.l_a.cross(&qc) + mc) / r_scale;
                     } else {
                         force -= qc;
-                        moment -= g.l_b.cross(&qc) / r_scale;
+                        moment -= (g.l_b.cross(&qc) + mc) / r_scale;
                     }
                 }
             }

@@ -241,8 +241,6 @@ struct Coupling {
     ends: Vec<(Matrix6<f64>, Matrix6<f64>)>,
     /// Axial link stiffness `E·A/L_b` of each bond [N/m].
     k_axial: Vec<f64>,
-    /// Shear link stiffness of each bond as assembled (with sliding: `φ·k_t`, (B25)) [N/m].
-    k_shear: Vec<f64>,
     /// `K_ue`: one column per component, 6n entries, fixed DOF zero [N].
     columns: Vec<Vec<f64>>,
     /// `K_ee` [N·m].
@@ -303,7 +301,7 @@ impl BondedSystem {
         branch: &[Vector3<f64>],
         r_scale: f64,
         nc: usize,
-        release: Option<&[Vector3<f64>]>,
+        release: Option<&[(Vector3<f64>, Vector3<f64>)]>,
     ) -> Coupling {
         let k = self.link_k(inp.radii);
         let ends: Vec<(Matrix6<f64>, Matrix6<f64>)> = geom
@@ -345,14 +343,14 @@ impl BondedSystem {
                 f_sinter[a] -= inp.load[c] * geom[c].e3.dot(&cs[a]);
                 if let Some(q) = release {
                     // (B26): the release load on B, −q, works on ΔE·l like the sintering load
-                    f_sinter[a] -= q[c].dot(&cs[a]);
+                    f_sinter[a] -= q[c].0.dot(&cs[a]);
                 }
                 for b in 0..nc {
                     k_ee[(a, b)] += cs[a].dot(&(kbb * cs[b]));
                 }
             }
         }
-        Coupling { ends, k_axial: k.iter().map(|kk| kk[2]).collect(), k_shear: k.iter().map(|kk| kk[0]).collect(), columns, k_ee, f_sinter }
+        Coupling { ends, k_axial: k.iter().map(|kk| kk[2]).collect(), columns, k_ee, f_sinter }
     }
 
     /// [`Self::step_periodic`] with the analysis `rep` and the branch vectors.
@@ -429,8 +427,8 @@ impl BondedSystem {
         }
         let du: Vec<Vector3<f64>> = (0..n).map(|i| Vector3::new(x[6 * i], x[6 * i + 1], x[6 * i + 2]) + de * inp.positions[i]).collect();
         let dtheta: Vec<Vector3<f64>> = x.chunks(6).map(|c| Vector3::new(c[3], c[4], c[5]) / r_scale).collect();
-        let tangential = if self.relaxation.is_some() {
-            let k: Vec<[f64; 6]> = cp.k_shear.iter().map(|&kt| [kt, kt, 0.0, 0.0, 0.0, 0.0]).collect();
+        let (tangential, moment) = if self.relaxation.is_some() {
+            let k = self.link_k(inp.radii);
             self.relaxed_state(&geom, &k, release.as_deref(), r_scale, |c| {
                 let [a, b] = self.pairs[c];
                 let v = |i: u32, o: usize| Vector3::from_column_slice(&x[6 * i as usize + o..6 * i as usize + o + 3]);
@@ -438,10 +436,10 @@ impl BondedSystem {
                 [v(a, 0), v(a, 3), v(b, 0) + de * branch[c], v(b, 3)]
             })
         } else {
-            Vec::new()
+            (Vec::new(), Vec::new())
         };
         info.total_seconds = t_start.elapsed().as_secs_f64();
-        Ok((MechStep { du, dtheta, xi, e3: geom.iter().map(|g| g.e3).collect(), tangential, info }, cs))
+        Ok((MechStep { du, dtheta, xi, e3: geom.iter().map(|g| g.e3).collect(), tangential, moment, info }, cs))
     }
 
     /// Per bond: ξ = (Δu_A − Δu_B − ΔE·l)·e3 (B15), the axial force `k_ax·ξ`, and the virial
@@ -456,7 +454,7 @@ impl BondedSystem {
         x: &[f64],
         de: &Matrix3<f64>,
         load: &[f64],
-        release: Option<&[Vector3<f64>]>,
+        release: Option<&[(Vector3<f64>, Vector3<f64>)]>,
         volume: f64,
         cs: &mut CellStep,
     ) -> (Vec<f64>, Vec<Vector3<f64>>) {
@@ -477,7 +475,7 @@ impl BondedSystem {
             let mut f_b = Vector3::new(el[0], el[1], el[2]) - geom[c].e3 * load[c];
             if let Some(q) = release {
                 // (B26): the release of the stored tangential force is part of the bond's force
-                f_b -= q[c];
+                f_b -= q[c].0;
             }
             net[b] += f_b;
             net[a] -= f_b;

@@ -179,9 +179,10 @@ pub struct MechanicsSpec {
     pub sliding_factor: Option<f64>,
 }
 
-/// Default sliding factor f of (B24) [1]: the contact law as derived, without a fitted
-/// reduction (docs/decisions-mechanics.md "Sliding").
-pub const SLIDING_FACTOR_DEFAULT: f64 = 1.0;
+/// Default sliding factor f of (B24) [1]: MUSEN's default `VISCOUS_PARAMETER` of its
+/// Bouvard–McMeeking sintering contact (msolids/musen, `ModelPPSintering`), the tangential
+/// parameter η of that law (docs/decisions-mechanics.md "Sliding").
+pub const SLIDING_FACTOR_DEFAULT: f64 = 0.01;
 fn no_sliding() -> String {
     "none".into()
 }

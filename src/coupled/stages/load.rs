@@ -53,7 +53,7 @@ impl Simulation {
         let resolve = ls.ref_total == 0.0 || ls.ref_contacts != m || step >= ls.ref_step + crate::coupled::load::REDISTRIBUTE_EVERY;
         if resolve {
             let Some(loads) = crate::coupled::load::as_nodal_loads(&f) else { return Ok(()) };
-            let visc = super::sliding_viscosities(self, t0);
+            let visc = super::sliding_viscosities(self, t0)?;
             self.mechanics.set_sliding(visc.map(|v| (v, self.dt)));
             let (normal, force) = self.mechanics.distribute(&self.prep.scene.particles, &self.contacts, &loads)?;
             crate::finite::ensure_finite("load distribution", step + 1, t0, "contact", "normal force", normal.iter().copied())?;

@@ -6,39 +6,42 @@ use super::Window;
 use crate::coupled::Simulation;
 use crate::coupled::expansion::StepTerms;
 use crate::error::Error;
+use crate::mechanics::sliding::{self, NeckViscosities};
 use nalgebra::Vector3;
 
-/// The tangential viscosity (docs/mechanics.md (B24)) of every contact at time `t` [s] with the
-/// neck radius of its current state, at its own temperature (the furnace profile when isothermal,
-/// else the contact temperature of its particles) with the grain-boundary transport δ·D_gb and Ω
-/// its 7-DOF model uses [N·s/m]; None without sliding. A contact without grain-boundary transport
-/// gets +∞ (it does not slide).
-pub(in crate::coupled) fn sliding_viscosities(sim: &Simulation, t: f64) -> Option<Vec<f64>> {
-    let f = sim.settings.mechanics.sliding?;
+/// The viscosities of every neck at time `t` [s] (docs/mechanics.md (B24), (B29), (B30)): the
+/// tangential viscosity `f·(R*/a)²/M_c` [N·s/m] with the neck radius of its current state and the
+/// normal mobility M_c (M13) of its 7-DOF model at its own temperature (the furnace profile when
+/// isothermal, else the contact temperature of its particles), the rolling and twisting
+/// viscosities, and the link viscosities of the load distribution's viscous network — empty when
+/// a contact has no transport (M_c = 0: it does not slide, η_t = +∞, and distributions use the
+/// Maxwell links). None without sliding.
+pub(in crate::coupled) fn sliding_viscosities(sim: &Simulation, t: f64) -> Result<Option<NeckViscosities>, Error> {
+    let Some(f) = sim.settings.mechanics.sliding else { return Ok(None) };
     let p = &sim.prep.scene.particles;
     let mats = &sim.d7_materials;
     let harmonic = sim.settings.harmonic;
     let iso = sim.prep.isothermal.as_ref();
-    Some(
-        sim.contacts
-            .state
-            .iter()
-            .zip(&sim.contacts.pairs)
-            .map(|(c, &[i, j])| {
-                let (i, j) = (i as usize, j as usize);
-                let temp = iso.map_or_else(|| super::contact_temperature(harmonic, p.temperature[i], p.temperature[j]), |prof| prof.temperature(t));
-                let pm = crate::models::diffusion7::PairMaterials {
-                    a: &mats[p.material[i] as usize],
-                    b: &mats[p.material[j] as usize],
-                    factors: sim.settings.factors,
-                };
-                let cp = pm.params_at(temp);
-                // δ·n·D_gb of the grain boundary, the mean of its two sides as in k_gb (M4)
-                let dd = 0.5 * (cp.sides[0].delta_n_gb * cp.sides[0].gb.at(temp) + cp.sides[1].delta_n_gb * cp.sides[1].gb.at(temp));
-                if dd > 0.0 { crate::mechanics::sliding::tangential_viscosity(f, c.y[0], c.r0[0], c.r0[1], cp.omega, dd, temp) } else { f64::INFINITY }
-            })
-            .collect(),
-    )
+    let m = sim.contacts.len();
+    let mut v = NeckViscosities { tangential: Vec::with_capacity(m), rolling: Vec::with_capacity(m), network: Vec::with_capacity(m) };
+    for (k, (c, &[i, j])) in sim.contacts.state.iter().zip(&sim.contacts.pairs).enumerate() {
+        let (i, j) = (i as usize, j as usize);
+        let temp = iso.map_or_else(|| super::contact_temperature(harmonic, p.temperature[i], p.temperature[j]), |prof| prof.temperature(t));
+        let pm = crate::models::diffusion7::PairMaterials { a: &mats[p.material[i] as usize], b: &mats[p.material[j] as usize], factors: sim.settings.factors };
+        let ctx = |e: crate::error::ModelError| e.with_context(format!("sliding viscosity: contact {k} ({i}–{j}) at t = {t} s"));
+        let coeffs = pm.params_at(temp).at(temp).map_err(ctx)?;
+        let (_, mobility) = crate::models::diffusion7::load_response(&c.y, &coeffs).map_err(ctx)?;
+        let eta_t = sliding::tangential_viscosity(f, c.y[0], c.r0[0], c.r0[1], mobility);
+        v.tangential.push(eta_t);
+        v.rolling.push(sliding::rolling_viscosities(eta_t, mobility, c.y[0]));
+        if let Some(l) = sliding::network_links(eta_t, mobility, c.y[0]) {
+            v.network.push(l);
+        }
+    }
+    if v.network.len() != m {
+        v.network.clear();
+    }
+    Ok(Some(v))
 }
 
 /// What the mechanics stage gives the correction.
@@ -82,7 +85,7 @@ pub(in crate::coupled) fn mechanics(sim: &mut Simulation, w: &Window, temps_old:
             *a = f * *a - dth;
         }
     }
-    let visc = sliding_viscosities(sim, t1);
+    let visc = sliding_viscosities(sim, t1)?;
     sim.mechanics.set_sliding(visc.map(|v| (v, w.dt)));
     let p = &sim.prep.scene.particles;
     let xi: Vec<f64> = if p.len() == 2 {

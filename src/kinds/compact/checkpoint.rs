@@ -80,6 +80,10 @@ pub struct Checkpoint {
     /// (docs/mechanics.md (B27)); absent without sliding.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub sliding_tangential: Vec<[f64; 3]>,
+    /// With sliding: the stored link moment per contact (docs/mechanics.md (B30)) [N·m]; absent
+    /// without sliding.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub sliding_moment: Vec<[f64; 3]>,
 }
 
 /// Format tag of compact checkpoints.
@@ -119,6 +123,7 @@ impl Simulation {
             load: self.load.as_ref().map(|l| l.to_checkpoint()),
             cell: self.cell.clone(),
             sliding_tangential: self.mechanics.tangential.iter().map(|x| [x.x, x.y, x.z]).collect(),
+            sliding_moment: self.mechanics.moment.iter().map(|x| [x.x, x.y, x.z]).collect(),
         }
     }
 
@@ -137,6 +142,7 @@ impl Simulation {
         p.temperature = ck.temperature.clone();
         sim.mechanics.rotation = ck.rotation.iter().map(|x| Vector3::new(x[0], x[1], x[2])).collect();
         sim.mechanics.tangential = ck.sliding_tangential.iter().map(|x| Vector3::new(x[0], x[1], x[2])).collect();
+        sim.mechanics.moment = ck.sliding_moment.iter().map(|x| Vector3::new(x[0], x[1], x[2])).collect();
         (sim.mechanics.newton_iterations, sim.mechanics.factorizations, sim.mechanics.max_residual) = ck.mechanics_counters;
         (sim.mechanics.profile.topology_changes, sim.mechanics.profile.cg_iterations) = ck.mechanics_profile_counts;
         let mut dose = ck.dose.clone();
