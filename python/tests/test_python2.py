@@ -214,7 +214,7 @@ def test_simulation_from_another_thread_raises_a_sinterdem_error(tmp_path):
     assert sim.step() and sim.finish()
 
 
-def test_threads_and_jobs_bounded_as_the_cli():
+def test_threads_and_jobs_bounded_as_the_cli(tmp_path):
     import os
     for bad in (0, 10 ** 6):
         with pytest.raises(sinterdem.ConfigError) as e:
@@ -223,6 +223,16 @@ def test_threads_and_jobs_bounded_as_the_cli():
         with pytest.raises(sinterdem.ConfigError) as e:
             sinterdem.study(CASES / "studies" / "does-not-matter.toml", out=os.devnull + "-x", jobs=bad)
         assert e.value.key == "jobs"
+    # the same bound as the command line's --threads (4 per available core, at least 16; it was
+    # the core count in Python): 16 threads always run, and the refusal names the CLI's range
+    res = sinterdem.run(small_heat(), progress=False, threads=16)
+    assert res.summary["completed"] is True
+    with pytest.raises(sinterdem.ConfigError) as e:
+        sinterdem.run(small_heat(), progress=False, threads=10 ** 6)
+    for _, cmd in cli_commands():
+        p = run_cli(cmd, "-q", "run", str(CASES / "hot-plate.toml"), "--threads", "1000000", "--out", str(tmp_path / "cli"), check=False)
+        assert p.returncode == 1 and e.value.allowed in p.stderr, (e.value.allowed, p.stderr)
+    assert "4 per available core" in e.value.allowed
 
 
 # a 10:1 copper pair as a compact: the small sphere is absorbed, the 7-DOF model leaves its
@@ -259,6 +269,12 @@ def test_a_model_error_is_raised_by_the_step_that_met_it(tmp_path):
     s = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert s["completed"] is False and "model error" in s["stop_reason"]
     assert 10.0 < s["final_time_s"] < 5000.0
+    # the state the run reached stays readable after the error (was None: issue 39)
+    assert sim.time == s["final_time_s"] and sim.end == 5000.0
+    assert sim.steps == s["steps"]
+    rho = sim.relative_density
+    assert rho is not None and 0.0 < rho <= 1.0
+    assert sim.shrinkage is not None and len(sim.shrinkage) == 3
     with pytest.raises(sinterdem.ModelError):
         sim.finish()  # the same error again, no result
 
