@@ -63,6 +63,11 @@ const NULL_OK: &[&str] = &[
     "job_id",
     "parent",
     "series",
+    // optional state of a heat checkpoint: no step control (fixed Δt), no history of equal steps
+    "dt_next",
+    "hist_dt",
+    "factor_sha256",
+    "bdf2",
 ];
 
 #[derive(Clone, Copy, PartialEq, Debug)]

@@ -151,7 +151,25 @@ fn py_to_toml_at(v: &Bound<'_, PyAny>, at: &str, depth: usize) -> PyResult<toml:
         return Ok(toml::Value::Boolean(v.extract()?));
     }
     if v.is_instance_of::<PyInt>() {
-        return Ok(toml::Value::Integer(v.extract()?));
+        // a TOML integer is 64-bit: a larger one is the key's error, not pyo3's bare
+        // "Python int too large to convert to C long" (found by python/tests/test_fuzz.py)
+        return match v.extract::<i64>() {
+            Ok(i) => Ok(toml::Value::Integer(i)),
+            Err(_) => {
+                let shown = v.str().map(|s| s.to_string()).unwrap_or_default();
+                let message = format!(
+                    "{at} = {shown}: a whole number in a case file is 64-bit, in [-2^63, 2^63 - 1] (write it as a float, e.g. {shown}.0, if it is a quantity)"
+                );
+                let fields = ErrFields {
+                    key: Some(at.to_string()),
+                    value: v.extract::<f64>().ok(),
+                    allowed: Some("[-9223372036854775808, 9223372036854775807]".into()),
+                    unit: Some("1".into()),
+                    ..Default::default()
+                };
+                Err(py_error(v.py(), "ConfigError", message, fields))
+            }
+        };
     }
     if v.is_instance_of::<PyFloat>() {
         return Ok(toml::Value::Float(v.extract()?));
@@ -269,7 +287,7 @@ impl CaseCore {
         py: Python<'_>,
         out: PathBuf,
         progress: bool,
-        threads: Option<usize>,
+        threads: Option<i128>,
         poll: Option<Py<PyAny>>,
         command: RunCommand,
     ) -> PyResult<(String, f64, bool)> {
@@ -409,7 +427,7 @@ impl CaseCore {
     /// too: the run then computes on a pool thread while this one watches), and `interrupted`
     /// is True (the Python layer raises KeyboardInterrupt).
     #[pyo3(signature = (out, progress=true, threads=None, poll=None))]
-    fn run(&self, py: Python<'_>, out: PathBuf, progress: bool, threads: Option<usize>, poll: Option<Py<PyAny>>) -> PyResult<(String, f64, bool)> {
+    fn run(&self, py: Python<'_>, out: PathBuf, progress: bool, threads: Option<i128>, poll: Option<Py<PyAny>>) -> PyResult<(String, f64, bool)> {
         self.run_command(py, out, progress, threads, poll, sinterdem::kinds::run)
     }
 
@@ -417,7 +435,7 @@ impl CaseCore {
     /// through `sinterdem::kinds::rve::run`, as `run` does (GIL released, Ctrl-C, threads);
     /// returns (kind, wall seconds, interrupted).
     #[pyo3(signature = (out, progress=true, threads=None, poll=None))]
-    fn rve(&self, py: Python<'_>, out: PathBuf, progress: bool, threads: Option<usize>, poll: Option<Py<PyAny>>) -> PyResult<(String, f64, bool)> {
+    fn rve(&self, py: Python<'_>, out: PathBuf, progress: bool, threads: Option<i128>, poll: Option<Py<PyAny>>) -> PyResult<(String, f64, bool)> {
         self.run_command(py, out, progress, threads, poll, sinterdem::kinds::rve::run)
     }
 
@@ -813,7 +831,7 @@ fn read_csv<'py>(py: Python<'py>, path: PathBuf) -> PyResult<(Vec<String>, Vec<B
 /// `sinterdem study FILE --out DIR [--engine] [--jobs]`; returns the study directory.
 #[pyfunction]
 #[pyo3(signature = (path, out, engine="local", jobs=None, progress=true, overrides=Vec::new()))]
-fn study(py: Python<'_>, path: PathBuf, out: PathBuf, engine: &str, jobs: Option<usize>, progress: bool, overrides: Vec<String>) -> PyResult<PathBuf> {
+fn study(py: Python<'_>, path: PathBuf, out: PathBuf, engine: &str, jobs: Option<i128>, progress: bool, overrides: Vec<String>) -> PyResult<PathBuf> {
     let engine = match engine {
         "local" => sinterdem::study::Engine::Local,
         "slurm" => sinterdem::study::Engine::Slurm,
@@ -869,13 +887,20 @@ fn cli_main(py: Python<'_>, args: Vec<String>) -> i32 {
 
 /// `threads = n` of a run: the command line's `--threads` bound ([`sinterdem::cli::check_threads`]:
 /// 1 to 4 per available core, at least 16), so that Python and the CLI accept the same counts.
-fn check_threads(n: usize) -> Result<usize, Error> {
+fn check_threads(n: i128) -> Result<usize, Error> {
     check_count("threads", n)
 }
 
-/// A thread or job count `n` given as `key`, bounded as the command line bounds it.
-fn check_count(key: &str, n: usize) -> Result<usize, Error> {
-    Ok(sinterdem::cli::check_threads(key, n)?)
+/// A thread or job count `n` given as `key`, bounded as the command line bounds it (any Python
+/// int: -1 or 10**30 get the same range error as 0 or 10**6, not pyo3's OverflowError).
+fn check_count(key: &str, n: i128) -> Result<usize, Error> {
+    match usize::try_from(n) {
+        Ok(u) if u >= 1 => Ok(sinterdem::cli::check_threads(key, u)?),
+        _ => match sinterdem::cli::check_threads(key, 0) {
+            Err(ConfigError::OutOfRange { key, range, unit, .. }) => Err(ConfigError::OutOfRange { key, value: n as f64, range, unit }.into()),
+            other => Ok(other?),
+        },
+    }
 }
 
 /// The log lines and warnings of the library, kept for the Python layer (`sinterdem._logs`)

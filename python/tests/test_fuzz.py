@@ -14,13 +14,14 @@ The calls (``OPS``), on the bundled cases made small:
   call raises ``KeyboardInterrupt``, the worker's run ends complete).
 
 Asserted: the child interpreter is not killed by a signal (a crash: SIGSEGV, abort) and ends
-within its guard (a hang); every exception is a ``sinterdem.Error`` (or a ``TypeError`` /
-``OverflowError`` of a wrong Python type, or the ``KeyboardInterrupt`` of a signal sent), none
+within its guard (a hang); every exception is a ``sinterdem.Error`` (or the ``TypeError`` of a
+value of a wrong Python type — None, 2.5 threads —, or the ``KeyboardInterrupt`` of a signal
+sent; an ``OverflowError`` of an int beyond 64 bits was one and is now the key's ``ConfigError``), none
 carries Rust panic text, none is a ``BaseException`` such as ``pyo3_runtime.PanicException``; a
 call that returns gave what it promises (a run: ``completed`` with ``summary.json`` and
 ``series.csv``; the signalled run: ``completed = false``, ``stop_reason = "interrupted"``).
 
-``SINTERDEM_PY_FUZZ_RUNS`` calls (default 60) within ``SINTERDEM_PY_FUZZ_SECONDS`` (default 30);
+``SINTERDEM_PY_FUZZ_RUNS`` calls (default 150) within ``SINTERDEM_PY_FUZZ_SECONDS`` (default 30);
 ``SINTERDEM_FUZZ_SEED`` picks the stream (fixed default: reproducible). The counts are printed.
 """
 
@@ -194,7 +195,7 @@ while n < runs and time.monotonic() - start < budget:
         if any(t in str(e) for t in PANIC_TEXT):
             counts["panics"] += 1
             problem = f"Rust panic text in {type(e).__name__}: {str(e)[:300]}"
-    except (TypeError, OverflowError) as e:
+    except TypeError as e:
         counts["type_errors"] += 1
         if any(t in str(e) for t in PANIC_TEXT):
             counts["panics"] += 1
@@ -216,7 +217,7 @@ print(json.dumps({"counts": counts, "problems": problems}))
 
 
 def test_python_api_fuzz_never_crashes_hangs_or_panics(tmp_path):
-    runs = int(float(os.environ.get("SINTERDEM_PY_FUZZ_RUNS", "60")))
+    runs = int(float(os.environ.get("SINTERDEM_PY_FUZZ_RUNS", "150")))
     budget = float(os.environ.get("SINTERDEM_PY_FUZZ_SECONDS", "30"))
     seed = int(float(os.environ.get("SINTERDEM_FUZZ_SEED", "38")))
     guard = budget + 120.0
