@@ -403,7 +403,7 @@ fn check_into_failing_stdout(case: &Path, n: u64, c: &mut Counts) -> Option<Stri
     let (status, _, hung) = guard(&mut child, 30.0, 5.0);
     let err = reader.join().unwrap_or_default();
     c.stdout_checks += 1;
-    let problem = if hung {
+    if hung {
         c.hangs += 1;
         Some(format!("hang: check into {sink:?} standard output"))
     } else if status.code() == Some(101) || err.contains("panicked at") {
@@ -417,8 +417,7 @@ fn check_into_failing_stdout(case: &Path, n: u64, c: &mut Counts) -> Option<Stri
         Some(format!("check exited 0 with its standard output {sink:?} (the verdict was not printed)"))
     } else {
         None
-    };
-    problem
+    }
 }
 
 #[derive(Default, Debug, serde::Serialize)]
