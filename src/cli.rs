@@ -414,10 +414,15 @@ where
     match real_main(cli) {
         // a heat or compact run stopped by SIGINT/SIGTERM has written its outputs
         // (completed = false): the exit code says which signal stopped it
-        Ok(()) if crate::interrupt::signal().is_some() => {
+        Ok(()) if crate::interrupt::signal().is_some() && crate::interrupt::observed() => {
             let sig = crate::interrupt::signal().unwrap_or(2);
             eprintln!("interrupted by signal {sig}: the outputs are written (summary.json: completed = false, stop_reason = \"interrupted\")");
             128 + sig
+        }
+        Ok(()) if crate::interrupt::signal().is_some() => {
+            let sig = crate::interrupt::signal().unwrap_or(2);
+            eprintln!("signal {sig} arrived after the work was done: the outputs are complete");
+            0
         }
         Ok(()) => 0,
         // a command that ends with an error because a signal stopped it (a calibration) exits

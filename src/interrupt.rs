@@ -24,6 +24,8 @@ use std::time::{Duration, Instant};
 static REQUESTED: std::sync::LazyLock<Arc<AtomicBool>> = std::sync::LazyLock::new(|| Arc::new(AtomicBool::new(false)));
 /// The number of the signal that asked (0: none or a poll).
 static SIGNAL: AtomicI32 = AtomicI32::new(0);
+/// Whether a process-wide request was seen by [`requested`], i.e. some work stopped early on it.
+static OBSERVED: AtomicBool = AtomicBool::new(false);
 
 /// Shortest interval between two calls of a registered poll [s].
 pub const POLL_INTERVAL: f64 = 0.05;
@@ -40,6 +42,7 @@ thread_local! {
 /// whole process outside a scope).
 pub fn requested() -> bool {
     if REQUESTED.load(Ordering::Relaxed) {
+        OBSERVED.store(true, Ordering::Relaxed);
         return true;
     }
     let scope = SCOPE.with(|s| s.borrow().clone());
@@ -108,6 +111,15 @@ pub fn request() {
 pub fn clear() {
     REQUESTED.store(false, Ordering::Relaxed);
     SIGNAL.store(0, Ordering::Relaxed);
+    OBSERVED.store(false, Ordering::Relaxed);
+}
+
+/// Whether a process-wide stop request was acted on: [`requested`] said yes to some work (every
+/// caller asks it only while work remains, and stops early on yes). A signal that arrives after
+/// the last question finds the work complete: the command line then exits 0, not 128 + signal
+/// with a summary that says `completed = true` (issue 38, found by the run-path fuzzer).
+pub fn observed() -> bool {
+    OBSERVED.load(Ordering::Relaxed)
 }
 
 /// The signal that requested the stop (2 = SIGINT, 15 = SIGTERM), if one did.

@@ -405,3 +405,305 @@ fn issue39_a_failed_pair_run_keeps_its_rows_summary_and_error() {
     let log = std::fs::read_to_string(out.join("log.txt")).unwrap();
     assert!(log.contains("error: model error") && log.contains("two-cap geometry"), "{log}");
 }
+
+/// Issue 38 group 8 (`--set` blame): an error of a key given twice by `--set` names the override
+/// that was applied (the last), and an override of `materials.0.…` is named, not the
+/// `[[materials]]` header's line of the file (the material checks name the element by its `name`).
+#[test]
+fn group8_an_error_names_the_set_that_gave_the_value() {
+    let o = bin().args(["check", "cases/copper-compact.toml", "--set", "time.end=10", "--set", "time.end=-2"]).output().unwrap();
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("time.end = -2") && stderr(&o).contains("(set by --set time.end=-2)"), "{}", stderr(&o));
+    let o = bin().args(["check", "cases/copper-compact.toml", "--set", "materials.0.poisson_ratio=0.9"]).output().unwrap();
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("poisson_ratio = 0.9") && stderr(&o).contains("(set by --set materials.0.poisson_ratio=0.9)"), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("copper-compact.toml:"), "blamed the file: {}", stderr(&o));
+    // a value from the file is still located in the file
+    let d = common::tmp_dir("blame");
+    let text = std::fs::read_to_string("cases/copper-compact.toml").unwrap().replacen("[time]\n", "[time]\nalpha = -3.0\n", 1);
+    std::fs::write(d.join("case.toml"), text).unwrap();
+    let o = bin().arg("check").arg(d.join("case.toml")).args(["--set", "time.end=10"]).output().unwrap();
+    assert!(stderr(&o).contains("case.toml:") && stderr(&o).contains("time.alpha") && !stderr(&o).contains("set by --set"), "{}", stderr(&o));
+}
+
+/// Issue 38 group 8 (plots): a plot that cannot be written (its name taken by a folder) is a
+/// warning in every kind — pair, generate and rve exited 5 while compact exited 0 — and the run's
+/// data are complete; no temporary file of the failed plot is left behind.
+#[test]
+fn group8_a_plot_that_cannot_be_written_is_a_warning_in_every_kind() {
+    let d = common::tmp_dir("plots");
+    let runs: [(&str, Vec<&str>, &str, &[&str]); 4] = [
+        ("pair", vec!["run", "cases/pair-copper.toml"], "neck_shrinkage.png", &["series.csv", "summary.json"]),
+        (
+            "generate",
+            vec!["generate", "cases/green-copper.toml", "--set", "packing.particles=200"],
+            "laminae.png",
+            &["packing.csv", "laminae.csv", "summary.json"],
+        ),
+        (
+            "rve",
+            vec![
+                "rve",
+                "cases/rve-copper.toml",
+                "--set",
+                "time.end=20.0",
+                "--set",
+                "rve.at=[10.0, 20.0]",
+                "--set",
+                "output.snapshots=0",
+                "--set",
+                "output.conductivity_at=[]",
+            ],
+            "constitutive.png",
+            &["constitutive.csv", "fit.json", "summary.json"],
+        ),
+        (
+            "compact",
+            vec!["run", "cases/copper-compact.toml", "--set", "time.end=20", "--set", "output.snapshots=0", "--set", "output.conductivity_at=[]"],
+            "relative_density.png",
+            &["series.csv", "summary.json"],
+        ),
+    ];
+    for (name, args, png, data) in runs {
+        let out = d.join(name);
+        std::fs::create_dir_all(out.join(png)).unwrap();
+        let o = bin().args(&args).arg("--out").arg(&out).output().unwrap();
+        assert_eq!(o.status.code(), Some(0), "{name}: {}", stderr(&o));
+        assert!(stderr(&o).contains("warning: plots not written") && stderr(&o).contains(png), "{name}: {}", stderr(&o));
+        for f in data {
+            assert!(out.join(f).is_file(), "{name}: {f} missing");
+        }
+        let left: Vec<String> = tree(&out).into_iter().filter(|f| f.contains(".tmp")).collect();
+        assert!(left.is_empty(), "{name}: temporary files left: {left:?}");
+    }
+}
+
+/// Issue 38 group 8 (periodic networks): two touching particles in a periodic box do not span it;
+/// the tensor was −1.8e-17 W/(m K) along x with no word. Now `spans` says which axes the network
+/// winds around, the tensor is exactly 0 along the others, and a warning says why. An SC lattice
+/// (spanning every axis) has no such warning.
+#[test]
+fn group8_a_periodic_network_that_does_not_span_the_box_says_so() {
+    let d = common::tmp_dir("span");
+    std::fs::write(d.join("two.csv"), "x,y,z,r\n1e-4,1e-4,1e-4,2.5e-5\n1.495e-4,1e-4,1e-4,2.5e-5\n").unwrap();
+    std::fs::write(
+        d.join("case.toml"),
+        "[time]\nend = 1.0\ndt = 0.1\n[[materials]]\nname = \"copper\"\npreset = \"copper-ivannikov2022\"\n[particles]\nsource = \"file\"\nfile = \"two.csv\"\n\
+         periodic_box = [4e-4, 4e-4, 4e-4]\n[conductivity]\nboundary = \"periodic\"\n",
+    )
+    .unwrap();
+    let o = bin().arg("conductivity").arg(d.join("case.toml")).output().unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["spans"], serde_json::json!([false, false, false]));
+    for row in v["kappa_eff_W_per_mK"].as_array().unwrap() {
+        for x in row.as_array().unwrap() {
+            assert_eq!(x.as_f64(), Some(0.0), "{v}");
+        }
+    }
+    assert!(stderr(&o).contains("does not span the periodic cell along x, y, z"), "{}", stderr(&o));
+    assert!(v["warnings"].as_array().is_some_and(|w| w.iter().any(|w| w.as_str().unwrap().contains("does not span"))), "{v}");
+    // the bundled random periodic packing spans every axis: no warning, positive diagonal
+    let o = bin().args(["conductivity", "cases/conductivity/periodic-random.toml"]).output().unwrap();
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["spans"], serde_json::json!([true, true, true]));
+    assert!((0..3).all(|a| v["kappa_eff_W_per_mK"][a][a].as_f64().unwrap() > 1.0) && !stderr(&o).contains("does not span"), "{v}");
+}
+
+/// Issue 38 group 8 (box range): a periodic compact's box between 4 r_max and two largest reaches
+/// 2·(2 r_max + g·r_mean) passed `check` and failed at t = 0 with a model error; now `check` and
+/// the run refuse it as the range error of `particles.periodic_box`, and a box just above runs.
+#[test]
+fn group8_a_periodic_box_below_two_reaches_is_a_range_error() {
+    let d = common::tmp_dir("reach");
+    std::fs::write(
+        d.join("p.csv"),
+        "x,y,z,r\n2.5e-5,2.5e-5,2.5e-5,2.5e-5\n7.5e-5,2.5e-5,2.5e-5,2.5e-5\n2.5e-5,7.5e-5,2.5e-5,2.5e-5\n7.5e-5,7.5e-5,7.5e-5,2.5e-5\n",
+    )
+    .unwrap();
+    let case = |l: f64| {
+        format!(
+            "kind = \"compact\"\n[time]\nend = 1.0\ndt = 1.0e-6\ndt_max = 0.5\n[output]\nsnapshots = 0\nvtu = false\nhdf5 = false\n[[materials]]\n{}\n\
+             [particles]\nsource = \"file\"\nfile = \"p.csv\"\nperiodic_box = [{l:e}, {l:e}, {l:e}]\n[thermal]\nmode = \"isothermal\"\n\
+             furnace = {{ profile = {} }}\n[contacts]\ngap_tolerance = 1.0e-3\n[mechanics]\nboundary = \"periodic\"\n[mechanics.cell]\n\
+             components = \"normal\"\nxx = {{ stress = 0.0 }}\nyy = {{ stress = 0.0 }}\nzz = {{ stress = 0.0 }}\n",
+            common::COPPER,
+            common::AT_1293_K
+        )
+    };
+    // two reaches: 2·(2·25 µm + 1e-3·25 µm) = 100.05 µm
+    std::fs::write(d.join("narrow.toml"), case(1.00002e-4)).unwrap();
+    for cmd in ["check", "run"] {
+        let mut c = bin();
+        c.args(["-q", cmd]).arg(d.join("narrow.toml"));
+        if cmd == "run" {
+            c.arg("--out").arg(d.join("out"));
+        }
+        let o = c.output().unwrap();
+        assert_eq!(o.status.code(), Some(1), "{cmd}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains("particles.periodic_box") && stderr(&o).contains("two largest reaches") && stderr(&o).contains("1.0005e-4"),
+            "{cmd}: {}",
+            stderr(&o)
+        );
+    }
+    std::fs::write(d.join("wide.toml"), case(1.0006e-4)).unwrap();
+    let o = bin().args(["-q", "check"]).arg(d.join("wide.toml")).output().unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+/// Issue 38 group 8 (rve at 300 K): copper does not creep at 300 K, so the branches' strain-rate
+/// difference is exactly zero and K came out −inf ("non-finite constitutive value (-inf) at
+/// quantity 0"). Now it is a model error that says what happened and what to do.
+#[test]
+fn group8_an_rve_where_nothing_creeps_says_why() {
+    let d = common::tmp_dir("cold");
+    let o = bin()
+        .args(["-q", "rve", "cases/rve-copper.toml", "--set", "thermal.furnace.profile.constant=300.0", "--set", "time.end=20.0", "--set", "rve.at=[20.0]"])
+        .args(["--set", "output.snapshots=0", "--set", "output.conductivity_at=[]", "--out"])
+        .arg(d.join("out"))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(e.contains("did not creep measurably") && e.contains("300.0 K") && e.contains("rve.interval") && !e.contains("-inf"), "{e}");
+}
+
+/// Issue 38 group 8 (output times): `output.conductivity_at = [2, 1]` wrote two tensors at 2 s
+/// (the second one labelled 1 s was taken at 2 s); `check` said ok. Now `check` and the run
+/// refuse a list out of order, and both note times after `time.end` (never written).
+#[test]
+fn group8_output_times_are_checked_by_check_as_by_the_run() {
+    let d = common::tmp_dir("times");
+    let short = ["--set", "time.end=5", "--set", "output.snapshots=0", "--set", "rve.at=[5.0]"];
+    for cmd in ["check", "run"] {
+        let mut c = bin();
+        c.args(["-q", cmd, "cases/rve-copper.toml"]).args(short).args(["--set", "output.conductivity_at=[2.0, 1.0]"]);
+        if cmd == "run" {
+            c.arg("--out").arg(d.join("out"));
+        }
+        let o = c.output().unwrap();
+        assert_eq!(o.status.code(), Some(1), "{cmd}: {}", stderr(&o));
+        assert!(stderr(&o).contains("output.conductivity_at.1") && stderr(&o).contains("increasing order"), "{cmd}: {}", stderr(&o));
+    }
+    let o = bin().args(["check", "cases/rve-copper.toml"]).args(short).args(["--set", "output.conductivity_at=[0.0, 1000.0]"]).output().unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("output.conductivity_at: 1000 s after time.end = 5 s: not written"), "{}", stderr(&o));
+}
+
+/// Issue 38 group 8 (heat resume): a linear heat run at a fixed Δt factors its matrix once and
+/// reuses it; resumed from a checkpoint it rebuilt the factor and counted it (`factorizations` 3
+/// against 2). The summary of the resumed run now equals the uninterrupted one in every solver
+/// count.
+#[test]
+fn group8_a_resumed_heat_run_counts_the_factorizations_of_the_uninterrupted_one() {
+    let d = common::tmp_dir("factor");
+    heat_case_in(&d);
+    let text = std::fs::read_to_string(d.join("case.toml")).unwrap().replace("[[materials]]", "[output]\ncheckpoint_every = 2\n[[materials]]");
+    std::fs::write(d.join("case.toml"), text).unwrap();
+    let o = bin().args(["-q", "run"]).arg(d.join("case.toml")).arg("--out").arg(d.join("full")).output().unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let w = d.join("w");
+    std::fs::create_dir_all(&w).unwrap();
+    for e in std::fs::read_dir(d.join("full")).unwrap().flatten() {
+        if e.file_type().unwrap().is_file() && e.file_name() != "summary.json" {
+            std::fs::copy(e.path(), w.join(e.file_name())).unwrap();
+        }
+    }
+    let o = bin().args(["-q", "resume"]).arg(&w).output().unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (a, b) = (json(&d.join("full/summary.json")), json(&w.join("summary.json")));
+    assert_eq!(a["factorizations"], 2, "{a}");
+    for k in ["factorizations", "steps", "final_time_s", "max_radiation_iterations", "steps_rejected"] {
+        assert_eq!(a[k], b[k], "{k}");
+    }
+    assert_eq!(std::fs::read(d.join("full/series.csv")).unwrap(), std::fs::read(w.join("series.csv")).unwrap());
+}
+
+/// Issue 39 item 8: calibration bounds that exclude the starting value were accepted and the
+/// start clamped to the nearer bound in silence; now `check` and `calibrate` refuse them naming
+/// the parameter, the start and the bounds.
+#[test]
+fn issue39_calibration_bounds_that_exclude_the_start_are_refused() {
+    let d = common::tmp_dir("bounds");
+    let text = std::fs::read_to_string("cases/calibration/titanium-synthetic.toml").unwrap();
+    let text = text[..text.find("[compact]").unwrap()].replacen("min = 1.0\n", "min = 100.0\n", 1);
+    std::fs::write(d.join("calib.toml"), text).unwrap();
+    std::fs::copy("cases/calibration/titanium-synthetic.csv", d.join("titanium-synthetic.csv")).unwrap();
+    for cmd in ["check", "calibrate"] {
+        let mut c = bin();
+        c.args(["-q", cmd]).arg(d.join("calib.toml"));
+        if cmd == "calibrate" {
+            c.arg("--out").arg(d.join("out"));
+        }
+        let o = c.output().unwrap();
+        assert_eq!(o.status.code(), Some(1), "{cmd}: {}", stderr(&o));
+        let e = stderr(&o);
+        assert!(e.contains("parameters[0].min (beta.d0_gb)") && e.contains("exclude the starting value 50.98") && e.contains("[100, 10000]"), "{cmd}: {e}");
+    }
+}
+
+/// Issue 38 group 7 (rve) and issue 39 item 8 (constitutive.png): the rve points file is sealed
+/// like a checkpoint — a digit changed in it was resumed with exit 0 into another
+/// `constitutive.csv`; now refused, and the untouched file resumes to the uninterrupted table. The
+/// plot of the same run labels at least two powers of ten on its log axis (it showed one: the
+/// viscosities span less than a decade) and draws each fit in its data's colour.
+#[test]
+fn group7_the_rve_points_file_is_sealed_and_issue39_the_constitutive_plot_reads() {
+    let d = common::tmp_dir("points");
+    let full = d.join("full");
+    let o = bin()
+        .args(["-q", "rve", "cases/rve-copper.toml", "--set", "time.end=20.0", "--set", "rve.at=[10.0, 20.0]", "--set", "output.snapshots=0"])
+        .args(["--set", "output.conductivity_at=[]", "--set", "output.checkpoint_every=3", "--out"])
+        .arg(&full)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let copy = |to: &Path| {
+        let _ = std::fs::remove_dir_all(to);
+        std::fs::create_dir_all(to).unwrap();
+        for e in std::fs::read_dir(&full).unwrap().flatten() {
+            if e.file_type().unwrap().is_file() && e.file_name() != "summary.json" {
+                std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
+            }
+        }
+    };
+    let good = std::fs::read_to_string(full.join("rve_points.json")).unwrap();
+    assert!(good.contains("\"points\"") && good.contains("content_sha256"), "{good}");
+    // one digit of the first point's bulk viscosity changed
+    let at = good.find("\"bulk_viscosity\":").unwrap() + 17;
+    let mut bad = good.clone().into_bytes();
+    bad[at] = if bad[at] == b'1' { b'2' } else { b'1' };
+    let w = d.join("w");
+    copy(&w);
+    std::fs::write(w.join("rve_points.json"), &bad).unwrap();
+    let o = bin().args(["-q", "resume"]).arg(&w).output().unwrap();
+    assert_eq!(o.status.code(), Some(5), "{}", stderr(&o));
+    assert!(stderr(&o).contains("rve_points.json") && stderr(&o).contains("does not match its checksum"), "{}", stderr(&o));
+    copy(&w);
+    let o = bin().args(["-q", "resume"]).arg(&w).output().unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(std::fs::read(full.join("constitutive.csv")).unwrap(), std::fs::read(w.join("constitutive.csv")).unwrap());
+
+    // the plots of this run, as `rve` draws them
+    let s = json(&full.join("summary.json"));
+    let points: Vec<sinterdem::kinds::rve::Point> = serde_json::from_value(s["rve"]["rows"].clone()).unwrap();
+    let r0 = json(&full.join("fit.json"))["r0_m"].as_f64().unwrap();
+    let fit = sinterdem::kinds::rve::fit_rows(&points, r0, None);
+    assert!(fit.is_ok(), "{fit:?}");
+    let plots = sinterdem::kinds::rve::rve_plots(&("copper RVE".into(), String::new()), &points, &fit);
+    let spec = plots.iter().find(|p| p.0 == "constitutive.png").unwrap().1.spec();
+    let (lo, hi) = spec.y.range;
+    let decades = (lo.log10().ceil() as i32..=hi.log10().floor() as i32).filter(|&e| 10f64.powi(e) >= lo && 10f64.powi(e) <= hi).count();
+    assert!(decades >= 2, "y axis [{lo:e}, {hi:e}] holds {decades} power(s) of ten (labelled ticks)");
+    let colour = |name: &str| spec.series.iter().find(|x| x.name.starts_with(name)).unwrap_or_else(|| panic!("{name}")).colour;
+    let near = |a: [u8; 3], b: [u8; 3]| a.iter().zip(&b).all(|(x, y)| x.abs_diff(*y) <= 8);
+    assert!(near(colour("bulk viscosity K"), colour("bulk, Skorohod")), "bulk fit in another colour");
+    assert!(near(colour("shear viscosity G"), colour("shear, Skorohod")), "shear fit in another colour");
+    assert!(!near(colour("bulk viscosity K"), colour("shear viscosity G")));
+    let all: Vec<[u8; 3]> = spec.series.iter().map(|x| x.colour).collect();
+    let mut unique = all.clone();
+    unique.sort();
+    unique.dedup();
+    assert_eq!(unique.len(), all.len(), "every series keeps a colour of its own (SVG dash keys)");
+}

@@ -53,8 +53,8 @@ def run(case: CaseLike, out: Optional[PathLike] = None, progress: bool = True, t
     ``case`` is a :class:`Case`, a dict or a case file path. ``out=None`` writes into a
     temporary directory that lives as long as the result. ``progress`` shows the progress bar
     (on a terminal; a line with ETA in a notebook). ``threads`` limits the run to that many
-    threads, 1 to the machine's cores (default: all cores). The GIL is released while the run
-    computes; Ctrl-C stops this run (not runs in other threads) with its outputs written and
+    threads, 1 to 4 per available core (at least 16), as the command line's ``--threads``
+    (default: all cores). The GIL is released while the run computes; Ctrl-C stops this run (not runs in other threads) with its outputs written and
     raises ``KeyboardInterrupt``. Warnings go through :mod:`warnings`
     (:class:`SinterdemWarning`), the log through :mod:`logging` (logger ``"sinterdem"``).
     Raises :class:`ConfigError`, :class:`ModelError`, :class:`SolveError` or
@@ -119,8 +119,8 @@ def study(path_or_dict: Union[Mapping[str, Any], PathLike], out: PathLike, engin
 
     ``path_or_dict``: a study file, or a dict of one (its relative paths start at the working
     directory, as a :class:`Case` from a dict). ``engine``: ``"local"`` or ``"slurm"`` (waits
-    for the array). ``jobs``: runs at a time, 1 to the machine's cores. A study is resumable:
-    calling it again runs only what is missing. Returns a DataFrame (dict of arrays without
+    for the array). ``jobs``: runs at a time, 1 to 4 per available core (at least 16), as
+    ``--jobs``. A study is resumable: calling it again runs only what is missing. Returns a DataFrame (dict of arrays without
     pandas) with one row per run.
     """
     out = Path(out)

@@ -104,8 +104,14 @@ class Simulation:
             raise
         except Error as e:
             if self._native.finished:
-                # the run ended on this error; its outputs are written
-                self._final = self._final or (None, None, None, None, None, None)
+                # the run ended on this error; its outputs are written, and the state it reached
+                # stays readable (sim.time, sim.steps, …; None only after an internal error)
+                n = self._native
+                try:
+                    last = (n.time, n.step_count, n.end, n.relative_density, n.stage, n.shrinkage)
+                except RuntimeError:
+                    last = (None, None, None, None, None, None)
+                self._final = self._final or last
                 self._error = e
                 e.out = self.out
                 e._tmp = self._tmp

@@ -151,7 +151,25 @@ fn py_to_toml_at(v: &Bound<'_, PyAny>, at: &str, depth: usize) -> PyResult<toml:
         return Ok(toml::Value::Boolean(v.extract()?));
     }
     if v.is_instance_of::<PyInt>() {
-        return Ok(toml::Value::Integer(v.extract()?));
+        // a TOML integer is 64-bit: a larger one is the key's error, not pyo3's bare
+        // "Python int too large to convert to C long" (found by python/tests/test_fuzz.py)
+        return match v.extract::<i64>() {
+            Ok(i) => Ok(toml::Value::Integer(i)),
+            Err(_) => {
+                let shown = v.str().map(|s| s.to_string()).unwrap_or_default();
+                let message = format!(
+                    "{at} = {shown}: a whole number in a case file is 64-bit, in [-2^63, 2^63 - 1] (write it as a float, e.g. {shown}.0, if it is a quantity)"
+                );
+                let fields = ErrFields {
+                    key: Some(at.to_string()),
+                    value: v.extract::<f64>().ok(),
+                    allowed: Some("[-9223372036854775808, 9223372036854775807]".into()),
+                    unit: Some("1".into()),
+                    ..Default::default()
+                };
+                Err(py_error(v.py(), "ConfigError", message, fields))
+            }
+        };
     }
     if v.is_instance_of::<PyFloat>() {
         return Ok(toml::Value::Float(v.extract()?));
@@ -269,7 +287,7 @@ impl CaseCore {
         py: Python<'_>,
         out: PathBuf,
         progress: bool,
-        threads: Option<usize>,
+        threads: Option<i128>,
         poll: Option<Py<PyAny>>,
         command: RunCommand,
     ) -> PyResult<(String, f64, bool)> {
@@ -409,7 +427,7 @@ impl CaseCore {
     /// too: the run then computes on a pool thread while this one watches), and `interrupted`
     /// is True (the Python layer raises KeyboardInterrupt).
     #[pyo3(signature = (out, progress=true, threads=None, poll=None))]
-    fn run(&self, py: Python<'_>, out: PathBuf, progress: bool, threads: Option<usize>, poll: Option<Py<PyAny>>) -> PyResult<(String, f64, bool)> {
+    fn run(&self, py: Python<'_>, out: PathBuf, progress: bool, threads: Option<i128>, poll: Option<Py<PyAny>>) -> PyResult<(String, f64, bool)> {
         self.run_command(py, out, progress, threads, poll, sinterdem::kinds::run)
     }
 
@@ -417,7 +435,7 @@ impl CaseCore {
     /// through `sinterdem::kinds::rve::run`, as `run` does (GIL released, Ctrl-C, threads);
     /// returns (kind, wall seconds, interrupted).
     #[pyo3(signature = (out, progress=true, threads=None, poll=None))]
-    fn rve(&self, py: Python<'_>, out: PathBuf, progress: bool, threads: Option<usize>, poll: Option<Py<PyAny>>) -> PyResult<(String, f64, bool)> {
+    fn rve(&self, py: Python<'_>, out: PathBuf, progress: bool, threads: Option<i128>, poll: Option<Py<PyAny>>) -> PyResult<(String, f64, bool)> {
         self.run_command(py, out, progress, threads, poll, sinterdem::kinds::rve::run)
     }
 
@@ -545,9 +563,47 @@ struct SimulationCore {
     poll: Option<Py<PyAny>>,
     /// Why the stepper is gone before finish() (a model or internal error ended the run).
     broken: Option<String>,
+    /// The state when a model error ended the run (the stepper is gone then): what `time`,
+    /// `step_count`, `end`, `relative_density`, `shrinkage` and `stage` read afterwards.
+    last: Option<LastState>,
+}
+
+/// The state of a run a model error ended: time [s], steps, end time [s], relative density [1],
+/// shrinkage per axis [1], explicit_sinter stage.
+#[derive(Clone)]
+struct LastState {
+    time: f64,
+    steps: u64,
+    end: f64,
+    relative_density: Option<f64>,
+    shrinkage: Option<[f64; 3]>,
+    stage: Option<(String, f64, Option<f64>)>,
+}
+
+impl LastState {
+    fn of(s: &sinterdem::kinds::Stepper) -> LastState {
+        LastState {
+            time: s.time(),
+            steps: s.steps(),
+            end: s.end(),
+            relative_density: s.relative_density(),
+            shrinkage: s.shrinkage(),
+            stage: s.stage().map(|(st, p, ts)| (st.to_string(), p, ts)),
+        }
+    }
 }
 
 impl SimulationCore {
+    /// A value of the live run, or of the state a model error left ([`LastState`]).
+    fn read<T>(&mut self, live: impl FnOnce(&sinterdem::kinds::Stepper) -> T, last: impl FnOnce(&LastState) -> T) -> PyResult<T> {
+        if self.stepper.is_none()
+            && let Some(l) = &self.last
+        {
+            return Ok(last(l));
+        }
+        Ok(live(self.live()?))
+    }
+
     fn live(&mut self) -> PyResult<&mut sinterdem::kinds::Stepper> {
         let why = self.broken.clone().unwrap_or_else(|| "finish() was called".into());
         self.stepper.as_mut().ok_or_else(|| pyo3::exceptions::PyRuntimeError::new_err(format!("the simulation is finished ({why})")))
@@ -577,7 +633,9 @@ impl SimulationCore {
         // with completed = false and the error) and the error is raised here, by the step that
         // met it (issue 38 item 8), not by a later finish()
         if res.is_ok() && self.stepper.as_ref().is_some_and(|s| s.failed()) {
-            let s = SameThread(self.stepper.take().expect("checked above"));
+            let s = self.stepper.take().expect("checked above");
+            self.last = Some(LastState::of(&s));
+            let s = SameThread(s);
             self.broken = Some("a model error ended it".into());
             let end = py.detach(move || SameThread(shielded(move || s.get().finish()))).get();
             return Err(match end {
@@ -611,7 +669,7 @@ impl SimulationCore {
         let (value, sets) = (case.value.clone(), case.sets.clone());
         let res = py.detach(move || SameThread(shielded(|| sinterdem::kinds::Stepper::start(&value, &sets, &out, &params)))).get();
         let stepper = res.map_err(|e| case.err(py, e))?;
-        Ok(SimulationCore { kind: stepper.kind().name().to_string(), stepper: Some(stepper), case: case.clone(), poll, broken: None })
+        Ok(SimulationCore { kind: stepper.kind().name().to_string(), stepper: Some(stepper), case: case.clone(), poll, broken: None, last: None })
     }
 
     /// One accepted step; returns whether the run goes on.
@@ -638,17 +696,17 @@ impl SimulationCore {
 
     #[getter]
     fn time(&mut self) -> PyResult<f64> {
-        Ok(self.live()?.time())
+        self.read(|s| s.time(), |l| l.time)
     }
 
     #[getter]
     fn step_count(&mut self) -> PyResult<u64> {
-        Ok(self.live()?.steps())
+        self.read(|s| s.steps(), |l| l.steps)
     }
 
     #[getter]
     fn end(&mut self) -> PyResult<f64> {
-        Ok(self.live()?.end())
+        self.read(|s| s.end(), |l| l.end)
     }
 
     #[getter]
@@ -663,20 +721,20 @@ impl SimulationCore {
 
     #[getter]
     fn relative_density(&mut self) -> PyResult<Option<f64>> {
-        Ok(self.live()?.relative_density())
+        self.read(|s| s.relative_density(), |l| l.relative_density)
     }
 
     /// Shrinkage per axis now [1] (compact runs; None otherwise).
     #[getter]
     fn shrinkage(&mut self) -> PyResult<Option<[f64; 3]>> {
-        Ok(self.live()?.shrinkage())
+        self.read(|s| s.shrinkage(), |l| l.shrinkage)
     }
 
     /// explicit_sinter: (stage, pressure [Pa], sintering time of the branch in progress [s] or
     /// None); None for heat and compact runs.
     #[getter]
     fn stage(&mut self) -> PyResult<Option<(String, f64, Option<f64>)>> {
-        Ok(self.live()?.stage().map(|(s, p, ts)| (s.to_string(), p, ts)))
+        self.read(|s| s.stage().map(|(s, p, ts)| (s.to_string(), p, ts)), |l| l.stage.clone())
     }
 
     /// The particles now: ids (N,) int64, positions (N, 3) m, radii (N,) m, temperatures (N,) K,
@@ -773,7 +831,7 @@ fn read_csv<'py>(py: Python<'py>, path: PathBuf) -> PyResult<(Vec<String>, Vec<B
 /// `sinterdem study FILE --out DIR [--engine] [--jobs]`; returns the study directory.
 #[pyfunction]
 #[pyo3(signature = (path, out, engine="local", jobs=None, progress=true, overrides=Vec::new()))]
-fn study(py: Python<'_>, path: PathBuf, out: PathBuf, engine: &str, jobs: Option<usize>, progress: bool, overrides: Vec<String>) -> PyResult<PathBuf> {
+fn study(py: Python<'_>, path: PathBuf, out: PathBuf, engine: &str, jobs: Option<i128>, progress: bool, overrides: Vec<String>) -> PyResult<PathBuf> {
     let engine = match engine {
         "local" => sinterdem::study::Engine::Local,
         "slurm" => sinterdem::study::Engine::Slurm,
@@ -827,23 +885,21 @@ fn cli_main(py: Python<'_>, args: Vec<String>) -> i32 {
     })
 }
 
-/// The most threads a run or study may ask for: as many as the machine has (the command
-/// line's `--threads` and `--jobs`; a larger pool only adds OS threads that wait).
-fn max_threads() -> usize {
-    std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1)
-}
-
-/// `threads = n` of a run: 1 to the machine's cores, as the command line's `--threads`.
-fn check_threads(n: usize) -> Result<usize, Error> {
+/// `threads = n` of a run: the command line's `--threads` bound ([`sinterdem::cli::check_threads`]:
+/// 1 to 4 per available core, at least 16), so that Python and the CLI accept the same counts.
+fn check_threads(n: i128) -> Result<usize, Error> {
     check_count("threads", n)
 }
 
-fn check_count(key: &str, n: usize) -> Result<usize, Error> {
-    let hi = max_threads();
-    if (1..=hi).contains(&n) {
-        Ok(n)
-    } else {
-        Err(ConfigError::OutOfRange { key: key.into(), value: n as f64, range: format!("[1, {hi}] (the cores of this machine)"), unit: "1".into() }.into())
+/// A thread or job count `n` given as `key`, bounded as the command line bounds it (any Python
+/// int: -1 or 10**30 get the same range error as 0 or 10**6, not pyo3's OverflowError).
+fn check_count(key: &str, n: i128) -> Result<usize, Error> {
+    match usize::try_from(n) {
+        Ok(u) if u >= 1 => Ok(sinterdem::cli::check_threads(key, u)?),
+        _ => match sinterdem::cli::check_threads(key, 0) {
+            Err(ConfigError::OutOfRange { key, range, unit, .. }) => Err(ConfigError::OutOfRange { key, value: n as f64, range, unit }.into()),
+            other => Ok(other?),
+        },
     }
 }
 

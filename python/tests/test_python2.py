@@ -214,15 +214,25 @@ def test_simulation_from_another_thread_raises_a_sinterdem_error(tmp_path):
     assert sim.step() and sim.finish()
 
 
-def test_threads_and_jobs_bounded_as_the_cli():
+def test_threads_and_jobs_bounded_as_the_cli(tmp_path):
     import os
-    for bad in (0, 10 ** 6):
+    for bad in (0, 10 ** 6, -1, 10 ** 30):  # -1 and 10**30 were pyo3 OverflowErrors
         with pytest.raises(sinterdem.ConfigError) as e:
             sinterdem.run(small_heat(), progress=False, threads=bad)
-        assert e.value.key == "threads"
+        assert e.value.key == "threads" and e.value.value == float(bad)
         with pytest.raises(sinterdem.ConfigError) as e:
             sinterdem.study(CASES / "studies" / "does-not-matter.toml", out=os.devnull + "-x", jobs=bad)
         assert e.value.key == "jobs"
+    # the same bound as the command line's --threads (4 per available core, at least 16; it was
+    # the core count in Python): 16 threads always run, and the refusal names the CLI's range
+    res = sinterdem.run(small_heat(), progress=False, threads=16)
+    assert res.summary["completed"] is True
+    with pytest.raises(sinterdem.ConfigError) as e:
+        sinterdem.run(small_heat(), progress=False, threads=10 ** 6)
+    for _, cmd in cli_commands():
+        p = run_cli(cmd, "-q", "run", str(CASES / "hot-plate.toml"), "--threads", "1000000", "--out", str(tmp_path / "cli"), check=False)
+        assert p.returncode == 1 and e.value.allowed in p.stderr, (e.value.allowed, p.stderr)
+    assert "4 per available core" in e.value.allowed
 
 
 # a 10:1 copper pair as a compact: the small sphere is absorbed, the 7-DOF model leaves its
@@ -259,6 +269,12 @@ def test_a_model_error_is_raised_by_the_step_that_met_it(tmp_path):
     s = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert s["completed"] is False and "model error" in s["stop_reason"]
     assert 10.0 < s["final_time_s"] < 5000.0
+    # the state the run reached stays readable after the error (was None: issue 39)
+    assert sim.time == s["final_time_s"] and sim.end == 5000.0
+    assert sim.steps == s["steps"]
+    rho = sim.relative_density
+    assert rho is not None and 0.0 < rho <= 1.0
+    assert sim.shrinkage is not None and len(sim.shrinkage) == 3
     with pytest.raises(sinterdem.ModelError):
         sim.finish()  # the same error again, no result
 
@@ -332,3 +348,43 @@ def test_the_hdf5_flag_says_what_the_build_writes(tmp_path):
     assert isinstance(sinterdem.HDF5, bool)
     sinterdem.run(small_heat(**{"time.end": 2.0, "output.snapshots": 2, "output.hdf5": True}), out=tmp_path, progress=False)
     assert bool(list(tmp_path.glob("*.h5"))) == sinterdem.HDF5
+
+
+def test_run_into_the_case_folder_keeps_what_it_did_not_write(tmp_path):
+    """Issue 38 item 1 from Python: ``sinterdem.run(case, out=DIR)`` replaces an earlier run in DIR
+    as ``--force`` does, and removes exactly what that run wrote (``outputs.json``): the case, its
+    packing, the user's notes, settings and a folder of theirs with a ``summary.json`` stay."""
+    r, s = 32e-6, 2.0 * 32e-6 * 0.95
+    rows = ["x,y,z,r"] + [f"{(i % 3) * s:e},{((i // 3) % 3) * s:e},{(i // 9) * s:e},{r:e}" for i in range(27)]
+    (tmp_path / "pack.csv").write_text("\n".join(rows) + "\n")
+    (tmp_path / "case.toml").write_text(
+        '[time]\nend = 5.0\ndt = 1.0\n[[materials]]\nname = "titanium"\npreset = "titanium"\n[particles]\nsource = "file"\n'
+        'file = "pack.csv"\ninitial_temperature = 293.15\n[thermal]\nmode = "network"\nconductance = "linear"\n'
+        '[[thermal.fixed]]\nregion = { face = "z-" }\nprofile = { constant = 400.0 }\n')
+    (tmp_path / "notes.txt").write_text("my notes")
+    (tmp_path / "settings.json").write_text('{"mine": 1}')
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "summary.json").write_text('{"mine": true}')
+    user = {p.relative_to(tmp_path): p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()}
+    for end in (5.0, 4.0):
+        case = sinterdem.Case.load(tmp_path / "case.toml")
+        case["time.end"] = end
+        res = sinterdem.run(case, out=tmp_path, progress=False)
+        assert res.summary["final_time_s"] == end
+        for rel, data in user.items():
+            assert (tmp_path / rel).read_bytes() == data, f"{rel} changed or removed"
+    listed = json.loads((tmp_path / "outputs.json").read_text())["files"]
+    assert "summary.json" in listed and "pack.csv" not in listed and "notes.txt" not in listed
+
+
+def test_a_whole_number_beyond_64_bits_is_the_keys_config_error():
+    """A Python int outside TOML's 64 bits was pyo3's bare OverflowError ("Python int too large to
+    convert to C long", no key); found by python/tests/test_fuzz.py."""
+    case = small_heat()
+    for big in (2 ** 63, -(2 ** 63) - 1):
+        with pytest.raises(sinterdem.ConfigError) as e:
+            case["time.end"] = big
+        assert e.value.key == "time.end" and "64-bit" in str(e.value) and e.value.value == float(big)
+        with pytest.raises(sinterdem.ConfigError) as e:
+            sinterdem.Case.from_dict({**case.to_dict(), "time": {"end": big, "dt": 1.0}})
+        assert e.value.key == "time.end"

@@ -278,6 +278,7 @@ pub fn parse(value: &toml::Value, base: &Path) -> Result<Setup, Error> {
         entries.push(from_value::<ParameterEntry>(v, &format!("parameters[{i}]"))?);
     }
     let params = params::parse_parameters(&entries, &material)?;
+    params::check_start(&params, &material, &factors)?;
     let o = &f.optimiser;
     let d = optimise::Settings::default();
     let get = |k: &str, v: Option<f64>, dflt: f64| -> Result<f64, ConfigError> { check_range(&format!("optimiser.{k}"), v.unwrap_or(dflt)) };
@@ -513,7 +514,9 @@ fn write_outputs(
             rep.reduced_chi2
         ),
     );
-    report::write_plots(out, &pb.experiments, res, &header)?;
+    if let Err(e) = report::write_plots(out, &pb.experiments, res, &header) {
+        crate::plot::warn_not_written(&e);
+    }
     Ok((m_out, f_fit))
 }
 

@@ -229,6 +229,32 @@ pub fn parse_parameters(entries: &[ParameterEntry], material: &Material) -> Resu
     Ok(out)
 }
 
+/// Refuses bounds that exclude the starting value (the material's, or the path factor's, before
+/// the fit): the optimiser starts from it, and a start outside [min, max] was clamped silently to
+/// the nearer bound (issue 39). The error names the parameter, the start, the bounds and the unit.
+pub fn check_start(params: &[Parameter], material: &Material, factors: &PathFactors) -> Result<(), ConfigError> {
+    for (i, p) in params.iter().enumerate() {
+        let v = p.get(material, factors);
+        if !(p.min <= v && v <= p.max) {
+            let side = if v < p.min { "min" } else { "max" };
+            return Err(ConfigError::Inconsistent {
+                key: format!("parameters[{i}].{side} ({})", p.key),
+                message: format!(
+                    "the bounds [{}, {}] {} exclude the starting value {} {} of material \"{}\" (the fit starts there): widen the bounds to include it, \
+                     or start from another value (a [[materials]] entry in the calibration file)",
+                    crate::error::fmt_value(p.min),
+                    crate::error::fmt_value(p.max),
+                    p.unit,
+                    crate::error::fmt_value(v),
+                    p.unit,
+                    material.name
+                ),
+            });
+        }
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -168,7 +168,10 @@ pub fn locate(e: Error, path: &Path, overrides: &[String]) -> Error {
     let Some(key) = key_of(ce) else { return e };
     let key = normalise_key(key);
     let key = key.split(' ').next().unwrap_or_default().to_string();
-    if let Some(o) = overrides.iter().find(|o| o.split_once('=').is_some_and(|(k, _)| normalise_key(k.trim()) == key)) {
+    // the last override of the key wins (they are applied in order), and an override sets every
+    // key under it; an element named by its index in --set may be named by its `name` in the error
+    let case = if overrides.is_empty() { None } else { super::load_case(path, overrides).ok() };
+    if let Some(o) = overrides.iter().rev().find(|o| o.split_once('=').is_some_and(|(k, _)| sets_key(&normalise_key(k.trim()), &key, case.as_ref()))) {
         return ConfigError::invalid(format!("{ce} (set by --set {o})")).into();
     }
     let Ok(text) = crate::io::read_input(path) else { return e };
@@ -176,6 +179,37 @@ pub fn locate(e: Error, path: &Path, overrides: &[String]) -> Error {
         Some((line, col)) => ConfigError::invalid(format!("{}:{line}:{col}: {ce}", path.display())).into(),
         None => e,
     }
+}
+
+/// Whether the override of the dotted key `set` sets the dotted key `key` of an error: the same
+/// key, or a key under it (`--set materials.0={…}` sets `materials.0.density`). A segment that is
+/// an index in `set` matches the element's `name` in `key` (`materials.0.density` sets
+/// `materials.copper.density`, the form of the material checks), looked up in `case` (the case
+/// with the overrides applied).
+fn sets_key(set: &str, key: &str, case: Option<&toml::Value>) -> bool {
+    let (s, k): (Vec<&str>, Vec<&str>) = (set.split('.').collect(), key.split('.').collect());
+    if s.len() > k.len() {
+        return false;
+    }
+    fn named<'v>(n: Option<&'v toml::Value>, index: &str, name: &str) -> Option<&'v toml::Value> {
+        let e = n?.as_array()?.get(index.parse::<usize>().ok()?)?;
+        (e.get("name")?.as_str()? == name).then_some(e)
+    }
+    let mut node = case;
+    for (a, b) in s.iter().zip(&k) {
+        node = if a == b {
+            node.and_then(|n| match n {
+                toml::Value::Table(t) => t.get(*a),
+                toml::Value::Array(v) => a.parse::<usize>().ok().and_then(|i| v.get(i)),
+                _ => None,
+            })
+        } else if let Some(e) = named(node, a, b) {
+            Some(e)
+        } else {
+            return false;
+        };
+    }
+    true
 }
 
 /// 1-based line and column of the key `dotted` in the TOML `text`: of the key itself when

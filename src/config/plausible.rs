@@ -378,7 +378,27 @@ pub fn schedule_end_warnings(case: &toml::Value) -> (Vec<String>, Vec<String>) {
             _ => format!("{head}: the run stops at {t_end:.1} K, after the profile's peak {peak:.1} K, without the rest of its hold or cooling; {tail}"),
         });
     }
-    (warnings, Vec::new())
+    // output times after the end are never reached: said by `check` and by the run alike (a note:
+    // shortening time.end of a bundled case for a quick look is common; issue 38)
+    let mut notes = Vec::new();
+    if key == "time.end" {
+        for list in ["conductivity_at", "correction_histogram_at"] {
+            let after: Vec<String> = case
+                .get("output")
+                .and_then(|o| o.get(list))
+                .and_then(|a| a.as_array())
+                .into_iter()
+                .flatten()
+                .filter_map(|v| num(Some(v)))
+                .filter(|&t| t > end * (1.0 + 1e-12))
+                .map(tidy)
+                .collect();
+            if !after.is_empty() {
+                notes.push(format!("output.{list}: {} s after time.end = {} s: not written (the run ends before)", after.join(", "), tidy(end)));
+            }
+        }
+    }
+    (warnings, notes)
 }
 
 #[cfg(test)]

@@ -114,6 +114,21 @@ impl Settings {
         for (k, &tc) in case.output.correction_histogram_at.iter().enumerate() {
             config::check(&format!("output.correction_histogram_at.{k}"), tc)?;
         }
+        // the run writes each analysis when it reaches the next time listed: a time listed after a
+        // later one was written at that later time (issue 38: [2.0, 1.0] gave two tensors at 2 s)
+        for (name, list) in [("output.conductivity_at", &case.output.conductivity_at), ("output.correction_histogram_at", &case.output.correction_histogram_at)]
+        {
+            if let Some(k) = (1..list.len()).find(|&k| !(list[k] > list[k - 1])) {
+                return Err(ConfigError::inconsistent(
+                    format!("{name}.{k}"),
+                    format!(
+                        "{} s is not after the entry before it ({} s): list the times in increasing order, each once",
+                        crate::error::fmt_value(list[k]),
+                        crate::error::fmt_value(list[k - 1])
+                    ),
+                ));
+            }
+        }
         let dt_max = config::check("time.dt_max", t.dt_max.unwrap_or(if strategy == 1 { 100.0 } else { 10.0 }))?;
         // a step must advance time also near the end: at least 4 ulp of time.end (3.6e5 s: 3e-10 s)
         let dt_min = config::check("time.dt_min", t.dt_min.unwrap_or(1e-12))?.max(4.0 * f64::EPSILON * t.end);

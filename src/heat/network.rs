@@ -128,6 +128,13 @@ pub struct HeatNetwork {
 const NONE: u32 = u32::MAX;
 
 impl HeatNetwork {
+    /// The values of the matrix factored last (None before the first solve): a checkpoint keeps
+    /// their fingerprint, so that a resumed run counts its rebuild of the same factor as the
+    /// uninterrupted run's reuse (issue 38: `factorizations` 3 against 2).
+    pub fn factored_values(&self) -> Option<&[f64]> {
+        self.factor.as_ref().map(|f| f.values.as_slice())
+    }
+
     /// `capacity`: C_i = m_i c [J/K] per particle.
     pub fn new(capacity: Vec<f64>, sources: HeatSources, scheme: Scheme, radiation_tol: f64) -> Self {
         let n = capacity.len();

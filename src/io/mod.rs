@@ -57,7 +57,11 @@ pub fn write_atomic_bytes(path: &Path, bytes: &[u8]) -> Result<(), IoError> {
         let _ = std::fs::remove_file(&tmp);
         return Err(IoError::new(&tmp, e));
     }
-    std::fs::rename(&tmp, path).map_err(|e| IoError::new(path, e))
+    // a failed rename (the name taken by a directory, a vanished folder) removes it too
+    std::fs::rename(&tmp, path).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        IoError::new(path, e)
+    })
 }
 
 /// The key of a checkpoint's checksum: the SHA-256 (hex) of the checkpoint's JSON text without it

@@ -139,6 +139,10 @@ pub fn latest() -> Option<(f64, f64)> {
     (t.is_finite() && end.is_finite()).then_some((t, end))
 }
 
+/// The bar's template: a 24-column bar, the percentage and the message cut to the terminal's
+/// width (`wide_msg`), so that the bar is one line at any width from 40 columns.
+pub const BAR_TEMPLATE: &str = "{bar:24.cyan/blue} {percent:>3}% {wide_msg}";
+
 /// A progress bar over simulated time [s].
 pub struct Progress {
     bar: Option<ProgressBar>,
@@ -155,8 +159,10 @@ impl Progress {
         let bar = (enabled && bars_allowed()).then(|| {
             let b = add_bar(ProgressBar::new(1_000_000));
             b.set_style(
-                ProgressStyle::with_template("{bar:40.cyan/blue} {percent:>3}% {msg} [elapsed {elapsed_precise}]")
-                    .unwrap_or_else(|_| ProgressStyle::default_bar()),
+                // one line that fits the terminal (issue 39: the 40-column bar and its text wrapped
+                // at 80 and 120 columns): a 24-column bar, then the text cut to the width left
+                // (`wide_msg`), most important first: ETA, simulated time, elapsed wall time
+                ProgressStyle::with_template(BAR_TEMPLATE).unwrap_or_else(|_| ProgressStyle::default_bar()),
             );
             b
         });
@@ -178,7 +184,8 @@ impl Progress {
                 eta.label()
             };
             b.set_position(((t / self.end).clamp(0.0, 1.0) * 1e6) as u64);
-            b.set_message(format!("t = {} {extra} {label}", fmt_progress(t, self.end)));
+            let extra = if extra.trim().is_empty() { String::new() } else { format!(", {}", extra.trim()) };
+            b.set_message(format!("{label} · t = {}{extra} · elapsed {}", fmt_progress(t, self.end), fmt_wall(self.clock.elapsed().as_secs_f64())));
         }
     }
 

@@ -90,7 +90,16 @@ pub fn run_case(value: toml::Value, base: &std::path::Path) -> Result<serde_json
             // the run's contacts are the periodic ones (`walled_contacts`: the count without periodic images)
             out.insert("contacts".into(), pipes.pairs.len().into());
             out.insert("walled_contacts".into(), prep.pipes.pairs.len().into());
-            periodic(p, &pipes, &branch, bbox)?
+            let mut t = periodic(p, &pipes, &branch, bbox)?;
+            // a network that does not wind around the cell along an axis conducts nothing along
+            // it: its entries are round-off of either sign (κ_xx = -1.8e-17 W/(m K), issue 38)
+            let span = spanned_axes(&p.position, &pipes.pairs, &branch, bbox);
+            if let Some(w) = non_spanning(&mut t, span) {
+                tracing::warn!(target: "sinterdem::kinds", "{w}");
+                notes.push(w);
+            }
+            out.insert("spans".into(), serde_json::json!(span));
+            t
         }
         o => return Err(ConfigError::invalid(format!("conductivity.boundary = \"{o}\": expected faces or periodic")).into()),
     };
@@ -161,6 +170,71 @@ pub fn run_case(value: toml::Value, base: &std::path::Path) -> Result<serde_json
         out.insert(key.into(), (f * kp / d).into());
     }
     Ok(serde_json::Value::Object(out))
+}
+
+/// The axes along which the periodic contact network spans the cell `bbox` [m]: some loop of
+/// contacts winds around the cell along that axis. Contact k joins `pairs[k]` = (i, j) through the
+/// image of j at `x_i + branch[k]` (minimum image, [m]); walking the network from each
+/// particle, every particle gets the cell offset of its unwrapped copy, and a contact that
+/// reaches an already placed particle with another offset closes a loop winding by the
+/// difference. The effective tensor's range is spanned by these windings, so an axis that none
+/// has a component along conducts nothing (docs/heat-model.md, "Periodic homogenisation").
+pub fn spanned_axes(position: &[nalgebra::Vector3<f64>], pairs: &[[u32; 2]], branch: &[nalgebra::Vector3<f64>], bbox: nalgebra::Vector3<f64>) -> [bool; 3] {
+    let n = position.len();
+    let mut adj: Vec<Vec<(usize, [i64; 3])>> = vec![Vec::new(); n];
+    for (k, &[i, j]) in pairs.iter().enumerate() {
+        let (i, j) = (i as usize, j as usize);
+        let d = position[i] + branch[k] - position[j];
+        let s = [0, 1, 2].map(|a| (d[a] / bbox[a]).round() as i64);
+        adj[i].push((j, s));
+        adj[j].push((i, s.map(|v| -v)));
+    }
+    let mut offset: Vec<Option<[i64; 3]>> = vec![None; n];
+    let mut span = [false; 3];
+    for root in 0..n {
+        if offset[root].is_some() {
+            continue;
+        }
+        offset[root] = Some([0; 3]);
+        let mut stack = vec![root];
+        while let Some(i) = stack.pop() {
+            let oi = offset[i].unwrap_or([0; 3]);
+            for &(j, s) in &adj[i] {
+                let want = [oi[0] + s[0], oi[1] + s[1], oi[2] + s[2]];
+                match offset[j] {
+                    None => {
+                        offset[j] = Some(want);
+                        stack.push(j);
+                    }
+                    Some(oj) => (0..3).filter(|&a| oj[a] != want[a]).for_each(|a| span[a] = true),
+                }
+            }
+        }
+    }
+    span
+}
+
+/// Sets the rows and columns of the axes the network does not span ([`spanned_axes`]) to exactly
+/// zero in the tensor `t` (they hold round-off of either sign) and returns the warning naming them.
+pub fn non_spanning(t: &mut Matrix3<f64>, span: [bool; 3]) -> Option<String> {
+    let axes: Vec<usize> = (0..3).filter(|&a| !span[a]).collect();
+    if axes.is_empty() {
+        return None;
+    }
+    let names: Vec<&str> = axes.iter().map(|&a| ["x", "y", "z"][a]).collect();
+    let was: Vec<String> = axes.iter().map(|&a| format!("κ_{0}{0} = {1:.2e}", ["x", "y", "z"][a], t[(a, a)])).collect();
+    for &a in &axes {
+        for b in 0..3 {
+            t[(a, b)] = 0.0;
+            t[(b, a)] = 0.0;
+        }
+    }
+    Some(format!(
+        "conductivity: the contact network does not span the periodic cell along {} (no path of contacts winds around the cell along {}): the effective conductivity is 0 there (the solve left round-off: {}); is the packing dense enough, or the box too large for it?",
+        names.join(", "),
+        if names.len() == 1 { "that axis" } else { "those axes" },
+        was.join(", ")
+    ))
 }
 
 /// The Hashin–Shtrikman upper bound of a porous solid of solid fraction φ (voids non-conducting)

@@ -499,7 +499,7 @@ pub fn run_pair_spec(spec: &PairSpec, out_dir: &Path, progress: bool, warn: &mut
     let json = serde_json::to_string_pretty(&summary).map_err(|e| IoError::new(out_dir.join("summary.json"), e))?;
     crate::io::write_atomic(&out_dir.join("summary.json"), &(json + "\n"))?;
     if spec.plot {
-        plot_run(spec, &run).save_png(&out_dir.join("neck_shrinkage.png"))?;
+        plot_run(spec, &run).save_png_or_warn(&out_dir.join("neck_shrinkage.png"));
     }
     Ok(summary)
 }

@@ -196,6 +196,6 @@ pub fn run_all_titanium(out_dir: &Path, start_temperature: f64, common_diameter:
             out.iter().filter(|x| x.experiment.peak_temperature == t && x.experiment.rate == r).map(|x| (x.experiment.hold_time / 60.0, x.shrinkage)).collect();
         p.add(Series::new(format!("{t} K, {} K/min", (r * 60.0).round()), pts).with_markers());
     }
-    p.save_png(&out_dir.join("titanium_shrinkage.png"))?;
+    p.save_png_or_warn(&out_dir.join("titanium_shrinkage.png"));
     Ok(out)
 }

@@ -108,12 +108,36 @@ pub struct Series {
     /// A reference line (a band, a ±2σ limit): dark grey, dashed, no markers; does not take a
     /// colour, style or marker from the cycles.
     pub reference: bool,
+    /// Drawn in the colour of the k-th (non-reference) series, e.g. a fit in its data's colour
+    /// ([`Series::colour_of`]); None: its own colour from the palette.
+    pub colour_of: Option<usize>,
 }
 
 impl Series {
     /// A line (with a few staggered markers).
     pub fn new(name: impl Into<String>, points: Vec<(f64, f64)>) -> Series {
-        Series { name: name.into(), points, markers: false, line: true, error_bars: Vec::new(), style: None, marker: None, plain: false, reference: false }
+        Series {
+            name: name.into(),
+            points,
+            markers: false,
+            line: true,
+            error_bars: Vec::new(),
+            style: None,
+            marker: None,
+            plain: false,
+            reference: false,
+            colour_of: None,
+        }
+    }
+
+    /// Drawn in the colour of the `k`-th series of the plot (reference lines not counted): a fit
+    /// line in the colour of the data it fits (issue 39: `constitutive.png` coloured its fits
+    /// unlike their data). Its line style and markers stay its own, and its colour differs from
+    /// that series' by a few units of blue (invisible), so that every series keeps a colour of
+    /// its own (the SVG dash arrays are keyed by colour).
+    pub fn colour_of(mut self, k: usize) -> Series {
+        self.colour_of = Some(k);
+        self
     }
 
     /// A marker at every point.
@@ -254,6 +278,13 @@ fn colour(k: usize) -> Rgb {
     c.map(|v| (v as f64 * f).round() as u8)
 }
 
+/// `c` moved by 1 to 8 units of blue (by `i`, the series' place): the colour of another series
+/// for the eye, a different one for the SVG dash keys ([`Series::colour_of`]).
+fn shade(c: Rgb, i: usize) -> Rgb {
+    let d = 1 + (i % 8) as u8;
+    [c[0], c[1], if c[2] >= 128 { c[2] - d } else { c[2] + d }]
+}
+
 /// The embedded font, registered once as plotters' "sans-serif".
 fn font() {
     static ONCE: std::sync::Once = std::sync::Once::new();
@@ -367,7 +398,15 @@ fn range(lo: f64, hi: f64, log: bool, pad: f64) -> (f64, f64) {
         let a = lo.log10().max(b - LOG_DECADES).max(-300.0);
         let (a, b) = if b - a < 1e-9 { (a - 0.5, b + 0.5) } else { (a, b) };
         let p = pad * (b - a);
-        (10f64.powf(a - p), 10f64.powf(b + p))
+        let (a, b) = (a - p, b + p);
+        // plotters labels the powers of ten inside a log axis (and points between them only when
+        // there are many): a range holding fewer than two had one tick label or none (issue 39,
+        // constitutive.png). It is widened to the decades around it, a hair beyond them so that
+        // both end powers are inside.
+        if b.floor() - a.ceil() < 1.0 {
+            return (10f64.powf(a.floor()) * (1.0 - 1e-9), 10f64.powf(b.ceil()) * (1.0 + 1e-9));
+        }
+        (10f64.powf(a), 10f64.powf(b))
     } else {
         let w = hi - lo;
         if w <= 1e-12 * hi.abs().max(lo.abs()).max(1e-300) {
@@ -464,7 +503,7 @@ impl Plot {
                 let k = styled.iter().position(|&j| j == i);
                 let (col, line, marker) = match k {
                     Some(k) => (
-                        colour(k),
+                        s.colour_of.map_or_else(|| colour(k), |j| shade(colour(j), i)),
                         s.line.then(|| s.style.unwrap_or(LineStyle::CYCLE[k % LineStyle::CYCLE.len()])),
                         (!s.plain).then(|| s.marker.unwrap_or(Marker::CYCLE[k % Marker::CYCLE.len()])),
                     ),
@@ -576,6 +615,20 @@ impl Plot {
     pub fn save_svg(&self, path: &Path) -> Result<(), IoError> {
         crate::io::write_atomic(path, &self.render_svg())
     }
+
+    /// [`Self::save_png`] at the end of a run: a plot that cannot be written is a warning
+    /// (`warning: plots not written: …`), the run keeps its exit code with its data complete
+    /// (docs/outputs.md, "Data first, plots last"; every kind alike since issue 38).
+    pub fn save_png_or_warn(&self, path: &Path) {
+        if let Err(e) = self.save_png(path) {
+            warn_not_written(&e);
+        }
+    }
+}
+
+/// The warning of a plot that could not be written ([`Plot::save_png_or_warn`]).
+pub fn warn_not_written(e: &dyn std::fmt::Display) {
+    tracing::warn!("plots not written: {e}");
 }
 
 mod render;

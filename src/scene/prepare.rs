@@ -94,6 +94,31 @@ pub fn prepare(value: toml::Value, base: &Path) -> Result<Prepared, Error> {
     Ok(prep)
 }
 
+/// A periodic compact's cell holds two largest reaches along every edge, 2·(2 r_max + g·r̄) with
+/// g the larger of `contacts.gap_tolerance` and `contacts.new_contact_gap`: the bound of the cell's
+/// contact search (`coupled::cell::PeriodicCell::touching`, minimum image). The range check of
+/// `particles.periodic_box` asks 4 r_max only, so a box in between passed `check` and failed at
+/// t = 0 with a model error (issue 38); now it is the range error of the key that set it.
+fn check_cell_reach(scene: &Scene, case: &Case) -> Result<(), ConfigError> {
+    let Some(b) = scene.periodic_box else { return Ok(()) };
+    let p = &scene.particles;
+    let c = case.contacts.clone().unwrap_or_default();
+    let g = c.gap_tolerance.max(c.new_contact_gap.unwrap_or(0.0));
+    let r_max = p.radius.iter().copied().fold(0.0, f64::max);
+    let need = 2.0 * (2.0 * r_max + g * p.mean_radius());
+    match (0..3).map(|a| b[a]).find(|&l| !(l > need)) {
+        None => Ok(()),
+        Some(l) => Err(ConfigError::OutOfRange {
+            key: if case.particles.periodic_box.is_some() { "particles.periodic_box".into() } else { "particles.cells".into() },
+            value: l,
+            range: format!(
+                "({need:.4e}, 1000]: a periodic cell edge above two largest reaches 2·(2 r_max + g·r_mean), g = {g} the contact gap (contacts.gap_tolerance, contacts.new_contact_gap)"
+            ),
+            unit: "m".into(),
+        }),
+    }
+}
+
 /// Parse → validate → build the parts shared by heat and compact cases: scene, materials,
 /// heat sources and the initial contact pipes.
 pub fn prepare_scene(value: toml::Value, base: &Path) -> Result<Prepared, Error> {
@@ -130,6 +155,9 @@ pub fn prepare_scene(value: toml::Value, base: &Path) -> Result<Prepared, Error>
     }
     let materials = crate::material::from_case(&case.materials)?;
     let scene = scene::build(&case.particles, materials, base)?;
+    if compact && periodic {
+        check_cell_reach(&scene, &case)?;
+    }
     let n = scene.particles.len();
     config::plausible::check_memory("particles.file", n as f64, per_particle)?;
     let th = &case.thermal;

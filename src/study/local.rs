@@ -25,8 +25,8 @@ pub fn run(dir: &Path, plan: &[PlannedRun], todo: &[usize], jobs: usize, threads
     let bar = on.then(|| {
         let b = crate::io::progress::add_bar(ProgressBar::new(todo.len() as u64));
         b.set_style(
-            ProgressStyle::with_template("{bar:40.cyan/blue} {pos}/{len} runs {msg} [elapsed {elapsed_precise}, ETA {eta_precise}]")
-                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+            // one line at any terminal width (the message is cut to what is left: issue 39)
+            ProgressStyle::with_template("{bar:24.cyan/blue} {pos}/{len} runs, ETA {eta} {wide_msg}").unwrap_or_else(|_| ProgressStyle::default_bar()),
         );
         b
     });

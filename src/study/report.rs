@@ -170,8 +170,8 @@ pub fn write(study: &Study, dir: &Path, rows: &[Row], plots: bool) -> Result<Cou
     let c = counts(rows);
     let j = json!({"title": study.title, "study_file": study.path, "counts": c, "runs": runs_json});
     store::write_atomic(&dir.join("study.json"), &serde_json::to_string_pretty(&j).map_err(|e| IoError::new(dir.join("study.json"), e))?)?;
-    if plots {
-        write_plots(study, dir, rows)?;
+    if plots && let Err(e) = write_plots(study, dir, rows) {
+        crate::plot::warn_not_written(&e);
     }
     Ok(c)
 }

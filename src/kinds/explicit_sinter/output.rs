@@ -165,11 +165,12 @@ pub fn write_outputs(case: &ExplicitSinterCase, run: &ExplicitSinterRun, out_dir
             csv.row(&[1.0, f])?;
         }
     }
-    for (name, pl) in plots(case, run) {
-        pl.save_png(&out_dir.join(name))?;
-    }
     let summary = summary_json(run);
     crate::io::write_json(&out_dir.join("summary.json"), &summary)?;
+    // plots last: one that cannot be written is a warning (docs/outputs.md)
+    for (name, pl) in plots(case, run) {
+        pl.save_png_or_warn(&out_dir.join(name));
+    }
     Ok(summary)
 }
 

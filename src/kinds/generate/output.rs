@@ -191,7 +191,9 @@ pub fn write_outputs(case: &GenerateCase, packing: &Packing, summary: &GenerateS
     let title = format!("Layer densities across the box, {} particles", packing.radii.len());
     // the band: ± 0.05 around the mean of the interior laminae (the acceptance criterion)
     let interior_mean = summary.laminae_mean.iter().sum::<f64>() / 3.0;
-    report::write_laminae_plot(&out_dir.join("laminae.png"), &title, &series, interior_mean, 0.05)?;
+    if let Err(e) = report::write_laminae_plot(&out_dir.join("laminae.png"), &title, &series, interior_mean, 0.05) {
+        crate::plot::warn_not_written(&e);
+    }
     // size distribution achieved vs asked
     let mut d: Vec<f64> = packing.radii.iter().map(|r| 2.0 * r).collect();
     d.sort_by(f64::total_cmp);

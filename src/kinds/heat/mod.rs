@@ -57,6 +57,12 @@ pub struct HeatLoop {
     pub vtu_entries: Vec<(f64, String, String)>,
     /// Wall time before the checkpoint [s].
     pub wall_before: f64,
+    /// SHA-256 of the matrix factored last ([`crate::heat::HeatNetwork::factored_values`]) at the
+    /// checkpoint; a resumed run whose first step factors that same matrix again does not count
+    /// it (the uninterrupted run reused its factor there), so `factorizations` is the
+    /// uninterrupted run's.
+    #[serde(default)]
+    pub factor_sha256: Option<String>,
 }
 
 /// `DIR/checkpoint.json` of a heat run.

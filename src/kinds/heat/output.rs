@@ -118,6 +118,16 @@ impl Snapshots {
 }
 
 /// Writes `out/checkpoint.json` (atomically) after the step that ended in `st`.
+/// SHA-256 (hex) of the bits of `values`.
+pub(super) fn values_sha256(values: &[f64]) -> String {
+    use sha2::{Digest, Sha256};
+    let mut h = Sha256::new();
+    for v in values {
+        h.update(v.to_bits().to_le_bytes());
+    }
+    h.finalize().iter().map(|b| format!("{b:02x}")).collect()
+}
+
 pub(super) fn write_checkpoint(
     prep: &Prepared,
     out: &Path,
@@ -130,6 +140,7 @@ pub(super) fn write_checkpoint(
     let (text, base) = prep.source.clone().unwrap_or_else(|| (toml::to_string(&prep.case).unwrap_or_default(), std::path::PathBuf::from(".")));
     let state = HeatLoop {
         hist_dt: None,
+        factor_sha256: net.factored_values().map(values_sha256),
         dt_next: plan.control.is_some().then(|| st.dt_next.unwrap_or(plan.dt0)),
         snapshots: snaps.count(),
         vtu_entries: snaps.vtu_entries(),

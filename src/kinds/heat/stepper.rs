@@ -115,7 +115,18 @@ impl HeatRun {
             return Ok(false);
         }
         let (plan, st) = (&self.plan, &mut self.st);
+        // the first step after a resume: the factor of the checkpoint's matrix is rebuilt
+        let resumed_factor = st.factor_sha256.take();
+        let (rejected0, factored0) = (st.rejected, st.factorizations);
         let step = step::advance(plan, st, &mut self.prep, &mut self.net, &self.parts, log)?;
+        if let Some(h) = resumed_factor
+            && st.rejected == rejected0
+            && st.factorizations > factored0
+            && self.net.factored_values().map(output::values_sha256).as_ref() == Some(&h)
+        {
+            // the same matrix as at the checkpoint: the uninterrupted run reused its factor here
+            st.factorizations -= 1;
+        }
         st.t += step.dt;
         st.steps += 1;
         if st.steps.is_multiple_of(self.prep.case.output.series_every as usize) || st.t >= plan.end * (1.0 - 1e-12) {

@@ -13,6 +13,7 @@ mod output;
 
 pub use branch::{Point, measure_point};
 pub use fit::{LawFit, fit_skorohod_olevsky};
+pub use output::{fit_rows, rve_plots};
 
 use super::{RunParams, RunSummary, Stepper};
 use crate::config::ranges::{Range, c, p};
@@ -206,10 +207,25 @@ pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunPar
 /// point): an rve run's directory holds it from its start, and `resume` continues from it.
 pub const POINTS_FILE: &str = "rve_points.json";
 
+/// The points file: `{"points": [...]}` sealed with its checksum as a checkpoint is
+/// ([`crate::io::write_checkpoint_json`]): a point changed after it was measured is refused by
+/// `resume`, not written into `constitutive.csv` (issue 38, found by the run-path fuzzer).
 fn write_points(out: &Path, points: &[Point]) -> Result<(), Error> {
     let path = out.join(POINTS_FILE);
-    let text = serde_json::to_string(points).map_err(|e| crate::error::IoError::new(&path, e))?;
-    Ok(crate::io::write_atomic(&path, &text)?)
+    let text = serde_json::to_string(&serde_json::json!({ "points": points })).map_err(|e| crate::error::IoError::new(&path, e))?;
+    Ok(crate::io::write_checkpoint_json(&path, &text)?)
+}
+
+/// The points of a points file written by [`write_points`], its checksum checked.
+fn read_points(path: &Path) -> Result<Vec<Point>, Error> {
+    #[derive(serde::Deserialize)]
+    #[serde(deny_unknown_fields)]
+    struct File {
+        points: Vec<Point>,
+    }
+    let text = crate::io::read_checkpoint_json(path)?;
+    let f: File = serde_json::from_str(&text).map_err(|e| crate::error::IoError::new(path, format!("not an rve points file: {e}")))?;
+    Ok(f.points)
 }
 
 /// Whether `dir` holds an rve run (its points file).
@@ -228,8 +244,7 @@ pub(crate) fn resume(dir: &Path, params: &RunParams, mut log: super::RunLog) -> 
     let end = value.get("time").and_then(|t| t.get("end")).and_then(|e| e.as_float().or_else(|| e.as_integer().map(|i| i as f64))).unwrap_or(f64::INFINITY);
     let rve = RveSettings::from_case(&value, end)?;
     let path = dir.join(POINTS_FILE);
-    let text = crate::io::read_input(&path)?;
-    let points: Vec<Point> = serde_json::from_str(&text).map_err(|e| crate::error::IoError::new(&path, format!("not an rve points file: {e}")))?;
+    let points = read_points(&path)?;
     if points.len() > rve.at.len() || points.iter().zip(&rve.at).any(|(p, &t)| p.time < t * (1.0 - 1e-12)) {
         return Err(crate::error::IoError::new(
             &path,

@@ -100,7 +100,7 @@ pub fn write(out: &Path, points: &[Point], fit: &Result<LawFit, String>, plots: 
     crate::io::write_json(&out.join("fit.json"), &fit_json(fit))?;
     if let Some(header) = plots.filter(|_| !points.is_empty()) {
         for (name, plot) in rve_plots(header, points, fit) {
-            plot.save_png(&out.join(name))?;
+            plot.save_png_or_warn(&out.join(name));
         }
     }
     Ok(())
@@ -122,11 +122,12 @@ pub fn rve_plots(header: &(String, String), points: &[Point], fit: &Result<LawFi
     plot.add(Series::new("shear viscosity G, measured", line(&|p| p.shear_viscosity)).points_only());
     if let Ok(f) = fit {
         let fine = law_grid(&rho);
-        plot.add(Series::new("bulk, Skorohod-Olevsky fit", fine.iter().map(|&r| (r, 2.0 * f.eta0 * phi_psi(r).1)).collect()));
-        plot.add(Series::new("shear, Skorohod-Olevsky fit", fine.iter().map(|&r| (r, f.eta0 * phi_psi(r).0)).collect()));
+        // each fit in the colour of the data it fits (series 0: K, 2: G)
+        plot.add(Series::new("bulk, Skorohod-Olevsky fit", fine.iter().map(|&r| (r, 2.0 * f.eta0 * phi_psi(r).1)).collect()).colour_of(0));
+        plot.add(Series::new("shear, Skorohod-Olevsky fit", fine.iter().map(|&r| (r, f.eta0 * phi_psi(r).0)).collect()).colour_of(2));
         if let Some(p) = &f.density_law {
-            plot.add(Series::new("bulk, porosity power law", fine.iter().map(|&r| (r, p.bulk.at(r))).collect()));
-            plot.add(Series::new("shear, porosity power law", fine.iter().map(|&r| (r, p.shear.at(r))).collect()));
+            plot.add(Series::new("bulk, porosity power law", fine.iter().map(|&r| (r, p.bulk.at(r))).collect()).colour_of(0));
+            plot.add(Series::new("shear, porosity power law", fine.iter().map(|&r| (r, p.shear.at(r))).collect()).colour_of(2));
         }
     }
     // the stress in kPa or MPa, whichever its values read in
@@ -140,9 +141,10 @@ pub fn rve_plots(header: &(String, String), points: &[Point], fit: &Result<LawFi
     stress.add(Series::new("from the cell's contact forces", line(&|p| k * p.sintering_stress_b23)).points_only());
     if let Ok(f) = fit {
         let fine = law_grid(&rho);
-        stress.add(Series::new("Skorohod-Olevsky fit", fine.iter().map(|&r| (r, k * 3.0 * f.alpha * r * r / f.r0_m)).collect()));
+        // the fits are fitted to σ_s from the free shrinkage rate (series 0)
+        stress.add(Series::new("Skorohod-Olevsky fit", fine.iter().map(|&r| (r, k * 3.0 * f.alpha * r * r / f.r0_m)).collect()).colour_of(0));
         if let Some(p) = &f.density_law {
-            stress.add(Series::new("porosity power law", fine.iter().map(|&r| (r, k * p.stress_at(r))).collect()));
+            stress.add(Series::new("porosity power law", fine.iter().map(|&r| (r, k * p.stress_at(r))).collect()).colour_of(0));
         }
     }
     vec![("constitutive.png", plot), ("sintering_stress.png", stress)]
