@@ -310,6 +310,10 @@ fn iron_tungsten_and_copper_pairs_sinter_as_the_compiled_data_do() {
     // factor 5 of the compiled one: at 1193 K a run says it leaves the range
     let (_, _, warn) = neck_figures(&pair_case("copper-ivannikov2022", 1193.0, ""));
     assert!(warn.iter().any(|w| w.contains("leaves the calibrated range") && w.contains("copper-ivannikov2022")), "{warn:?}");
+    // iron has no γ data (docs/materials.md "Iron above 1184 K"): a run at 1250 K falls back to
+    // the α data and says that it leaves the declared range
+    let (_, _, warn) = neck_figures(&pair_case("iron", 1250.0, ""));
+    assert!(warn.iter().any(|w| w.contains("leaves the calibrated range") && w.contains("\"iron\"") && w.contains("1184.0 K")), "{warn:?}");
 }
 
 #[test]
