@@ -204,3 +204,87 @@ fn sc_cell_under_shear_has_the_closed_form_shear_viscosity() {
         }
     }
 }
+
+/// The viscous network of a load distribution (docs/mechanics.md (B29)) on a periodic FCC lattice
+/// (2³ cells, 32 spheres, nearest-neighbour bonds, d = 2R): every site is a centre of symmetry,
+/// so the network deforms affinely and its response is the closed form of the bond sums over the
+/// six directions (1,±1,0), (1,0,±1), (0,1,±1)/√2 with V = d³/√2 per particle:
+/// under σ_zz = −S, σ_xx = σ_yy = 0 the strain-rate ratio is ν = (η_n − η_t)/(3η_n + η_t) and
+/// σ_zz = (d²/V)[η_n(ε̇_xx + ε̇_zz) + η_t(ε̇_zz − ε̇_xx)]; under a hydrostatic stress the bulk
+/// viscosity is (2√2/3)·η_n/d, whatever η_t; the bonds in the xy plane carry the normal force
+/// −η_n d ε̇_xx and no tangential force. Rolling and twisting do not enter (no particle turns).
+#[test]
+fn fcc_viscous_network_has_the_closed_form_poisson_ratio_and_bulk_viscosity() {
+    let d = 2.0 * R;
+    let a0 = d * 2f64.sqrt();
+    let n1 = 2;
+    let mut pos = Vec::new();
+    for i in 0..n1 {
+        for j in 0..n1 {
+            for k in 0..n1 {
+                let o = Vector3::new(i as f64, j as f64, k as f64) * a0;
+                for b in [[0.0, 0.0, 0.0], [0.5, 0.5, 0.0], [0.5, 0.0, 0.5], [0.0, 0.5, 0.5]] {
+                    pos.push(o + Vector3::new(b[0], b[1], b[2]) * a0);
+                }
+            }
+        }
+    }
+    let n = pos.len();
+    let box_l = n1 as f64 * a0;
+    let mut pairs = Vec::new();
+    for i in 0..n {
+        for j in i + 1..n {
+            let mut v = pos[j] - pos[i];
+            v.iter_mut().for_each(|x| *x -= box_l * (*x / box_l).round());
+            if rel(v.norm(), d) < 1e-9 {
+                pairs.push([i as u32, j as u32]);
+            }
+        }
+    }
+    assert_eq!(pairs.len(), 6 * n);
+    let cell = Matrix3::identity() * box_l;
+    let (eta_n, eta_t) = (2.0e5, 6.0e4);
+    let (bend, twist) = (eta_n * (0.3 * R).powi(2) / 12.0, eta_t * (0.3 * R).powi(2) / 2.0);
+    let links = vec![[eta_t, eta_t, eta_n, bend, bend, twist]; pairs.len()];
+    let s = 1.0e5;
+    let vp = d.powi(3) / 2f64.sqrt();
+    for solver in [LinearSolver::Cholesky, LinearSolver::Amg] {
+        let params = MechParams { young_modulus: E, poisson_ratio: NU, solver, rtol: 1e-13, ..Default::default() };
+        let solve = |stress: [f64; 3]| {
+            let mut sys = BondedSystem::new(n, params, Constraints::none(n)).unwrap();
+            sys.set_topology(&pairs).unwrap();
+            sys.set_relaxation(Some(Relaxation { dt: 1.0, viscosity: vec![eta_t; pairs.len()], network: links.clone(), ..Default::default() }));
+            let mut controls = [CellControl::Stress(0.0); 6];
+            for a in 0..3 {
+                controls[a] = CellControl::Stress(stress[a]);
+            }
+            let y = vec![[R, R]; pairs.len()];
+            let zero = vec![0.0; pairs.len()];
+            sys.step_periodic(
+                &StepInput { positions: &pos, radii: &vec![R; n], y4_y7: &y, load: &zero, external: None },
+                &CellInput { cell: &cell, controls: &controls },
+            )
+            .unwrap()
+        };
+        let (out, cs) = solve([0.0, 0.0, -s]);
+        let (ex, ey, ez) = (cs.strain[0], cs.strain[1], cs.strain[2]);
+        let nu = (eta_n - eta_t) / (3.0 * eta_n + eta_t);
+        assert!(rel(-ex / ez, nu) < 1e-6 && rel(ey, ex) < 1e-6, "{solver:?}: nu {} vs {nu}", -ex / ez);
+        let szz = d * d / vp * (eta_n * (ex + ez) + eta_t * (ez - ex));
+        assert!(rel(szz, -s) < 1e-6, "{solver:?}: sigma_zz {szz} vs {}", -s);
+        assert!(cs.strain[3..].iter().all(|e| e.abs() < 1e-9 * ez.abs()), "{:?}", cs.strain);
+        for (c, &[a, b]) in pairs.iter().enumerate() {
+            let mut v = pos[b as usize] - pos[a as usize];
+            v.iter_mut().for_each(|x| *x -= box_l * (*x / box_l).round());
+            if v.z.abs() < 1e-9 * d {
+                // an xy-plane bond: approach −d ε̇_xx under η_n, no tangential force
+                assert!(rel(cs.axial_force[c], -eta_n * d * ex) < 1e-6, "bond {c}: {} vs {}", cs.axial_force[c], -eta_n * d * ex);
+                assert!(out.dtheta[a as usize].norm() < 1e-9 * ez.abs(), "no particle turns");
+            }
+        }
+        let (_, cs) = solve([-s; 3]);
+        let ev: f64 = cs.strain[..3].iter().sum();
+        let bulk = -s / ev;
+        assert!(rel(bulk, 2.0 * 2f64.sqrt() / 3.0 * eta_n / d) < 1e-6, "{solver:?}: K {bulk} vs {}", 2.0 * 2f64.sqrt() / 3.0 * eta_n / d);
+    }
+}

@@ -431,6 +431,44 @@ impl super::Simulation {
     }
 }
 
+impl super::Simulation {
+    /// The Bouvard–McMeeking contact-law sintering stress of the cell (B23a) [Pa], the mean of the
+    /// normal components of `(1/V) Σ_c F_BM,c l_c ⊗ l_c/|l_c|`, with the sintering force of the
+    /// contact law as Yan et al. (2017) Eq. 1 print it, `F_BM = π γ_s [8R*(1 − cos(ψ/2)) +
+    /// a·sin(ψ/2)]`, `R* = R_A R_B/(R_A + R_B)`, the dihedral angle from `cos(ψ/2) =
+    /// γ_gb/(2γ_s)` and a the contact's neck radius, over the same contacts as (B23) — the
+    /// reference the 7-DOF model's own force is held against (docs/rve.md). None for a walled run.
+    pub fn contact_law_sintering_stress(&self) -> Result<Option<f64>, crate::error::Error> {
+        let Some(cell) = &self.cell else { return Ok(None) };
+        let p = &self.prep.scene.particles;
+        let iso = self.prep.isothermal.as_ref().map(|prof| prof.temperature(self.t));
+        let mut trace = 0.0;
+        for (k, (c, &[i, j])) in self.contacts.state.iter().zip(&self.contacts.pairs).enumerate() {
+            let (ti, tj) = (p.temperature[i as usize], p.temperature[j as usize]);
+            let t = iso.unwrap_or(if self.settings.harmonic { 2.0 * ti * tj / (ti + tj) } else { 0.5 * (ti + tj) });
+            let pm = crate::models::diffusion7::PairMaterials {
+                a: &self.d7_materials[p.material[i as usize] as usize],
+                b: &self.d7_materials[p.material[j as usize] as usize],
+                factors: self.settings.factors,
+            };
+            let cp = pm.params_at(t);
+            let gamma_s = 0.5 * (cp.sides[0].gamma_s + cp.sides[1].gamma_s);
+            let cos_half = cp.gamma_gb / (2.0 * gamma_s);
+            if !(cos_half.is_finite() && (0.0..1.0).contains(&cos_half)) {
+                return Err(ModelError::new(format!(
+                    "contact-law sintering stress: contact {k} ({i}–{j}): γ_gb/(2γ_s) = {cos_half} is not a dihedral angle's cosine in [0, 1)"
+                ))
+                .into());
+            }
+            let r_star = c.r0[0] * c.r0[1] / (c.r0[0] + c.r0[1]);
+            let force = std::f64::consts::PI * gamma_s * (8.0 * r_star * (1.0 - cos_half) + c.y[0] * (1.0 - cos_half * cos_half).sqrt());
+            // the trace of l ⊗ l/|l| is |l|
+            trace += force * self.branch(i, j).norm();
+        }
+        Ok(Some(trace / (3.0 * cell.volume())))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

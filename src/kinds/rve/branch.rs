@@ -44,6 +44,10 @@ pub struct Point {
     /// measure at the branch point (mean of the normal components) [Pa].
     pub sintering_stress: f64,
     pub sintering_stress_b23: f64,
+    /// The Bouvard–McMeeking contact-law sum over the same contacts (B23a) [Pa] (0 in points
+    /// written before it existed).
+    #[serde(default)]
+    pub sintering_stress_contact_law: f64,
     /// Effective conductivity tensor [W/(m·K)] `[xx, yy, zz, yz, xz, xy]` (periodic homogenisation).
     pub kappa: [f64; 6],
     /// Mean h/r of the contacts [1] and whether it lies beyond the FE-validated range of the
@@ -175,6 +179,7 @@ pub fn measure_point(sim: &Simulation, rve: &RveSettings) -> Result<Point, Error
         poisson_ratio_isotropic: (3.0 * bulk - e_mean) / (6.0 * bulk),
         sintering_stress: -bulk * ev_free,
         sintering_stress_b23: b23_mean,
+        sintering_stress_contact_law: sim.contact_law_sintering_stress()?.unwrap_or(0.0),
         kappa,
         mean_overlap_over_radius: hr,
         kappa_extrapolated: crate::heat::conductance::beyond_validated(hr),

@@ -37,6 +37,7 @@ pub const COLUMNS: &[&str] = &[
     "kappa_xy_W_per_mK",
     "mean_overlap_over_radius",
     "kappa_extrapolated",
+    "sintering_stress_contact_law_Pa",
 ];
 
 fn values(p: &Point) -> Vec<f64> {
@@ -63,6 +64,7 @@ fn values(p: &Point) -> Vec<f64> {
     v.extend_from_slice(&p.kappa);
     v.push(p.mean_overlap_over_radius);
     v.push(if p.kappa_extrapolated { 1.0 } else { 0.0 });
+    v.push(p.sintering_stress_contact_law);
     v
 }
 
