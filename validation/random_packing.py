@@ -359,26 +359,17 @@ def network_kappa_py(pk: Packing, half):
         h = pk.r[ii] + pk.r[jj] - np.linalg.norm(b[e])
         a = neck_radius(pk.r[ii], pk.r[jj], h)[0]
         hi[e], hj[e] = half(a, pk.r[ii], e, "i"), half(a, pk.r[jj], e, "j")
-    # the bound of docs/heat-model.md (H8d), as src/heat/pipes.rs::bound_halves (kappa_s = 1):
-    # C_p = sum K_half l^2 n n^T per particle, l = |b| r_p/(r_i + r_j); scale all halves of p by
-    # min(1, V_p phi_c/lambda_max(C_p), 3 V_p 2 phi_c/(3 - phi_c)/tr C_p), V_p = v_p/phi
-    C = np.zeros((n, 3, 3))
-    for e, (ii, jj) in enumerate(zip(i, j)):
-        d = float(np.linalg.norm(b[e]))
-        nn = np.outer(b[e], b[e]) / (d * d)
-        li = d * pk.r[ii] / (pk.r[ii] + pk.r[jj])
-        C[ii] += nn * hi[e] * li * li
-        C[jj] += nn * hj[e] * (d - li) ** 2
-    v = 4.0 / 3.0 * math.pi * pk.r ** 3
-    phi = float(v.sum() / pk.L ** 3)
+    # the bound of docs/heat-model.md (H8d), as src/heat/pipes.rs::bound_halves in a periodic
+    # cell (kappa_s = 1): one scale for every half, s = min(1, phi_c V/lambda_max(T),
+    # 3 V 2 phi_c/(3 - phi_c)/tr T), T = sum K_ij b b^T the network's uniform-gradient (Voigt) flux
+    K = 1.0 / (1.0 / hi + 1.0 / hj)
+    T = np.einsum("e,ek,el->kl", K, b, b)
+    V = pk.L ** 3
+    phi = float((4.0 / 3.0 * math.pi * pk.r ** 3).sum() / V)
     pc = min(phi, 1.0)
-    s = np.ones(n)
-    for p_ in range(n):
-        tr = np.trace(C[p_])
-        if tr > 0:
-            vp = v[p_] / phi
-            s[p_] = min(1.0, vp * pc / np.linalg.eigvalsh(C[p_]).max(), 3.0 * vp * 2.0 * pc / (3.0 - pc) / tr)
-    K = 1.0 / (1.0 / (hi * s[i]) + 1.0 / (hj * s[j]))
+    s = min(1.0, pc * V / np.linalg.eigvalsh(T).max(), 3.0 * V * 2.0 * pc / (3.0 - pc) / np.trace(T))
+    if s < 1.0:
+        K = 1.0 / (1.0 / (hi * s) + 1.0 / (hj * s))
     Lp = sps.coo_matrix((np.concatenate([K, K, -K, -K]),
                          (np.concatenate([i, j, i, j]), np.concatenate([i, j, j, i]))),
                         shape=(n, n)).tocsc()
@@ -393,7 +384,6 @@ def network_kappa_py(pk: Packing, half):
         t[keep] = spl.spsolve(Lp[keep][:, keep], rhs[keep])
         th.append(t)
     dT = [b[:, k] + th[k][j] - th[k][i] for k in range(3)]
-    V = pk.L ** 3
     return np.array([[np.sum(K * dT[k] * dT[l]) / V for l in range(3)] for k in range(3)])
 
 

@@ -59,14 +59,15 @@ pub fn crowding(pairs: &[[u32; 2]], branch: &[Vector3<f64>], neck: &[f64], n: us
 }
 
 /// Pipes from explicit pairs with their branch vectors `d_ij = x_j − x_i` (periodic images allowed),
-/// bounded by (H8d) without a known solid fraction (each component of κ_eff at most φκ_s).
+/// bounded by (H8d) without a known solid fraction (per particle: each component of κ_eff at most κ_s).
 pub fn pipes_from_pairs(pairs: Vec<[u32; 2]>, branch: &[Vector3<f64>], p: &Particles, materials: &[Material], law: &Conductance) -> Result<Pipes, ModelError> {
     pipes_from_pairs_in(pairs, branch, p, materials, law, None)
 }
 
 /// [`pipes_from_pairs`] in a cell of solid fraction `solid_fraction` = Σ (4/3)π r³ / V [1] (a
-/// periodic box): the bound (H8d) then also keeps the mean of the diagonal of κ_eff at or below
-/// the Hashin–Shtrikman upper bound of that solid fraction.
+/// periodic box): the bound (H8d) is then one scale for the cell, which keeps the mean of the
+/// diagonal of κ_eff at or below the Hashin–Shtrikman upper bound of that solid fraction and every
+/// component at or below φκ_s.
 pub fn pipes_from_pairs_in(
     pairs: Vec<[u32; 2]>,
     branch: &[Vector3<f64>],
@@ -105,19 +106,26 @@ pub fn solid_fraction(radius: &[f64], volume: f64) -> f64 {
     radius.iter().map(|r| 4.0 / 3.0 * std::f64::consts::PI * r * r * r).sum::<f64>() / volume
 }
 
-/// The bound on the half pipes of every particle (docs/heat-model.md (H8d)); returns the number of
-/// particles whose halves it scaled.
+/// The bound on the pipes (docs/heat-model.md (H8d)); returns the number of particles whose
+/// halves it scaled (every particle with a pipe when the cell's scale acts, none otherwise).
 ///
-/// Particle i's halves make the tensor `C_i = Σ_k K_ik l_ik² n_k n_kᵀ` [W·m], l_ik = |b| r_i/(r_i + r_j)
-/// its share of the branch vector b and n_k = b/|b|. The uniform-gradient (Voigt) flux of the network
-/// bounds κ_eff from above (minimum energy), and by Cauchy–Schwarz `K_ij |b|² ≤ K_i l_i² + K_j l_j²`
-/// (any interface resistance only lowers K_ij), so `e·κ_eff·e ≤ (1/V) Σ_i e·C_i·e`. With the
-/// particle's share of the cell `V_i = v_i/φ` (v_i = (4/3)π r_i³, φ = `solid_fraction`, or 1 when
-/// unknown) and φ_c = min(φ, 1), scaling the particle's halves by
-/// `s_i = min(1, κ_i V_i φ_c / λ_max(C_i), 3 κ_i V_i·2φ_c/(3 − φ_c) / tr C_i)`
-/// makes every diagonal component of κ_eff at most φ_c κ_s ≤ κ_s (Wiener) and the mean of the
-/// diagonal at most 2φ_c/(3 − φ_c)·κ_s (Hashin–Shtrikman) in a one-material cell. `s_i = 1`
-/// leaves the pipe bit for bit.
+/// - **A cell of known solid fraction** (`solid_fraction` = φ = Σ v_i / V, v_i = (4/3)π r_i³: a
+///   periodic box). The uniform-gradient (Voigt) flux of the network bounds κ_eff from above
+///   (minimum energy: θ = 0 is one admissible fluctuation): `e·κ_eff·e ≤ e·T·e / V`,
+///   `T = Σ_pipes K_ij b_ij b_ijᵀ`. With κ̄ = Σ κ_i v_i / Σ v_i (the solid's conductivity; its
+///   volume mean for several materials) and φ_c = min(φ, 1), one scale for every half of the cell,
+///   `s = min(1, φ_c κ̄ V / λ_max(T), 3·(2φ_c/(3 − φ_c)) κ̄ V / tr T)`, keeps every diagonal
+///   component of κ_eff at or below φ_c κ̄ ≤ κ̄ (Wiener) and the mean of the diagonal at or below
+///   2φ_c/(3 − φ_c)·κ̄ (Hashin–Shtrikman). Scaling both halves by s scales each pipe by at most s
+///   (an interface resistance in series only lowers it further). It acts only where the cell's
+///   Voigt bound exceeds the bound, which no stored FE cell of the validated range does
+///   (docs/validation-conductance.md); `s = 1` leaves every pipe bit for bit.
+/// - **Otherwise** (walled bodies, heat runs: no solid fraction) each particle's halves form
+///   `C_i = Σ_k K_ik l_ik² n_k n_kᵀ` [W·m] (l_ik = |b| r_i/(r_i + r_j) its share of the branch
+///   vector b, n_k = b/|b|); by Cauchy–Schwarz `K_ij |b|² ≤ K_i l_i² + K_j l_j²`, so
+///   `e·κ_eff·e ≤ (1/V) Σ_i e·C_i·e`, and scaling particle i's halves by
+///   `s_i = min(1, κ_i v_i / λ_max(C_i))` keeps every diagonal component of κ_eff at or below the
+///   solid's κ (Wiener with φ ≤ 1) in a one-material body.
 #[allow(clippy::too_many_arguments)]
 pub fn bound_halves(
     parts: &mut [crate::heat::PipeConductance],
@@ -130,7 +138,65 @@ pub fn bound_halves(
     solid_fraction: Option<f64>,
 ) -> usize {
     let n = radius.len();
-    let mut c = vec![Matrix3::<f64>::zeros(); n];
+    let volume: Vec<f64> = radius.iter().map(|r| 4.0 / 3.0 * std::f64::consts::PI * r.powi(3)).collect();
+    let scale: Vec<f64> = match solid_fraction {
+        Some(phi) if phi > 0.0 && phi.is_finite() => {
+            let s = cell_scale(parts, branch, &volume, kappa, phi);
+            let mut touched = vec![false; n];
+            for (pc, &[i, j]) in parts.iter().zip(pairs) {
+                if pc.pair > 0.0 {
+                    touched[i as usize] = true;
+                    touched[j as usize] = true;
+                }
+            }
+            touched.iter().map(|&t| if t { s } else { 1.0 }).collect()
+        }
+        _ => particle_scales(parts, pairs, branch, radius, &volume, kappa),
+    };
+    for (k, pc) in parts.iter_mut().enumerate() {
+        let [i, j] = pairs[k];
+        let (si, sj) = (scale[i as usize], scale[j as usize]);
+        if si < 1.0 || sj < 1.0 {
+            *pc = law.series(pc.half_i * si, pc.half_j * sj, neck[k]);
+        }
+    }
+    scale.iter().filter(|&&s| s < 1.0).count()
+}
+
+/// The one scale (H8d) of a cell of solid fraction `phi`: `min(1, φ_c κ̄ V / λ_max(T),
+/// 3 HS(φ_c) κ̄ V / tr T)` with `T = Σ_pipes K_ij b bᵀ`, V = Σ v_i / φ and κ̄ the volume mean of
+/// the particles' `kappa` over their volumes `volume` [m³] (see [`bound_halves`]).
+fn cell_scale(parts: &[crate::heat::PipeConductance], branch: &[Vector3<f64>], volume: &[f64], kappa: &[f64], phi: f64) -> f64 {
+    let mut t = Matrix3::<f64>::zeros();
+    for (pc, b) in parts.iter().zip(branch) {
+        if pc.pair > 0.0 {
+            t += (b * b.transpose()) * pc.pair;
+        }
+    }
+    let tr = t.trace();
+    let solid: f64 = volume.iter().sum();
+    if !(tr > 0.0 && solid > 0.0) {
+        return 1.0;
+    }
+    let kbar = volume.iter().zip(kappa).map(|(v, k)| v * k).sum::<f64>() / solid;
+    let cell = solid / phi;
+    let phi_c = phi.min(1.0);
+    let hs = 2.0 * phi_c / (3.0 - phi_c);
+    let lmax = t.symmetric_eigenvalues().max();
+    (phi_c * kbar * cell / lmax).min(3.0 * hs * kbar * cell / tr).min(1.0)
+}
+
+/// The per-particle scales (H8d) without a solid fraction: `s_i = min(1, κ_i v_i / λ_max(C_i))`
+/// (see [`bound_halves`]).
+fn particle_scales(
+    parts: &[crate::heat::PipeConductance],
+    pairs: &[[u32; 2]],
+    branch: &[Vector3<f64>],
+    radius: &[f64],
+    volume: &[f64],
+    kappa: &[f64],
+) -> Vec<f64> {
+    let mut c = vec![Matrix3::<f64>::zeros(); radius.len()];
     for ((pc, &[i, j]), b) in parts.iter().zip(pairs).zip(branch) {
         let (i, j) = (i as usize, j as usize);
         let d2 = b.norm_squared();
@@ -144,31 +210,15 @@ pub fn bound_halves(
         c[i] += nn * (pc.half_i * li * li);
         c[j] += nn * (pc.half_j * lj * lj);
     }
-    let (share, phi_c) = match solid_fraction {
-        Some(f) if f > 0.0 && f.is_finite() => (1.0 / f, f.min(1.0)),
-        _ => (1.0, 1.0),
-    };
-    let scale: Vec<f64> = (0..n)
-        .map(|i| {
-            let tr = c[i].trace();
-            if !(tr > 0.0) {
+    c.iter()
+        .zip(volume.iter().zip(kappa))
+        .map(|(ci, (v, k))| {
+            if !(ci.trace() > 0.0) {
                 return 1.0;
             }
-            let v = 4.0 / 3.0 * std::f64::consts::PI * radius[i].powi(3) * share;
-            let lmax = c[i].symmetric_eigenvalues().max();
-            let cap_axis = kappa[i] * v * phi_c;
-            let cap_trace = 3.0 * kappa[i] * v * 2.0 * phi_c / (3.0 - phi_c);
-            (cap_axis / lmax).min(cap_trace / tr).min(1.0)
+            (k * v / ci.symmetric_eigenvalues().max()).min(1.0)
         })
-        .collect();
-    for (k, pc) in parts.iter_mut().enumerate() {
-        let [i, j] = pairs[k];
-        let (si, sj) = (scale[i as usize], scale[j as usize]);
-        if si < 1.0 || sj < 1.0 {
-            *pc = law.series(pc.half_i * si, pc.half_j * sj, neck[k]);
-        }
-    }
-    scale.iter().filter(|&&s| s < 1.0).count()
+        .collect()
 }
 
 /// Pipes between all touching particles (no periodicity).

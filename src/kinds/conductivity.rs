@@ -156,15 +156,17 @@ pub fn run_case(value: toml::Value, base: &std::path::Path) -> Result<serde_json
             crate::scene::Lattice::BodyCentred => (3f64.sqrt(), 4.0 / 3.0),
             crate::scene::Lattice::FaceCentred => (2.0 * 2f64.sqrt(), 2.0),
         };
-        let (z, cell) = match lat {
-            crate::scene::Lattice::SimpleCubic => (6.0, d * d * d),
-            crate::scene::Lattice::BodyCentred => (8.0, 4.0 * d * d * d / (3.0 * 3f64.sqrt())),
-            crate::scene::Lattice::FaceCentred => (12.0, d * d * d / 2f64.sqrt()),
+        // the volume of one particle's cell
+        let cell = match lat {
+            crate::scene::Lattice::SimpleCubic => d * d * d,
+            crate::scene::Lattice::BodyCentred => 4.0 * d * d * d / (3.0 * 3f64.sqrt()),
+            crate::scene::Lattice::FaceCentred => d * d * d / 2f64.sqrt(),
         };
         let pc = prep.conductance.pipe_crowded(kappa_mat, kappa_mat, r, r, neck.a, [phi, phi]);
-        // the bound (H8d) on the lattice's particle: tr C = Z K_half (d/2)², C isotropic
+        // the bound (H8d): the Voigt flux of a Bravais lattice is its κ_eff, f K/d, isotropic; the
+        // cell's scale holds it at min(φ_c, HS(φ_c)) κ = HS(φ_c) κ
         let solid = 4.0 / 3.0 * std::f64::consts::PI * r.powi(3) / cell;
-        let s = lattice_bound(kappa_mat, cell, solid, z * pc.half_i * d * d / 4.0);
+        let s = lattice_bound(kappa_mat, solid, f * pc.pair / d);
         let kp = if s < 1.0 { prep.conductance.series(pc.half_i * s, pc.half_j * s, neck.a).pair } else { pc.pair };
         let key = if electrical { "lattice_closed_form_S_per_m" } else { "lattice_closed_form_W_per_mK" };
         out.insert(key.into(), (f * kp / d).into());
@@ -244,11 +246,12 @@ pub fn hashin_shtrikman_upper(phi: f64) -> f64 {
     2.0 * f / (3.0 - f)
 }
 
-/// The scale (H8d) of a cubic lattice's halves: particle cell volume `cell` [m³], solid fraction
-/// `solid` [1], tr C = `trace` [W·m] of the particle's isotropic half tensor, κ [W/(m·K)].
-fn lattice_bound(kappa: f64, cell: f64, solid: f64, trace: f64) -> f64 {
+/// The scale (H8d) of a cubic lattice's halves: solid fraction `solid` [1], the network's
+/// (isotropic, Voigt-exact) conductivity `network` = f K/d [W/(m·K)], the solid's κ [W/(m·K)]:
+/// `min(1, φ_c κ / network, HS(φ_c) κ / network)`, as the cell's scale of the periodic network.
+fn lattice_bound(kappa: f64, solid: f64, network: f64) -> f64 {
     let phi_c = solid.min(1.0);
-    (3.0 * kappa * cell * 2.0 * phi_c / (3.0 - phi_c) / trace).min(kappa * cell * phi_c / (trace / 3.0)).min(1.0)
+    (phi_c * kappa / network).min(hashin_shtrikman_upper(solid) * kappa / network).min(1.0)
 }
 
 /// Mean over the contacts of h/min(r_i, r_j) (h the overlap) [1]; 0 without contacts.
