@@ -409,19 +409,11 @@ impl super::Simulation {
     /// estimate for a random packing). None for a walled run.
     pub fn sintering_stress(&self) -> Result<Option<[f64; 6]>, crate::error::Error> {
         let Some(cell) = &self.cell else { return Ok(None) };
-        let p = &self.prep.scene.particles;
-        let iso = self.prep.isothermal.as_ref().map(|prof| prof.temperature(self.t));
         let mut sum = Matrix3::zeros();
         for (k, (c, &[i, j])) in self.contacts.state.iter().zip(&self.contacts.pairs).enumerate() {
-            let (ti, tj) = (p.temperature[i as usize], p.temperature[j as usize]);
-            let t = iso.unwrap_or(if self.settings.harmonic { 2.0 * ti * tj / (ti + tj) } else { 0.5 * (ti + tj) });
-            let pm = crate::models::diffusion7::PairMaterials {
-                a: &self.d7_materials[p.material[i as usize] as usize],
-                b: &self.d7_materials[p.material[j as usize] as usize],
-                factors: self.settings.factors,
-            };
+            let (t, cp) = self.pair_params(i, j, self.t);
             let ctx = |e: ModelError| e.with_context(format!("sintering stress: contact {k} ({i}–{j}) at t = {} s", self.t));
-            let coeffs = pm.params_at(t).at(t).map_err(ctx)?;
+            let coeffs = cp.at(t).map_err(ctx)?;
             let (v0, m) = crate::models::diffusion7::load_response(&c.y, &coeffs).map_err(ctx)?;
             let l = self.branch(i, j);
             sum += l * l.transpose() * (v0 / m / l.norm());
@@ -432,6 +424,24 @@ impl super::Simulation {
 }
 
 impl super::Simulation {
+    /// The contact temperature [K] of particles `i`, `j` at time `t` [s] (the furnace profile when
+    /// isothermal, else the contact temperature of the two particles, the one the 7-DOF model
+    /// uses) and the 7-DOF parameters of their phase pair at it.
+    pub(in crate::coupled) fn pair_params(&self, i: u32, j: u32, t: f64) -> (f64, crate::models::diffusion7::ContactParams) {
+        let p = &self.prep.scene.particles;
+        let (i, j) = (i as usize, j as usize);
+        let temp = match &self.prep.isothermal {
+            Some(prof) => prof.temperature(t),
+            None => super::stages::contact_temperature(self.settings.harmonic, p.temperature[i], p.temperature[j]),
+        };
+        let pm = crate::models::diffusion7::PairMaterials {
+            a: &self.d7_materials[p.material[i] as usize],
+            b: &self.d7_materials[p.material[j] as usize],
+            factors: self.settings.factors,
+        };
+        (temp, pm.params_at(temp))
+    }
+
     /// The Bouvard–McMeeking contact-law sintering stress of the cell (B23a) [Pa], the mean of the
     /// normal components of `(1/V) Σ_c F_BM,c l_c ⊗ l_c/|l_c|`, with the sintering force of the
     /// contact law as Yan et al. (2017) Eq. 1 print it, `F_BM = π γ_s [8R*(1 − cos(ψ/2)) +
@@ -440,18 +450,9 @@ impl super::Simulation {
     /// reference the 7-DOF model's own force is held against (docs/rve.md). None for a walled run.
     pub fn contact_law_sintering_stress(&self) -> Result<Option<f64>, crate::error::Error> {
         let Some(cell) = &self.cell else { return Ok(None) };
-        let p = &self.prep.scene.particles;
-        let iso = self.prep.isothermal.as_ref().map(|prof| prof.temperature(self.t));
         let mut trace = 0.0;
         for (k, (c, &[i, j])) in self.contacts.state.iter().zip(&self.contacts.pairs).enumerate() {
-            let (ti, tj) = (p.temperature[i as usize], p.temperature[j as usize]);
-            let t = iso.unwrap_or(if self.settings.harmonic { 2.0 * ti * tj / (ti + tj) } else { 0.5 * (ti + tj) });
-            let pm = crate::models::diffusion7::PairMaterials {
-                a: &self.d7_materials[p.material[i as usize] as usize],
-                b: &self.d7_materials[p.material[j as usize] as usize],
-                factors: self.settings.factors,
-            };
-            let cp = pm.params_at(t);
+            let (_, cp) = self.pair_params(i, j, self.t);
             let gamma_s = 0.5 * (cp.sides[0].gamma_s + cp.sides[1].gamma_s);
             let cos_half = cp.gamma_gb / (2.0 * gamma_s);
             if !(cos_half.is_finite() && (0.0..1.0).contains(&cos_half)) {

@@ -18,18 +18,12 @@ use nalgebra::Vector3;
 /// Maxwell links). None without sliding.
 pub(in crate::coupled) fn sliding_viscosities(sim: &Simulation, t: f64) -> Result<Option<NeckViscosities>, Error> {
     let Some(f) = sim.settings.mechanics.sliding else { return Ok(None) };
-    let p = &sim.prep.scene.particles;
-    let mats = &sim.d7_materials;
-    let harmonic = sim.settings.harmonic;
-    let iso = sim.prep.isothermal.as_ref();
     let m = sim.contacts.len();
     let mut v = NeckViscosities { tangential: Vec::with_capacity(m), rolling: Vec::with_capacity(m), network: Vec::with_capacity(m) };
     for (k, (c, &[i, j])) in sim.contacts.state.iter().zip(&sim.contacts.pairs).enumerate() {
-        let (i, j) = (i as usize, j as usize);
-        let temp = iso.map_or_else(|| super::contact_temperature(harmonic, p.temperature[i], p.temperature[j]), |prof| prof.temperature(t));
-        let pm = crate::models::diffusion7::PairMaterials { a: &mats[p.material[i] as usize], b: &mats[p.material[j] as usize], factors: sim.settings.factors };
+        let (temp, cp) = sim.pair_params(i, j, t);
         let ctx = |e: crate::error::ModelError| e.with_context(format!("sliding viscosity: contact {k} ({i}–{j}) at t = {t} s"));
-        let coeffs = pm.params_at(temp).at(temp).map_err(ctx)?;
+        let coeffs = cp.at(temp).map_err(ctx)?;
         let (_, mobility) = crate::models::diffusion7::load_response(&c.y, &coeffs).map_err(ctx)?;
         let eta_t = sliding::tangential_viscosity(f, c.y[0], c.r0[0], c.r0[1], mobility);
         v.tangential.push(eta_t);
