@@ -233,26 +233,39 @@ class Conductivity(_JsonResult):
     """What :func:`sinterdem.conductivity` returns: the JSON object ``sinterdem conductivity``
     prints, every field kept (``fields``, also ``result[key]``), and
 
-    - ``tensor``: κ_eff [W/(m K)] as a numpy (3, 3) array, the numbers the command prints bit for bit;
-    - ``relative``: κ_eff/κ [1], (3, 3);
-    - ``kappa_material`` [W/(m K)], ``boundary``, ``warnings`` (list of str).
+    - ``tensor``: κ_eff [W/(m K)] as a numpy (3, 3) array, the numbers the command prints bit for bit
+      (with ``conductivity.quantity = "electrical"``: σ_eff [S/m]);
+    - ``relative``: κ_eff/κ (or σ_eff/σ) [1], (3, 3);
+    - ``quantity`` (``"thermal"`` or ``"electrical"``), ``kappa_material`` [W/(m K)] (thermal),
+      ``sigma_material`` [S/m] (electrical), ``boundary``, ``warnings`` (list of str).
     """
+
+    @property
+    def quantity(self) -> str:
+        return self.fields.get("quantity", "thermal")
+
+    def _key(self, thermal: str, electrical: str) -> str:
+        return electrical if self.quantity == "electrical" else thermal
 
     @property
     def tensor(self) -> "np.ndarray":
         import numpy as np
 
-        return np.array(self.fields["kappa_eff_W_per_mK"], dtype=float)
+        return np.array(self.fields[self._key("kappa_eff_W_per_mK", "sigma_eff_S_per_m")], dtype=float)
 
     @property
     def relative(self) -> "np.ndarray":
         import numpy as np
 
-        return np.array(self.fields["kappa_eff_over_kappa"], dtype=float)
+        return np.array(self.fields[self._key("kappa_eff_over_kappa", "sigma_eff_over_sigma")], dtype=float)
 
     @property
-    def kappa_material(self) -> float:
-        return self.fields["kappa_material_W_per_mK"]
+    def kappa_material(self) -> Optional[float]:
+        return self.fields.get("kappa_material_W_per_mK")
+
+    @property
+    def sigma_material(self) -> Optional[float]:
+        return self.fields.get("sigma_material_S_per_m")
 
     @property
     def boundary(self) -> str:
@@ -265,8 +278,12 @@ class Conductivity(_JsonResult):
     def __repr__(self) -> str:
         d = self.relative.diagonal()
         extra = f", {len(self.warnings)} warning(s)" if self.warnings else ""
-        return (f"Conductivity(boundary={self.boundary!r}, kappa_eff/kappa diagonal=[{d[0]:.4g}, {d[1]:.4g}, {d[2]:.4g}], "
-                f"kappa_material={self.kappa_material:.4g} W/(m K), particles={self.fields.get('particles')}, contacts={self.fields.get('contacts')}{extra})")
+        if self.quantity == "electrical":
+            head, bulk = "sigma_eff/sigma", f"sigma_material={self.sigma_material:.4g} S/m"
+        else:
+            head, bulk = "kappa_eff/kappa", f"kappa_material={self.kappa_material:.4g} W/(m K)"
+        return (f"Conductivity(boundary={self.boundary!r}, {head} diagonal=[{d[0]:.4g}, {d[1]:.4g}, {d[2]:.4g}], "
+                f"{bulk}, particles={self.fields.get('particles')}, contacts={self.fields.get('contacts')}{extra})")
 
 
 class Neck(_JsonResult):

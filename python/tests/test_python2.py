@@ -388,3 +388,21 @@ def test_a_whole_number_beyond_64_bits_is_the_keys_config_error():
         with pytest.raises(sinterdem.ConfigError) as e:
             sinterdem.Case.from_dict({**case.to_dict(), "time": {"end": big, "dt": 1.0}})
         assert e.value.key == "time.end"
+
+
+def test_electrical_conductivity_is_the_same_network(tmp_path):
+    """`conductivity.quantity = "electrical"` from Python (issue 42): the same network with
+    σ = 1/ρ_e(T) in place of κ (docs/heat-model.md), so σ_eff/σ equals κ_eff/κ of the thermal run
+    on the bundled periodic case to round-off, and the fields are the command's bit for bit."""
+    path = CASES / "conductivity" / "periodic-random.toml"
+    case = sinterdem.Case.load(path)
+    case["conductivity.quantity"] = "electrical"
+    el = sinterdem.conductivity(case)
+    th = sinterdem.conductivity(path)
+    assert el.quantity == "electrical" and th.quantity == "thermal"
+    assert np.allclose(el.relative, th.relative, rtol=1e-12, atol=1e-15)
+    assert el.tensor[0, 0] == pytest.approx(el.relative[0, 0] * el.sigma_material, rel=1e-12)
+    assert el.kappa_material is None and "sigma_eff/sigma" in repr(el)
+    for name, cmd in cli_commands():
+        cli = json.loads(run_cli(cmd, "conductivity", str(path), "--set", 'conductivity.quantity="electrical"').stdout)
+        assert el.fields == cli, name
