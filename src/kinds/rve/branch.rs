@@ -184,12 +184,12 @@ pub fn measure_point(sim: &Simulation, rve: &RveSettings) -> Result<Point, Error
         // a zero strain-rate difference: the perturbed branches crept exactly as the free one to
         // the last bit of the cell's log-strain (issue 38: copper at 300 K gave K = -inf)
         return Err(ModelError::new(format!(
-            "rve point at t = {} s (mean temperature {:.1} K): the branches under the stress perturbation Δ = {} Pa did not creep measurably in rve.interval = {} s \
+            "rve point at t = {} s (mean temperature {:.1} K): the branches under the stress perturbation Δ = {:.3e} Pa did not creep measurably in rve.interval = {} s \
              (volumetric strain-rate difference {:e} 1/s, uniaxial {:e} 1/s: zero to the resolution of the cell's strain), so the viscosities are beyond what \
              this interval resolves: at this temperature the necks hardly diffuse. Measure where the cell sinters (a higher temperature), or over a longer rve.interval",
             crate::error::fmt_value(sim.t),
             point.temperature,
-            format!("{d:.3e}"),
+            d,
             crate::error::fmt_value(tau),
             vol(hyd),
             e_axes.iter().map(|e| -d / e).fold(0.0, |a: f64, b| if b.abs() > a.abs() { b } else { a }),
