@@ -276,7 +276,8 @@ fn included_material_path_factors_reach_the_compact() {
         e.contains("materials.1.include = \"other.toml\"") && e.contains("materials.0.include = \"with-model.toml\"") && e.contains("path_factor_gb"),
         "{e}"
     );
-    // a calibration file: the included [model] starts the path factors, [path_factors] wins
+    // a calibration file: the included [model] starts the path factors, [path_factors] wins (the
+    // bounds hold the included material's q_gb = 153 kJ/mol, the fit's start)
     std::fs::write(
         dir.join("data.csv"),
         format!("id,diameter_m,schedule,neck_ratio,neck_ratio_sigma,shrinkage,shrinkage_sigma\nA,6.4e-5,\"{}\",0.4,0.01,,\n", SCHEDULES[0].1),
@@ -284,7 +285,7 @@ fn included_material_path_factors_reach_the_compact() {
     .unwrap();
     let calib = |extra: &str| {
         let p = dir.join("calib.toml");
-        std::fs::write(&p, format!("data = \"data.csv\"\nmaterial = \"titanium\"\ninclude = \"with-model.toml\"\n[[parameters]]\nkey = \"beta.q_gb\"\nmin = 2.0e5\nmax = 2.4e5\n{extra}")).unwrap();
+        std::fs::write(&p, format!("data = \"data.csv\"\nmaterial = \"titanium\"\ninclude = \"with-model.toml\"\n[[parameters]]\nkey = \"beta.q_gb\"\nmin = 1.0e5\nmax = 2.4e5\n{extra}")).unwrap();
         parse(&load_case(&p, &[]).unwrap(), &dir).unwrap().factors
     };
     assert_eq!(calib("").path_factor_gb, 0.5);

@@ -31,7 +31,7 @@ fn setup(dir: &Path) {
     std::fs::write(dir.join("corner.csv"), csv).unwrap();
     std::fs::write(
         dir.join("compact.toml"),
-        "kind = \"compact\"\n[time]\nend = 100.0\ndt = 1.0e-3\ndt_max = 10.0\n[[materials]]\nname = \"titanium\"\npreset = \"titanium-ivannikov2022\"\n\
+        "kind = \"compact\"\n[time]\nend = 100.0\ndt = 1.0e-3\ndt_max = 10.0\n[[materials]]\nname = \"titanium-ivannikov2022\"\npreset = \"titanium-ivannikov2022\"\n\
          [particles]\nsource = \"file\"\nfile = \"corner.csv\"\n[thermal]\nmode = \"isothermal\"\nfurnace = { profile = { constant = 1373.0 } }\n",
     )
     .unwrap();
@@ -40,7 +40,7 @@ fn setup(dir: &Path) {
         "id,diameter_m,schedule,neck_ratio,neck_ratio_sigma,shrinkage,shrinkage_sigma\nA,6.4e-5,\"start 1273 K, heat 50 K/min to 1373 K, hold 3 min\",0.38,0.01,0.02,0.001\n",
     )
     .unwrap();
-    let calib = "data = \"data.csv\"\nmaterial = \"titanium\"\nmodel = \"compact\"\nseed = 2\n[[parameters]]\nkey = \"beta.d0_gb\"\nmin = 1.0\nmax = 1.0e4\n\
+    let calib = "data = \"data.csv\"\nmaterial = \"titanium-ivannikov2022\"\nmodel = \"compact\"\nseed = 2\n[[parameters]]\nkey = \"beta.d0_gb\"\nmin = 1.0\nmax = 1.0e4\n\
                  [optimiser]\nswarm_size = 3\nswarm_iterations = 1\nlocal_iterations = 2\n[compact]\ncase = \"compact.toml\"\n";
     std::fs::write(dir.join("local.toml"), calib).unwrap();
     std::fs::write(

@@ -707,3 +707,27 @@ fn group7_the_rve_points_file_is_sealed_and_issue39_the_constitutive_plot_reads(
     unique.dedup();
     assert_eq!(unique.len(), all.len(), "every series keeps a colour of its own (SVG dash keys)");
 }
+
+/// Issue 38 group 8 (lock holder): a second writer into a directory an `rve` run holds is told
+/// "sinterdem rve" (was "sinterdem run").
+#[test]
+fn group8_the_lock_of_an_rve_run_names_rve() {
+    let d = common::tmp_dir("lockname");
+    let out = d.join("out");
+    let mut child = bin()
+        .args(["-q", "rve", "cases/rve-copper.toml", "--set", "time.end=60.0", "--set", "rve.at=[30.0, 60.0]", "--set", "output.snapshots=0", "--out"])
+        .arg(&out)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let t0 = Instant::now();
+    while !out.join("log.txt").is_file() && t0.elapsed() < Duration::from_secs(60) {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let o = bin().args(["-q", "run", "cases/hot-plate.toml", "--out"]).arg(&out).output().unwrap();
+    let _ = child.kill();
+    let _ = child.wait();
+    assert_eq!(o.status.code(), Some(5), "{}", stderr(&o));
+    assert!(stderr(&o).contains("is being written by pid") && stderr(&o).contains("sinterdem rve"), "{}", stderr(&o));
+}

@@ -364,7 +364,8 @@ impl CaseCore {
     /// case had before and that the assignment does not concern (a case being built key by key)
     /// waits for `check()` or the run. Returns the override as the command line would spell it.
     fn set(&mut self, py: Python<'_>, key: &str, value: &Bound<'_, PyAny>) -> PyResult<String> {
-        let v = py_to_toml(value)?;
+        // errors of the value name the key assigned (a whole number beyond 64 bits, nesting)
+        let v = py_to_toml_at(value, key, 0)?;
         let assignment = format!("{key}={v}");
         let mut sets = self.sets.clone();
         sets.push(assignment.clone());

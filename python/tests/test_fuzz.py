@@ -169,7 +169,8 @@ def op_signal(n):
         timer.cancel()
         problem = "the signalled run returned (not KeyboardInterrupt)"
     except KeyboardInterrupt:
-        s = json.loads((d / "summary.json").read_text())
+        # (no summary: the signal came while the case was being prepared, before a first step)
+        s = json.loads((d / "summary.json").read_text()) if (d / "summary.json").is_file() else {"completed": False, "stop_reason": "interrupted"}
         problem = None if s.get("completed") is False and s.get("stop_reason") == "interrupted" else f"interrupted run's summary: {s.get('completed')}, {s.get('stop_reason')}"
     t.join()
     if "e" in worker_res:

@@ -14,6 +14,25 @@ use std::path::{Path, PathBuf};
 /// File name of the lock inside an output directory.
 pub const LOCK_FILE: &str = ".sinterdem.lock";
 
+thread_local! {
+    /// The command a run opened on this thread is named by in its lock (None: the kind's own).
+    static COMMAND: std::cell::Cell<Option<&'static str>> = const { std::cell::Cell::new(None) };
+}
+
+/// Runs `f` (which opens a run) with that run's lock naming `command`: `sinterdem rve` opens its
+/// free run through the run's path, and its lock said "sinterdem run" (issue 38).
+pub fn as_command<T>(command: &'static str, f: impl FnOnce() -> T) -> T {
+    let before = COMMAND.with(|c| c.replace(Some(command)));
+    let out = f();
+    COMMAND.with(|c| c.set(before));
+    out
+}
+
+/// The command set by [`as_command`] on this thread, else `default`.
+pub fn command_or(default: &'static str) -> &'static str {
+    COMMAND.with(|c| c.get()).unwrap_or(default)
+}
+
 /// A held output-directory lock; released on drop (and by the OS when the process dies).
 #[derive(Debug)]
 pub struct OutputLock {

@@ -297,7 +297,7 @@ pub(crate) fn open_run(case: &toml::Value, overrides: &[String], out: &Path, par
     let (value, end_note) = resolve_noting(&case, overrides)?;
     let kind = Kind::of(&value)?;
     // the holder's command as the user typed it (issue 38: a generate was named "sinterdem run")
-    let lock = crate::io::lock::OutputLock::acquire(out, if kind == Kind::Generate { "generate" } else { "run" })?;
+    let lock = crate::io::lock::OutputLock::acquire(out, if kind == Kind::Generate { "generate" } else { crate::io::lock::command_or("run") })?;
     // a new run owns its directory: it refuses one holding another run's outputs (a checkpoint
     // `resume` would continue, a snapshot series ParaView would mix with this run's) unless
     // `force`, which removes them first (docs/outputs.md "Guarantees")

@@ -192,7 +192,7 @@ pub fn run(case: &toml::Value, overrides: &[String], out: &Path, params: &RunPar
     let rve = RveSettings::from_case(&value, end)?;
     let mut sets = overrides.to_vec();
     sets.push(conductivity_override(&value, &rve.at));
-    let stepper = Stepper::start(&expanded, &sets, out, params)?;
+    let stepper = crate::io::lock::as_command("rve", || Stepper::start(&expanded, &sets, out, params))?;
     {
         let sim = stepper.compact_simulation().ok_or_else(|| ConfigError::invalid("sinterdem rve: kind must be \"compact\""))?;
         check_free_periodic(sim)?;
