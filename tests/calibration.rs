@@ -254,3 +254,16 @@ fn failed_runs_are_a_penalty_not_a_crash() {
     assert!(log.iter().any(|l| l.contains("chi2 = 2.000000e6")), "{log:?}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// The bundled calibration's `[compact]` validation case names its material "titanium" with
+/// `preset = "titanium-ivannikov2022"`, the calibration's material: `check` finds it by the preset
+/// (it failed with "has no material named" after the presets were renamed, issue 38 note).
+#[test]
+fn the_bundled_calibration_finds_its_compact_material_by_preset() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let o =
+        std::process::Command::new(env!("CARGO_BIN_EXE_sinterdem")).arg("check").arg(root.join("cases/calibration/titanium-synthetic.toml")).output().unwrap();
+    let text = format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success(), "{text}");
+    assert!(text.contains("[compact]") && text.contains("3619 particles"), "{text}");
+}

@@ -178,10 +178,12 @@ pub fn derived_case(
     }
     let mats = case.get_mut("materials").and_then(|m| m.as_array_mut()).ok_or_else(|| at("has no [[materials]]"))?;
     let names: Vec<String> = mats.iter().filter_map(|m| m.get("name").and_then(|n| n.as_str()).map(String::from)).collect();
-    let index = mats
-        .iter()
-        .position(|m| m.get("name").and_then(|n| n.as_str()) == Some(material.name.as_str()))
-        .ok_or_else(|| at(&format!("has no material named \"{}\" (it has: {})", material.name, names.join(", "))))?;
+    // the entry named as the fitted material, else the one built from the preset of that name
+    // (a compact case names its material "titanium" with preset = "titanium-ivannikov2022")
+    let key = |k: &str| mats.iter().position(|m| m.get(k).and_then(|n| n.as_str()) == Some(material.name.as_str()));
+    let index = key("name").or_else(|| key("preset")).ok_or_else(|| {
+        at(&format!("has no material named \"{}\" nor one with preset = \"{}\" (it has: {})", material.name, material.name, names.join(", ")))
+    })?;
     let entry = mats[index].as_table_mut().ok_or_else(|| at(&format!("materials.{index} is not a table")))?;
     let phases = toml::Value::try_from(&material.phases).map_err(|e| at(&format!("fitted phases: {e}")))?;
     entry.insert("phases".into(), phases);
