@@ -194,7 +194,7 @@ pub struct MechanicsSettings {
     pub amg_keep_on_new_bonds: bool,
     /// The periodic cell's controls (`boundary = "periodic"`); None: walls.
     pub cell: Option<super::cell::CellSettings>,
-    /// Viscous grain-boundary sliding (docs/mechanics.md (B24)–(B28)): the factor f of (B24)
+    /// Viscous grain-boundary sliding (docs/mechanics.md (B24)–(B30)): the factor f of (B24)
     /// [1]; None: `sliding = "none"`, the elastic link.
     pub sliding: Option<f64>,
 }

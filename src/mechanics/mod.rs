@@ -127,7 +127,7 @@ pub struct BondedSystem {
     history: Vec<Vec<Vec<f64>>>,
     /// `report` is a periodic cell's analysis ([`periodic::analyse`]), not the constraints'.
     periodic_report: bool,
-    /// Viscous sliding of the next steps (docs/mechanics.md (B24)–(B28)); None: elastic links.
+    /// Viscous sliding of the next steps (docs/mechanics.md (B24)–(B30)); None: elastic links.
     relaxation: Option<sliding::Relaxation>,
 }
 
@@ -155,7 +155,7 @@ impl BondedSystem {
         })
     }
 
-    /// Viscous sliding (docs/mechanics.md (B24)–(B28)) for the following steps: each link's two
+    /// Viscous sliding (docs/mechanics.md (B24)–(B30)) for the following steps: each link's two
     /// shear springs become Maxwell elements with the viscosities and step of `relaxation`, and a
     /// step returns the new stored tangential forces in [`MechStep::tangential`]. None: the elastic
     /// link (bit for bit the system without this call). Checked against the bonds at each step.

@@ -1,12 +1,14 @@
-//! Viscous grain-boundary sliding at the necks (docs/mechanics.md (B24)–(B28)).
+//! Viscous grain-boundary sliding, rolling and twisting at the necks (docs/mechanics.md
+//! (B24)–(B30)).
 //!
 //! The two shear springs of each link (`K_link[0]`, `K_link[1]`, (B5)) become Maxwell elements:
 //! the elastic shear spring `k_t` in series with a dashpot of the tangential viscosity `η_t`
 //! (B24) of the neck. Integrated by backward Euler over a step Δt (B25)–(B27): the step sees the
 //! effective stiffness `φ·k_t`, `φ = η_t/(η_t + k_t·Δt)`, and the release `(1 − φ)·P_t` of the
 //! stored tangential link force `P_t` as a load; after the step `P_t ← φ·(P_t + k_t·Δε_t)`.
-//! Axial, bending and torsion springs stay elastic (no source gives their relaxation,
-//! docs/decisions-mechanics.md).
+//! With rolling viscosities the bending and torsion springs relax the same way (B30), with a
+//! stored link moment; a load distribution may instead be solved as a viscous network (B29). The
+//! axial spring stays the elastic penalty: its viscous compliance is the 7-DOF model's.
 
 use crate::error::{ConfigError, Error};
 use nalgebra::Vector3;

@@ -171,7 +171,7 @@ pub struct MechanicsSpec {
     /// The controls of the periodic cell's strain components (`boundary = "periodic"`).
     pub cell: Option<CellSpec>,
     /// Grain-boundary sliding at the necks: "none" (default: the elastic link of
-    /// docs/mechanics.md (B5)) or "viscous" (the Maxwell link of (B24)–(B28)).
+    /// docs/mechanics.md (B5)) or "viscous" (the Maxwell links of (B24)–(B30)).
     #[serde(default = "no_sliding")]
     pub sliding: String,
     /// The dimensionless factor f of the tangential viscosity (B24) (`sliding = "viscous"`;
