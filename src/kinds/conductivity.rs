@@ -146,32 +146,42 @@ pub fn run_case(value: toml::Value, base: &std::path::Path) -> Result<serde_json
         w.extend(notes.into_iter().map(serde_json::Value::from));
         out.insert("warnings".into(), w.into());
     }
-    if let Some((lat, d)) = prep.scene.lattice {
-        // closed forms of docs/heat-model.md for the pipe conductance of the lattice's nearest neighbours
-        let r = p.radius[0];
-        let neck = crate::neck::solve(r, r, 2.0 * r - d)?;
-        // the crowding of every neck (heat-model.md (H8c)): nᵀMn/(2a) = 1 (SC), (2 + 6/9)/2 = 4/3 (BCC), (2 + 8/4)/2 = 2 (FCC)
-        let (f, phi) = match lat {
-            crate::scene::Lattice::SimpleCubic => (1.0, 1.0),
-            crate::scene::Lattice::BodyCentred => (3f64.sqrt(), 4.0 / 3.0),
-            crate::scene::Lattice::FaceCentred => (2.0 * 2f64.sqrt(), 2.0),
-        };
-        // the volume of one particle's cell
-        let cell = match lat {
-            crate::scene::Lattice::SimpleCubic => d * d * d,
-            crate::scene::Lattice::BodyCentred => 4.0 * d * d * d / (3.0 * 3f64.sqrt()),
-            crate::scene::Lattice::FaceCentred => d * d * d / 2f64.sqrt(),
-        };
-        let pc = prep.conductance.pipe_crowded(kappa_mat, kappa_mat, r, r, neck.a, [phi, phi]);
-        // the bound (H8d): the Voigt flux of a Bravais lattice is its κ_eff, f K/d, isotropic; the
-        // cell's scale holds it at min(φ_c, HS(φ_c)) κ = HS(φ_c) κ
-        let solid = 4.0 / 3.0 * std::f64::consts::PI * r.powi(3) / cell;
-        let s = lattice_bound(kappa_mat, solid, f * pc.pair / d);
-        let kp = if s < 1.0 { prep.conductance.series(pc.half_i * s, pc.half_j * s, neck.a).pair } else { pc.pair };
+    if let Some(k) = lattice_closed_form(&prep, kappa_mat)? {
         let key = if electrical { "lattice_closed_form_S_per_m" } else { "lattice_closed_form_W_per_mK" };
-        out.insert(key.into(), (f * kp / d).into());
+        out.insert(key.into(), k.into());
     }
     Ok(serde_json::Value::Object(out))
+}
+
+/// The closed form of docs/heat-model.md for a lattice case: the conductivity [W/(m·K)] (or
+/// [S/m] with σ for κ) of the pipes of the lattice's nearest neighbours with their crowding and
+/// the bound (H8d), `f·K/d`; None for a packing that is not a lattice. `kappa_mat`: the material's
+/// κ (or σ).
+fn lattice_closed_form(prep: &crate::scene::Prepared, kappa_mat: f64) -> Result<Option<f64>, Error> {
+    let Some((lat, d)) = prep.scene.lattice else { return Ok(None) };
+    let p = &prep.scene.particles;
+    // closed forms of docs/heat-model.md for the pipe conductance of the lattice's nearest neighbours
+    let r = p.radius[0];
+    let neck = crate::neck::solve(r, r, 2.0 * r - d)?;
+    // the crowding of every neck (heat-model.md (H8c)): nᵀMn/(2a) = 1 (SC), (2 + 6/9)/2 = 4/3 (BCC), (2 + 8/4)/2 = 2 (FCC)
+    let (f, phi) = match lat {
+        crate::scene::Lattice::SimpleCubic => (1.0, 1.0),
+        crate::scene::Lattice::BodyCentred => (3f64.sqrt(), 4.0 / 3.0),
+        crate::scene::Lattice::FaceCentred => (2.0 * 2f64.sqrt(), 2.0),
+    };
+    // the volume of one particle's cell
+    let cell = match lat {
+        crate::scene::Lattice::SimpleCubic => d * d * d,
+        crate::scene::Lattice::BodyCentred => 4.0 * d * d * d / (3.0 * 3f64.sqrt()),
+        crate::scene::Lattice::FaceCentred => d * d * d / 2f64.sqrt(),
+    };
+    let pc = prep.conductance.pipe_crowded(kappa_mat, kappa_mat, r, r, neck.a, [phi, phi]);
+    // the bound (H8d): the Voigt flux of a Bravais lattice is its κ_eff, f K/d, isotropic; the
+    // cell's scale holds it at min(φ_c, HS(φ_c)) κ = HS(φ_c) κ
+    let solid = 4.0 / 3.0 * std::f64::consts::PI * r.powi(3) / cell;
+    let s = lattice_bound(kappa_mat, solid, f * pc.pair / d);
+    let kp = if s < 1.0 { prep.conductance.series(pc.half_i * s, pc.half_j * s, neck.a).pair } else { pc.pair };
+    Ok(Some(f * kp / d))
 }
 
 /// The axes along which the periodic contact network spans the cell `bbox` [m]: some loop of
