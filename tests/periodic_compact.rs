@@ -4,36 +4,15 @@
 //! than across it, and held at zero strain reports a tensile sintering stress; checkpoints,
 //! threads and the errors of bad combinations.
 
-use sinterdem::coupled::{self, Simulation};
+use sinterdem::coupled;
 use std::path::Path;
 
 mod common;
 
-/// The random periodic copper packing of the conductivity case (500 spheres, 50 µm ± 10 %).
-const BOX: f64 = 3.690793753101957e-4;
-
-fn random_particles() -> String {
-    let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases/data/periodic-copper-500.csv");
-    format!("{}\nperiodic_box = [{BOX:e}, {BOX:e}, {BOX:e}]", common::file_particles(&file))
-}
-
-/// An isothermal copper compact at 1293 K on `particles`, periodic, with `[mechanics.cell]` body `cell`.
-fn periodic_case(end: f64, particles: &str, cell: &str, sets: &[&str]) -> toml::Value {
-    let text = common::compact_text(&common::time_to(end), &[common::COPPER], particles, common::AT_1293_K)
-        + &format!("[mechanics]\nboundary = \"periodic\"\n[mechanics.cell]\n{cell}\n");
-    common::case_value(&text, sets)
-}
-
-fn run(v: toml::Value, out: &Path) -> serde_json::Value {
-    let sim = coupled::prepare(v, Path::new("."), &mut |_| {}).unwrap();
-    sinterdem::kinds::compact::run(sim, out, false, &mut |_| {}).unwrap()
-}
-
-fn advance(sim: &mut Simulation) {
-    while sim.t < sim.settings.end {
-        sim.advance_step(&mut |_| {}).unwrap();
-    }
-}
+use common::{
+    PERIODIC_COPPER_BOX as BOX, advance_to_end as advance, periodic_copper_case as periodic_case, periodic_copper_particles as random_particles,
+    run_compact as run,
+};
 
 /// The free copper pair (R = 25 µm, 1293 K) over `end` [s]: centre approach ΔL [m].
 fn free_pair_approach(end: f64) -> f64 {

@@ -4,34 +4,12 @@
 //! pressed random periodic cell resumes bit for bit and 1 and 2 threads agree; bad values are
 //! errors naming key, value, range and unit.
 
-use sinterdem::coupled::{self, Simulation};
+use sinterdem::coupled;
 use std::path::Path;
 
 mod common;
 
-const BOX: f64 = 3.690793753101957e-4;
-
-fn random_particles() -> String {
-    let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases/data/periodic-copper-500.csv");
-    format!("{}\nperiodic_box = [{BOX:e}, {BOX:e}, {BOX:e}]", common::file_particles(&file))
-}
-
-fn periodic_case(end: f64, particles: &str, cell: &str, sets: &[&str]) -> toml::Value {
-    let text = common::compact_text(&common::time_to(end), &[common::COPPER], particles, common::AT_1293_K)
-        + &format!("[mechanics]\nboundary = \"periodic\"\n[mechanics.cell]\n{cell}\n");
-    common::case_value(&text, sets)
-}
-
-fn run(v: toml::Value, out: &Path) -> serde_json::Value {
-    let sim = coupled::prepare(v, Path::new("."), &mut |_| {}).unwrap();
-    sinterdem::kinds::compact::run(sim, out, false, &mut |_| {}).unwrap()
-}
-
-fn advance(sim: &mut Simulation) {
-    while sim.t < sim.settings.end {
-        sim.advance_step(&mut |_| {}).unwrap();
-    }
-}
+use common::{advance_to_end as advance, periodic_copper_case as periodic_case, periodic_copper_particles as random_particles, run_compact as run};
 
 /// SC (3³) and FCC (2³) lattices of touching copper spheres, free, 100 s at 1293 K: every bond is
 /// loaded alike and the cell deforms affinely, so no bond shears and sliding (even at the

@@ -174,12 +174,13 @@ impl MechanicsStage {
         loads: &[NodalLoad],
     ) -> Result<(Vec<f64>, Vec<Vector3<f64>>), Error> {
         let relax = self.relaxation_for(false, contacts.len());
-        let sliding = relax.clone();
         let sys = self.synced(contacts)?;
         sys.set_relaxation(relax);
         let y4_y7 = bar_lengths(contacts);
         let zero = vec![0.0; contacts.len()];
         let out = step_or_refactor(sys, &StepInput { positions: &p.position, radii: &p.radius, y4_y7: &y4_y7, load: &zero, external: Some(loads) });
+        // the links the solve used: elastic, Maxwell (B25), (B30) or the viscous network (B29)
+        let links = sys.link_stiffnesses(&p.radius);
         sys.set_relaxation(None);
         let out = out?;
         let r_scale = p.radius.iter().sum::<f64>() / p.len().max(1) as f64;
@@ -189,21 +190,7 @@ impl MechanicsStage {
             let (a, b) = (a as usize, b as usize);
             let [y4, y7] = y4_y7[k];
             let g = crate::mechanics::BondGeometry::new(&p.position[a], &p.position[b], y4, y7)?;
-            let [e, nu] = sys.link_elastic(a as u32, b as u32);
-            let mut kl = crate::mechanics::link_stiffness(e, nu, 0.5 * (p.radius[a] + p.radius[b]));
-            if let Some(r) = sliding.as_ref().filter(|r| !r.network.is_empty()) {
-                // the viscous network of the solve (B29)
-                kl = r.network[k];
-            } else if let Some(r) = &sliding {
-                // the effective shear, bending and torsion springs of the solve (B25), (B30)
-                let phi = crate::mechanics::sliding::maxwell_factor(kl[0], r.viscosity[k], r.dt);
-                kl[0] *= phi;
-                kl[1] *= phi;
-                let [pb, pt] = r.rolling_factors(k, kl[3], kl[5]);
-                kl[3] *= pb;
-                kl[4] *= pb;
-                kl[5] *= pt;
-            }
+            let kl = links[k];
             let mut y = nalgebra::SMatrix::<f64, 12, 1>::zeros();
             for d in 0..3 {
                 y[d] = out.du[a][d];

@@ -163,29 +163,27 @@ impl BondedSystem {
         self.relaxation = relaxation;
     }
 
-    /// The link stiffnesses (B5) of every bond for the radii `radii` [m], the shear entries
-    /// multiplied by the Maxwell factor (B25) when sliding is on.
-    fn link_k(&self, radii: &[f64]) -> Vec<[f64; 6]> {
+    /// The elastic link stiffnesses (B5) of bond `c` between `a` and `b` for the radii `radii` [m].
+    fn elastic_link(&self, a: u32, b: u32, radii: &[f64]) -> [f64; 6] {
+        let [e, nu] = self.link_elastic(a, b);
+        link_stiffness(e, nu, 0.5 * (radii[a as usize] + radii[b as usize]))
+    }
+
+    /// The link stiffnesses of every bond as the next step assembles them, for the radii `radii`
+    /// [m]: the elastic links (B5), with sliding multiplied by the Maxwell factors (B25), (B30), or
+    /// a load distribution's viscous network (B29).
+    pub fn link_stiffnesses(&self, radii: &[f64]) -> Vec<[f64; 6]> {
         if let Some(r) = self.relaxation.as_ref().filter(|r| !r.network.is_empty()) {
-            // a load distribution's viscous network (B29)
             return r.network.clone();
         }
-        let (e, nu) = (self.params.young_modulus, self.params.poisson_ratio);
         self.pairs
             .iter()
             .enumerate()
             .map(|(c, &[a, b])| {
-                let [e, nu] = if self.elastic.is_some() { self.link_elastic(a, b) } else { [e, nu] };
-                let mut k = link_stiffness(e, nu, 0.5 * (radii[a as usize] + radii[b as usize]));
+                let mut k = self.elastic_link(a, b, radii);
                 if let Some(r) = &self.relaxation {
-                    let phi = sliding::maxwell_factor(k[0], r.viscosity[c], r.dt);
-                    k[0] *= phi;
-                    k[1] *= phi;
-                    // (B30): bending and torsion relax too when rolling viscosities are given
-                    let [pb, pt] = r.rolling_factors(c, k[3], k[5]);
-                    k[3] *= pb;
-                    k[4] *= pb;
-                    k[5] *= pt;
+                    let f = r.link_factors(c, &k);
+                    k.iter_mut().zip(f).for_each(|(k, f)| *k *= f);
                 }
                 k
             })
@@ -198,17 +196,13 @@ impl BondedSystem {
     /// without sliding or with nothing stored.
     fn release_loads(&self, geom: &[BondGeometry], radii: &[f64]) -> Option<Vec<(Vector3<f64>, Vector3<f64>)>> {
         let r = self.relaxation.as_ref().filter(|r| !(r.stored.is_empty() && r.stored_moment.is_empty()))?;
-        let (e, nu) = (self.params.young_modulus, self.params.poisson_ratio);
         Some(
             self.pairs
                 .iter()
                 .enumerate()
                 .map(|(c, &[a, b])| {
-                    let [e, nu] = if self.elastic.is_some() { self.link_elastic(a, b) } else { [e, nu] };
-                    let k = link_stiffness(e, nu, 0.5 * (radii[a as usize] + radii[b as usize]));
-                    let phi = sliding::maxwell_factor(k[0], r.viscosity[c], r.dt);
+                    let [phi, _, _, pb, _, pt] = r.link_factors(c, &self.elastic_link(a, b, radii));
                     let q = r.stored_tangential(c, &geom[c].e3) * (1.0 - phi);
-                    let [pb, pt] = r.rolling_factors(c, k[3], k[5]);
                     let (m, e3) = (r.stored_moment(c), geom[c].e3);
                     let m_axial = e3 * m.dot(&e3);
                     (q, (m - m_axial) * (1.0 - pb) + m_axial * (1.0 - pt))
@@ -443,7 +437,7 @@ impl BondedSystem {
             return Err(SolveError::new("mechanics", format!("non-finite approach at contact {c}")).into());
         }
         let (tangential, moment) = if self.relaxation.is_some() {
-            let k = self.link_k(inp.radii);
+            let k = self.link_stiffnesses(inp.radii);
             let release = self.release_loads(&geom, inp.radii);
             self.relaxed_state(&geom, &k, release.as_deref(), r_scale, |c| {
                 let [a, b] = self.pairs[c];
@@ -550,7 +544,7 @@ impl BondedSystem {
             })
             .collect();
         let geom = geom?;
-        let k = self.link_k(inp.radii);
+        let k = self.link_stiffnesses(inp.radii);
         let blocks = BlockMatrix::assemble(n, &self.pairs, &self.inc, &geom, &k, r_scale);
         let release = self.release_loads(&geom, inp.radii);
         let mut rhs = vec![0.0; 6 * n];

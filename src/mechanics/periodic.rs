@@ -303,7 +303,7 @@ impl BondedSystem {
         nc: usize,
         release: Option<&[(Vector3<f64>, Vector3<f64>)]>,
     ) -> Coupling {
-        let k = self.link_k(inp.radii);
+        let k = self.link_stiffnesses(inp.radii);
         let ends: Vec<(Matrix6<f64>, Matrix6<f64>)> = geom
             .par_iter()
             .zip(k.par_iter())
@@ -428,7 +428,7 @@ impl BondedSystem {
         let du: Vec<Vector3<f64>> = (0..n).map(|i| Vector3::new(x[6 * i], x[6 * i + 1], x[6 * i + 2]) + de * inp.positions[i]).collect();
         let dtheta: Vec<Vector3<f64>> = x.chunks(6).map(|c| Vector3::new(c[3], c[4], c[5]) / r_scale).collect();
         let (tangential, moment) = if self.relaxation.is_some() {
-            let k = self.link_k(inp.radii);
+            let k = self.link_stiffnesses(inp.radii);
             self.relaxed_state(&geom, &k, release.as_deref(), r_scale, |c| {
                 let [a, b] = self.pairs[c];
                 let v = |i: u32, o: usize| Vector3::from_column_slice(&x[6 * i as usize + o..6 * i as usize + o + 3]);

@@ -169,6 +169,14 @@ impl Relaxation {
         self.stored_moment.get(c).copied().unwrap_or_else(Vector3::zeros)
     }
 
+    /// The factors (B25), (B30) of bond `c`'s six elastic link springs `k` (order of
+    /// [`crate::mechanics::link_stiffness`]): `[φ, φ, 1, φ_b, φ_b, φ_tw]` [1].
+    pub fn link_factors(&self, c: usize, k: &[f64; 6]) -> [f64; 6] {
+        let phi = maxwell_factor(k[0], self.viscosity[c], self.dt);
+        let [pb, pt] = self.rolling_factors(c, k[3], k[5]);
+        [phi, phi, 1.0, pb, pb, pt]
+    }
+
     /// The Maxwell factors `[φ_b, φ_tw]` (B25) of bond `c`'s bending and torsion springs `k_b`,
     /// `k_tw` [N·m]: 1 each without rolling viscosities (elastic).
     pub fn rolling_factors(&self, c: usize, k_b: f64, k_tw: f64) -> [f64; 2] {

@@ -139,3 +139,38 @@ pub fn case_value(text: &str, sets: &[&str]) -> toml::Value {
 pub fn copper_compact(packing: &Path, end: f64, sets: &[&str]) -> toml::Value {
     case_value(&copper_compact_text(packing, end), sets)
 }
+
+/// The edge of the random periodic copper packing `cases/data/periodic-copper-500.csv` (500
+/// spheres, 50 µm ± 10 %) [m].
+pub const PERIODIC_COPPER_BOX: f64 = 3.690793753101957e-4;
+
+/// The `[particles]` body of the random periodic copper packing, with its periodic box.
+pub fn periodic_copper_particles() -> String {
+    let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("cases/data/periodic-copper-500.csv");
+    let b = PERIODIC_COPPER_BOX;
+    format!(
+        "{}
+periodic_box = [{b:e}, {b:e}, {b:e}]",
+        file_particles(&file)
+    )
+}
+
+/// An isothermal copper compact at 1293 K until `end` [s] on `particles`, periodic, with the
+/// `[mechanics.cell]` body `cell` and the overrides `sets`.
+pub fn periodic_copper_case(end: f64, particles: &str, cell: &str, sets: &[&str]) -> toml::Value {
+    let text = compact_text(&time_to(end), &[COPPER], particles, AT_1293_K) + &format!("[mechanics]\nboundary = \"periodic\"\n[mechanics.cell]\n{cell}\n");
+    case_value(&text, sets)
+}
+
+/// Prepares and runs the compact case `v` into `out`; its summary.
+pub fn run_compact(v: toml::Value, out: &Path) -> serde_json::Value {
+    let sim = sinterdem::coupled::prepare(v, Path::new("."), &mut |_| {}).unwrap();
+    sinterdem::kinds::compact::run(sim, out, false, &mut |_| {}).unwrap()
+}
+
+/// Steps `sim` to its end time.
+pub fn advance_to_end(sim: &mut sinterdem::coupled::Simulation) {
+    while sim.t < sim.settings.end {
+        sim.advance_step(&mut |_| {}).unwrap();
+    }
+}
