@@ -30,7 +30,6 @@ fn default_neck_of_a_tiny_contact_is_within_3_percent_of_holm() {
 mod common;
 
 use nalgebra::Vector3;
-use sinterdem::contacts::detect::touching_pairs_periodic;
 
 fn run_case(dir: &std::path::Path, name: &str, text: &str) -> serde_json::Value {
     let path = dir.join(format!("{name}.toml"));
@@ -107,51 +106,6 @@ fn lattices_never_exceed_hashin_shtrikman_up_to_the_second_neighbour_limit() {
     assert!(bound_acted, "the bound never acted: the test does not reach the dense lattices");
 }
 
-/// xorshift64: a seeded generator without an extra crate.
-fn uniform(s: &mut u64) -> f64 {
-    *s ^= *s << 13;
-    *s ^= *s >> 7;
-    *s ^= *s << 17;
-    (*s >> 11) as f64 / (1u64 << 53) as f64
-}
-
-/// A random periodic packing of `n` spheres (diameters d(1 ± 0.1)) at solid fraction `phi`, overlaps
-/// relaxed away under the minimum image, then box and centres shrunk by λ = 1 − h/2 (necks of
-/// about h radii, solid fraction φ/λ³). Centres, radii, box edge.
-fn random_periodic(n: usize, phi: f64, h: f64, seed: u64) -> (Vec<Vector3<f64>>, Vec<f64>, f64) {
-    let d = 50e-6;
-    let mut s = seed;
-    let rad: Vec<f64> = (0..n).map(|_| 0.5 * d * (1.0 + 0.1 * (2.0 * uniform(&mut s) - 1.0))).collect();
-    let vol: f64 = rad.iter().map(|r| 4.0 / 3.0 * std::f64::consts::PI * r * r * r).sum();
-    let l = (vol / phi).cbrt();
-    let mut pos: Vec<Vector3<f64>> = (0..n).map(|_| Vector3::new(uniform(&mut s), uniform(&mut s), uniform(&mut s)) * l).collect();
-    for _ in 0..3000 {
-        let pairs = touching_pairs_periodic(&pos, &rad, Vector3::repeat(l), 0.0);
-        let mut shift = vec![Vector3::zeros(); n];
-        let mut worst: f64 = 0.0;
-        for p in &pairs {
-            let (i, j) = (p.i as usize, p.j as usize);
-            let sh = Vector3::new(p.shift[0] as f64, p.shift[1] as f64, p.shift[2] as f64) * l;
-            let wrap = |x: Vector3<f64>| x.map(|c| c.rem_euclid(l));
-            let b = wrap(pos[j]) + sh - wrap(pos[i]);
-            let dist = b.norm();
-            let overlap = rad[i] + rad[j] - dist;
-            worst = worst.max(overlap / d);
-            let u = b / dist.max(1e-30);
-            shift[i] -= 0.3 * overlap * u;
-            shift[j] += 0.3 * overlap * u;
-        }
-        for (x, dx) in pos.iter_mut().zip(&shift) {
-            *x = (*x + dx).map(|c| c.rem_euclid(l));
-        }
-        if worst < 1e-5 {
-            break;
-        }
-    }
-    let lambda = 1.0 - 0.5 * h;
-    (pos.iter().map(|x| x * lambda).collect(), rad, l * lambda)
-}
-
 /// Random periodic packings across the density range (solid fraction 0.58 → 0.58/λ³ up to ≈ 0.9):
 /// κ_eff never above Hashin–Shtrikman nor κ_s, and the mark set exactly beyond the validated mean
 /// h/r.
@@ -160,7 +114,7 @@ fn random_packings_never_exceed_hashin_shtrikman_across_density() {
     let dir = common::tmp_dir("bound-random");
     let mut densest: f64 = 0.0;
     for (k, h) in [0.02, 0.08, 0.14, 0.2, 0.26].into_iter().enumerate() {
-        let (pos, rad, l) = random_periodic(120, 0.58, h, 11 + k as u64);
+        let (pos, rad, l) = common::random_periodic(120, 50e-6, 0.1, 0.58, h, 11 + k as u64, 3000);
         let mut csv = String::from("x,y,z,r\n");
         for (x, r) in pos.iter().zip(&rad) {
             csv.push_str(&format!("{:e},{:e},{:e},{:e}\n", x.x, x.y, x.z, r));
@@ -254,7 +208,7 @@ fn boundary_resistance_is_in_series_with_each_pipe() {
 #[test]
 fn electrical_conductivity_is_the_same_network_with_sigma_for_kappa() {
     let dir = common::tmp_dir("electrical");
-    let (pos, rad, l) = random_periodic(120, 0.6, 0.06, 5);
+    let (pos, rad, l) = common::random_periodic(120, 50e-6, 0.1, 0.6, 0.06, 5, 3000);
     let mut csv = String::from("x,y,z,r\n");
     for (x, r) in pos.iter().zip(&rad) {
         csv.push_str(&format!("{:e},{:e},{:e},{:e}\n", x.x, x.y, x.z, r));
@@ -361,7 +315,7 @@ fn model_row(dir: &std::path::Path, source: &str, pos: &[Vector3<f64>], rad: &[f
 /// (d = 50 µm ± 10 %) relaxed at solid fraction 0.60, then densified geometrically to each
 /// `target` (centres moved together; the necks are the volume-conserving necks of the overlaps).
 fn densified_rows(dir: &std::path::Path, targets: &[f64]) -> Vec<ModelRow> {
-    let (pos0, rad, l0) = random_periodic(400, 0.60, 0.0, 3);
+    let (pos0, rad, l0) = common::random_periodic(400, 50e-6, 0.1, 0.60, 0.0, 3, 3000);
     let phi0: f64 = rad.iter().map(|r| 4.0 / 3.0 * std::f64::consts::PI * r * r * r).sum::<f64>() / l0.powi(3);
     targets
         .iter()

@@ -11,54 +11,6 @@ use std::path::{Path, PathBuf};
 
 mod common;
 
-/// xorshift64: a seeded generator without an extra crate.
-fn uniform(s: &mut u64) -> f64 {
-    *s ^= *s << 13;
-    *s ^= *s >> 7;
-    *s ^= *s << 17;
-    (*s >> 11) as f64 / (1u64 << 53) as f64
-}
-
-/// A periodic random packing: `n` spheres of diameters `d (1 ± spread)` (uniform) placed at random
-/// in a cubic box at nominal solid fraction `phi`, overlaps removed by Jacobi relaxation sweeps
-/// under the minimum image (soft spheres pushed apart along their branch), then the box and the
-/// centres shrunk by λ = 1 − h/2 so that pairs left in contact overlap by about `h` radii (the
-/// "sintered" necks). Returns centres, radii and the box edge [m].
-pub fn random_periodic(n: usize, d: f64, spread: f64, phi: f64, h: f64, seed: u64) -> (Vec<Vector3<f64>>, Vec<f64>, f64) {
-    let mut s = seed.max(1);
-    let rad: Vec<f64> = (0..n).map(|_| 0.5 * d * (1.0 + spread * (2.0 * uniform(&mut s) - 1.0))).collect();
-    let vol: f64 = rad.iter().map(|r| 4.0 / 3.0 * std::f64::consts::PI * r * r * r).sum();
-    let l = (vol / phi).cbrt();
-    let bbox = Vector3::repeat(l);
-    let mut pos: Vec<Vector3<f64>> = (0..n).map(|_| Vector3::new(uniform(&mut s), uniform(&mut s), uniform(&mut s)) * l).collect();
-    for _sweep in 0..2000 {
-        let pairs = touching_pairs_periodic(&pos, &rad, bbox, 0.0);
-        let mut shift = vec![Vector3::zeros(); n];
-        let mut worst: f64 = 0.0;
-        for p in &pairs {
-            let (i, j) = (p.i as usize, p.j as usize);
-            let sh = Vector3::new(p.shift[0] as f64, p.shift[1] as f64, p.shift[2] as f64) * l;
-            let wrap = |x: Vector3<f64>| x.map(|c| c.rem_euclid(l));
-            let b = wrap(pos[j]) + sh - wrap(pos[i]);
-            let dist = b.norm();
-            let overlap = rad[i] + rad[j] - dist;
-            worst = worst.max(overlap / d);
-            let u = b / dist.max(1e-30);
-            // each moves 0.3 of the overlap apart (under-relaxed: several neighbours push at once)
-            shift[i] -= 0.3 * overlap * u;
-            shift[j] += 0.3 * overlap * u;
-        }
-        for (x, dx) in pos.iter_mut().zip(&shift) {
-            *x = (*x + dx).map(|c| c.rem_euclid(l));
-        }
-        if worst < 1e-5 {
-            break;
-        }
-    }
-    let lambda = 1.0 - 0.5 * h;
-    (pos.iter().map(|x| x * lambda).collect(), rad, l * lambda)
-}
-
 /// Writes a packing CSV (x, y, z, r) and a conductivity case reading it with `periodic_box`.
 fn write_case(dir: &Path, name: &str, pos: &[Vector3<f64>], rad: &[f64], bbox: Vector3<f64>) -> PathBuf {
     let mut csv = String::from("x,y,z,r\n");
@@ -167,7 +119,7 @@ fn voigt(pos: &[Vector3<f64>], rad: &[f64], l: f64, law: &sinterdem::heat::Condu
 #[test]
 fn random_packing_tensor_is_symmetric_definite_invariant_and_covariant() {
     let dir = common::tmp_dir("periodic-random");
-    let (pos, rad, l) = random_periodic(400, 50e-6, 0.1, 0.62, 0.04, 7);
+    let (pos, rad, l) = common::random_periodic(400, 50e-6, 0.1, 0.62, 0.04, 7, 2000);
     let base = run(&write_case(&dir, "base", &pos, &rad, Vector3::repeat(l)));
     let t = tensor(&base);
     let scale = t.abs().max();
@@ -278,7 +230,7 @@ fn diag(t: &Matrix3<f64>) -> [f64; 3] {
 #[ignore]
 fn faces_method_error_against_periodic() {
     let dir = common::tmp_dir("faces-error");
-    let (pos, rad, l) = random_periodic(1000, 50e-6, 0.1, 0.62, 0.04, 11);
+    let (pos, rad, l) = common::random_periodic(1000, 50e-6, 0.1, 0.62, 0.04, 11, 2000);
     let tp = tensor(&run(&write_case(&dir, "cell", &pos, &rad, Vector3::repeat(l))));
     let kp = tp.trace() / 3.0;
     println!("periodic cell, 1000 particles: κ_eff = {:?} W/(m K), mean {kp:.4}", diag(&tp));
@@ -311,7 +263,7 @@ fn faces_method_error_against_periodic() {
     println!("green copper (805, walled, λ = {lambda}), faces: κ = {fg:?}, mean {:.4}", fg.iter().sum::<f64>() / 3.0);
     for phi in [0.592, 0.605] {
         for seed in [1, 2, 3] {
-            let (pos, rad, l) = random_periodic(1000, 50e-6, 0.1, phi, 2.0 * (1.0 - lambda), seed);
+            let (pos, rad, l) = common::random_periodic(1000, 50e-6, 0.1, phi, 2.0 * (1.0 - lambda), seed, 2000);
             let t = tensor(&run(&write_case(&dir, &format!("p{phi}-{seed}"), &pos, &rad, Vector3::repeat(l))));
             let m = t.trace() / 3.0;
             let fm = fg.iter().sum::<f64>() / 3.0;
@@ -330,7 +282,7 @@ fn write_periodic_packings() {
     let out = PathBuf::from(std::env::var("SINTERDEM_PERIODIC_OUT").unwrap_or_else(|_| "target/periodic-packings".into()));
     std::fs::create_dir_all(&out).unwrap();
     for (n, seed) in [(500, 5), (10_000, 6), (100_000, 7)] {
-        let (pos, rad, l) = random_periodic(n, 50e-6, 0.1, 0.62, 0.04, seed);
+        let (pos, rad, l) = common::random_periodic(n, 50e-6, 0.1, 0.62, 0.04, seed, 2000);
         write_case(&out, &format!("periodic-{n}"), &pos, &rad, Vector3::repeat(l));
     }
 }
@@ -391,7 +343,7 @@ fn the_contact_count_of_a_periodic_run_includes_the_contacts_across_the_faces() 
 fn cut_faces_are_flagged_and_wall_faces_are_not() {
     use sinterdem::heat::conductivity::FACE_COVERAGE_CUT;
     let dir = common::tmp_dir("cut-faces");
-    let (pos, rad, l) = random_periodic(1000, 50e-6, 0.1, 0.62, 0.04, 11);
+    let (pos, rad, l) = common::random_periodic(1000, 50e-6, 0.1, 0.62, 0.04, 11, 2000);
     let kp = tensor(&run(&write_case(&dir, "cell", &pos, &rad, Vector3::repeat(l)))).trace() / 3.0;
     let wrapped: Vec<_> = pos.iter().map(|x| x.map(|v| v.rem_euclid(l))).collect();
     let out = run(&faces_case(&dir, "block", &wrapped, &rad));

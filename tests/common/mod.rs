@@ -3,6 +3,8 @@
 //! bundled green copper packing and the copper-compact case text.
 #![allow(dead_code)]
 
+use nalgebra::Vector3;
+use sinterdem::contacts::detect::touching_pairs_periodic;
 use sinterdem::error::ConfigError;
 use std::path::{Path, PathBuf};
 
@@ -173,4 +175,53 @@ pub fn advance_to_end(sim: &mut sinterdem::coupled::Simulation) {
     while sim.t < sim.settings.end {
         sim.advance_step(&mut |_| {}).unwrap();
     }
+}
+
+/// xorshift64: a seeded generator without an extra crate.
+pub fn uniform(s: &mut u64) -> f64 {
+    *s ^= *s << 13;
+    *s ^= *s >> 7;
+    *s ^= *s << 17;
+    (*s >> 11) as f64 / (1u64 << 53) as f64
+}
+
+/// A periodic random packing: `n` spheres of diameters `d (1 ± spread)` (uniform) placed at random
+/// in a cubic box at nominal solid fraction `phi`, overlaps removed by Jacobi relaxation sweeps
+/// under the minimum image (soft spheres pushed apart along their branch), then the box and the
+/// centres shrunk by λ = 1 − h/2 so that pairs left in contact overlap by about `h` radii (the
+/// "sintered" necks); at most `sweeps` relaxation sweeps (it stops once no overlap exceeds
+/// 1e-5 d). Returns centres, radii and the box edge [m].
+pub fn random_periodic(n: usize, d: f64, spread: f64, phi: f64, h: f64, seed: u64, sweeps: usize) -> (Vec<Vector3<f64>>, Vec<f64>, f64) {
+    let mut s = seed.max(1);
+    let rad: Vec<f64> = (0..n).map(|_| 0.5 * d * (1.0 + spread * (2.0 * uniform(&mut s) - 1.0))).collect();
+    let vol: f64 = rad.iter().map(|r| 4.0 / 3.0 * std::f64::consts::PI * r * r * r).sum();
+    let l = (vol / phi).cbrt();
+    let bbox = Vector3::repeat(l);
+    let mut pos: Vec<Vector3<f64>> = (0..n).map(|_| Vector3::new(uniform(&mut s), uniform(&mut s), uniform(&mut s)) * l).collect();
+    for _sweep in 0..sweeps {
+        let pairs = touching_pairs_periodic(&pos, &rad, bbox, 0.0);
+        let mut shift = vec![Vector3::zeros(); n];
+        let mut worst: f64 = 0.0;
+        for p in &pairs {
+            let (i, j) = (p.i as usize, p.j as usize);
+            let sh = Vector3::new(p.shift[0] as f64, p.shift[1] as f64, p.shift[2] as f64) * l;
+            let wrap = |x: Vector3<f64>| x.map(|c| c.rem_euclid(l));
+            let b = wrap(pos[j]) + sh - wrap(pos[i]);
+            let dist = b.norm();
+            let overlap = rad[i] + rad[j] - dist;
+            worst = worst.max(overlap / d);
+            let u = b / dist.max(1e-30);
+            // each moves 0.3 of the overlap apart (under-relaxed: several neighbours push at once)
+            shift[i] -= 0.3 * overlap * u;
+            shift[j] += 0.3 * overlap * u;
+        }
+        for (x, dx) in pos.iter_mut().zip(&shift) {
+            *x = (*x + dx).map(|c| c.rem_euclid(l));
+        }
+        if worst < 1e-5 {
+            break;
+        }
+    }
+    let lambda = 1.0 - 0.5 * h;
+    (pos.iter().map(|x| x * lambda).collect(), rad, l * lambda)
 }
