@@ -11,14 +11,15 @@
 //! longest end time a pair case accepts, 1e9 s). The test asserts what the cross-check needs from
 //! the 7-DOF side and what the "Done means" ask of the library inside its declared
 //! ranges: every run starts, integrates without a ModelError and without a range warning (the
-//! temperature is inside the range), conserves the solid volume to a few rtol, and its neck grows
-//! monotonically through the window x/r = 0.05–0.3 of the comparison wherever the run reaches it.
+//! temperature is inside the range), conserves the solid volume, keeps the equal pair symmetric
+//! and its free energy non-increasing (docs/diffusion7.md §8, (M10)), and its neck grows
+//! monotonically through the window x/r = 0.05–0.3 of the comparison (reached in every case).
 //!
 //! `cargo test --release --features h5 --test ashby_crosscheck -- --ignored --nocapture` prints the
 //! table of docs/validation-ashby.md (times to x/r = 0.05, 0.1, 0.2, 0.3 and the transport data
 //! the classical equations would be fed with), which is the left half of the comparison.
 
-use sinterdem::kinds::pair::{PairRun, parse_pair_case, run_pair};
+use sinterdem::kinds::pair::{PairRun, PairSpec, parse_pair_case, run_pair};
 use sinterdem::models::diffusion7::library;
 use sinterdem::models::diffusion7::material::Material;
 use sinterdem::units::{BOLTZMANN, arrhenius};
@@ -73,14 +74,14 @@ fn case_toml(c: &Case, end: f64) -> toml::Value {
 }
 
 /// Runs the case until x/r ≥ 0.3 or the longest end time, growing the end time by factors of 10
-/// from an estimate. Returns the run and its end time.
-fn run_case(c: &Case) -> (PairRun, f64) {
+/// from 1 ms. Returns the spec, the run and its end time.
+fn run_case(c: &Case) -> (PairSpec, PairRun, f64) {
     let mut end = 1e-3;
     loop {
         let spec = parse_pair_case(&case_toml(c, end)).unwrap_or_else(|e| panic!("{c:?}: {e}"));
         let run = run_pair(&spec, true, false).unwrap_or_else(|e| panic!("{c:?}, end {end:e} s: {e}"));
         if run.contact.neck_ratio() >= LEVELS[3] || end >= MAX_END {
-            return (run, end);
+            return (spec, run, end);
         }
         end = (end * 10.0).min(MAX_END);
     }
@@ -125,17 +126,29 @@ fn transport(c: &Case) -> [f64; 8] {
 }
 
 /// Every preset at 0.6/0.7/0.8 T_m (clipped to its range) and 1 µm / 20 µm integrates cleanly
-/// through the comparison window: no error, no warning, volume kept, y1 monotone.
+/// through the comparison window: no error, no warning, volume kept, symmetric, free energy
+/// non-increasing, y1 monotone.
 #[test]
 fn every_preset_pair_runs_through_the_comparison_window() {
     let all = cases();
     // 14 presets × 2 radii × the distinct clipped temperatures (at least one per preset)
     assert!(all.len() >= 28, "{} cases", all.len());
     for c in &all {
-        let (run, end) = run_case(c);
+        let (spec, run, end) = run_case(c);
         let w: Vec<&String> = run.warnings.iter().filter(|w| !w.contains("not measured")).collect();
         assert!(w.is_empty(), "{c:?}: warnings {w:?}");
         assert!(run.volume_drift() < 1e-4, "{c:?}: volume drift {:e}", run.volume_drift());
+        // §8: equal particles stay symmetric; (M10): the free energy never rises (one phase)
+        let params = spec.materials().params_at(c.temperature);
+        let mut g_prev = f64::INFINITY;
+        for y in &run.states {
+            for i in 1..4 {
+                assert!((y[i] - y[i + 3]).abs() <= 1e-12 * c.radius, "{c:?}: asymmetry in y{}", i + 1);
+            }
+            let (_, g) = sinterdem::models::diffusion7::invariants(y, &params).unwrap();
+            assert!(g <= g_prev * (1.0 + 1e-14), "{c:?}: the free energy rose");
+            g_prev = g;
+        }
         for pair in run.states.windows(2) {
             assert!(pair[1][0] >= pair[0][0] * (1.0 - 1e-12), "{c:?}: the neck receded");
         }
@@ -154,7 +167,7 @@ fn print_the_seven_dof_table() {
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     let fmt = |v: Option<f64>| v.map_or("> 1e9 s".to_string(), |t| format!("{t:.3e}"));
     for c in cases() {
-        let (run, _) = run_case(&c);
+        let (_, run, _) = run_case(&c);
         let ts: Vec<Option<f64>> = LEVELS.iter().map(|&l| time_at(&run, c.radius, l)).collect();
         let shr = ts[3].map(|t3| {
             let i = run.times.iter().position(|&t| t >= t3).unwrap();
