@@ -114,7 +114,7 @@ fn copper_rve_is_linear_and_its_sintering_stress_is_right() {
 /// bodies and the affine free-sliding estimate (0.05–0.45; issue 36, docs/rve.md), K/G ≥ 1.2 (the
 /// elastic links gave ν_p ≈ −0.09, K/G ≈ 0.63); a larger sliding factor resists sliding, so it
 /// lowers ν_p and K/G at every row; branches of 20 s and 60 s give the same viscous limit (B29)
-/// within 5 %.
+/// within 5 % at 3000 s; the uniaxial ν_p is that of an isotropic linear body with the cell's K and E_p.
 #[test]
 fn copper_rve_with_sliding_has_a_positive_poisson_ratio() {
     let case = sinterdem::config::load_case(&root().join("cases/rve-copper-sliding.toml"), &[]).unwrap();
@@ -132,7 +132,7 @@ fn copper_rve_with_sliding_has_a_positive_poisson_ratio() {
                 let f = |k: &str| r[k].as_f64().unwrap();
                 let (k, ep) = (f("bulk_viscosity"), f("uniaxial_viscosity"));
                 let g = 3.0 * k * ep / (9.0 * k - ep);
-                (f("poisson_ratio"), k / g, k, g)
+                (f("poisson_ratio"), k / g, k, g, (3.0 * k - ep) / (6.0 * k))
             })
             .collect::<Vec<_>>()
     };
@@ -141,12 +141,22 @@ fn copper_rve_with_sliding_has_a_positive_poisson_ratio() {
     let long = run(&["rve.interval=60.0"]);
     assert_eq!(base.len(), 2);
     for ((b, s), l) in base.iter().zip(&stiff).zip(&long) {
-        eprintln!("nu_p, K/G: f = 0.01 {:.3} {:.2}; f = 0.1 {:.3} {:.2}; tau = 60 s {:.3} {:.2}", b.0, b.1, s.0, s.1, l.0, l.1);
+        eprintln!("nu_p, K/G: f = 0.03 (case) {:.3} {:.2}; f = 0.1 {:.3} {:.2}; tau = 60 s {:.3} {:.2}", b.0, b.1, s.0, s.1, l.0, l.1);
         assert!(b.0 > 0.05 && b.0 < 0.45, "nu_p {}", b.0);
         assert!(b.1 > 1.2, "K/G {}", b.1);
+        // an isotropic linear viscous body: the lateral ν_p of the uniaxial branch is the
+        // (R8) ν_iso of its K and E_p (tension passed down to F_s (P5); with tension dropped
+        // ν_p was 0.13–0.17 against ν_iso 0.22–0.25)
+        for r in [b, s, l] {
+            assert!((r.0 - r.4).abs() < 1e-2, "nu_p {} against nu_iso {}", r.0, r.4);
+        }
         assert!(s.0 < b.0 && s.1 < b.1, "f = 0.1 resists sliding: {s:?} vs {b:?}");
-        assert!(common::rel(l.2, b.2) < 0.05 && common::rel(l.3, b.3) < 0.05, "interval: {l:?} vs {b:?}");
     }
+    // the viscous limit does not depend on the branch once τ is long against the links'
+    // relaxation (0.1 s) and short against the cell's evolution: at 3000 s (τ/t ≤ 2 %); at
+    // 1000 s a 60 s branch already sees the necks grow (G 8 % apart)
+    let (b, l) = (base[1], long[1]);
+    assert!(common::rel(l.2, b.2) < 0.05 && common::rel(l.3, b.3) < 0.05, "interval: {l:?} vs {b:?}");
 }
 
 fn rve_error(sets: &[&str]) -> String {

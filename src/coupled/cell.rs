@@ -393,9 +393,11 @@ impl super::Simulation {
         let Some(cell) = self.cell.as_ref() else { return Ok(()) };
         let scale = nt / norm(&cell.ref_stress);
         let lim = cs.contact_stress_limit;
-        for (c, &nf) in self.contacts.state.iter_mut().zip(&cell.normal) {
+        let floors = super::stages::tension_floors(self, t0)?;
+        for (k, (c, &nf)) in self.contacts.state.iter_mut().zip(&cell.normal).enumerate() {
             let cap = lim * std::f64::consts::PI * c.y[0] * c.y[0];
-            c.normal_force = (nf * scale).clamp(0.0, cap);
+            let floor = floors.as_ref().map_or(0.0, |f| f[k]);
+            c.normal_force = (nf * scale).clamp(floor, cap);
         }
         Ok(())
     }

@@ -179,10 +179,11 @@ pub struct MechanicsSpec {
     pub sliding_factor: Option<f64>,
 }
 
-/// Default sliding factor f of (B24) [1]: MUSEN's default `VISCOUS_PARAMETER` of its
-/// Bouvard–McMeeking sintering contact (msolids/musen, `ModelPPSintering`), the tangential
-/// parameter η of that law (docs/decisions-mechanics.md "Sliding").
-pub const SLIDING_FACTOR_DEFAULT: f64 = 0.01;
+/// Default sliding factor f of (B24) [1], the tangential parameter η of the Bouvard–McMeeking
+/// law (0.003–1 in DEM sintering, Yan 2014): the value of the half-decade grid 0.01, 0.03, 0.1,
+/// 0.3 whose copper RVE starts at the measured onset ν_p ≈ 0.21 of Zuo et al. (2003) and rises
+/// with density (docs/decisions-mechanics.md "Sliding", docs/rve.md).
+pub const SLIDING_FACTOR_DEFAULT: f64 = 0.03;
 fn no_sliding() -> String {
     "none".into()
 }

@@ -68,11 +68,13 @@ impl Simulation {
         let Some(ls) = self.load.as_ref() else { return Ok(()) };
         let scale = total / ls.ref_total;
         let lim = ls.settings.contact_stress_limit;
-        for (c, &nf) in self.contacts.state.iter_mut().zip(&ls.contact_normal) {
-            // (P5): compression only, at most the flow stress over the neck area π a² of the
-            // step's start
+        let floors = super::tension_floors(self, t0)?;
+        for (k, (c, &nf)) in self.contacts.state.iter_mut().zip(&ls.contact_normal).enumerate() {
+            // (P5): compression only (with sliding: tension down to the force that stops the
+            // approach), at most the flow stress over the neck area π a² of the step's start
             let cap = lim * std::f64::consts::PI * c.y[0] * c.y[0];
-            c.normal_force = (nf * scale).clamp(0.0, cap);
+            let floor = floors.as_ref().map_or(0.0, |f| f[k]);
+            c.normal_force = (nf * scale).clamp(floor, cap);
         }
         Ok(())
     }

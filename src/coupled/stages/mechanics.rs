@@ -38,6 +38,27 @@ pub(in crate::coupled) fn sliding_viscosities(sim: &Simulation, t: f64) -> Resul
     Ok(Some(v))
 }
 
+/// The tension floor of every contact's normal force at time `t` [s] with sliding (docs/pressure.md
+/// (P5)): `−F_s = −v0/M_c` [N] (compression positive), the tensile force that stops the contact's
+/// free approach (M14), or 0 where it does not approach (v0 ≤ 0) or has no transport. A tensile
+/// force up to it only slows the approach, which the 7-DOF model describes; beyond it the neck
+/// would separate. None without sliding: the normal forces are clamped to compression.
+pub(in crate::coupled) fn tension_floors(sim: &Simulation, t: f64) -> Result<Option<Vec<f64>>, Error> {
+    if sim.settings.mechanics.sliding.is_none() {
+        return Ok(None);
+    }
+    let mut floors = Vec::with_capacity(sim.contacts.len());
+    for (k, (c, &[i, j])) in sim.contacts.state.iter().zip(&sim.contacts.pairs).enumerate() {
+        let (temp, cp) = sim.pair_params(i, j, t);
+        let ctx = |e: crate::error::ModelError| e.with_context(format!("tension floor: contact {k} ({i}–{j}) at t = {t} s"));
+        let coeffs = cp.at(temp).map_err(ctx)?;
+        let (v0, mobility) = crate::models::diffusion7::load_response(&c.y, &coeffs).map_err(ctx)?;
+        let floor = if v0 > 0.0 && mobility > 0.0 && (v0 / mobility).is_finite() { -v0 / mobility } else { 0.0 };
+        floors.push(floor);
+    }
+    Ok(Some(floors))
+}
+
 /// What the mechanics stage gives the correction.
 pub(in crate::coupled) struct Motion {
     /// Unit axis e3 of each contact at the step's start (A → B).

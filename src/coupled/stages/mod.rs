@@ -14,7 +14,7 @@ pub(super) use control::{keep, reject, step_control};
 pub(super) use correction::correction;
 pub(super) use diffusion::{contact_temperature, diffusion};
 pub(super) use heat::heat;
-pub(super) use mechanics::{mechanics, sliding_viscosities};
+pub(super) use mechanics::{mechanics, sliding_viscosities, tension_floors};
 pub(super) use topology::topology;
 
 /// The time window of a trial step [s]: from `t0` to `t1 = t0 + dt`, ending no later than `end`
