@@ -80,6 +80,8 @@ pub fn fit_rows(points: &[Point], r0: f64, temperature: Option<f64>) -> Result<L
             bulk_viscosity: p.bulk_viscosity,
             shear_viscosity: p.shear_viscosity,
             sintering_stress: p.sintering_stress,
+            uniaxial_viscosity: p.uniaxial_viscosity,
+            poisson_ratio: p.poisson_ratio,
         })
         .collect();
     let mut fit = fit_skorohod_olevsky(&rows, r0).map_err(|e| format!("no fit at {t} K: {e}"))?;
@@ -169,6 +171,11 @@ fn fit_json(fit: &Result<LawFit, String>) -> serde_json::Value {
                 v["density_law"]["equations"] = json!(
                     "docs/rve.md (R12)-(R13): G = shear.prefactor rho^shear.density_exponent (1-rho)^-shear.porosity_exponent, K likewise with bulk.*, sigma_s = stress_prefactor rho^stress_density_exponent"
                 );
+                if f.density_law.as_ref().is_some_and(|p| p.uniaxial.is_some()) {
+                    v["density_law"]["uniaxial_equations"] = json!(
+                        "docs/rve.md (R14)-(R15): E_p = uniaxial.prefactor rho^uniaxial.density_exponent (1-rho)^-uniaxial.porosity_exponent, nu_p = poisson_intercept + poisson_slope rho; under a uniaxial compression sigma: axial rate -sigma/E_p - sigma_s/(3K), lateral rate +nu_p sigma/E_p - sigma_s/(3K)"
+                    );
+                }
             }
             v
         }
