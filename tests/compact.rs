@@ -396,6 +396,9 @@ fn low_rank_update_is_exact_thread_safe_and_resumable() {
     for key in ["final_time_s", "steps", "shrinkage_x", "relative_density", "contacts", "mechanics"] {
         assert_eq!(s_on[key], s_res[key], "{key}");
     }
+    for key in ["topology_changes", "updates"] {
+        assert_eq!(s_on["mechanics_profile"][key], s_res["mechanics_profile"][key], "mechanics_profile.{key}");
+    }
     assert_eq!(series[0], std::fs::read_to_string(part.join("series.csv")).unwrap(), "series.csv of the resumed run differs");
     for bad in ["mechanics.update_rank=1.5", "mechanics.update_rank=2001", "mechanics.update_rank=-1"] {
         let err = coupled::prepare(compact_case(&csv, &["time.end=200.0", bad]), Path::new("."), &mut |_| {}).err().expect(bad).to_string();

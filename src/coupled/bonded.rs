@@ -38,7 +38,7 @@ pub struct MechProfile {
     /// Topology analyses (bond set changed) [1].
     pub topology_changes: u64,
     /// Bond-set changes served by the low-rank update of the kept factor (`update_rank`,
-    /// docs/coupled.md "Low-rank update of the factor") [1]; left out when 0 (not checkpointed).
+    /// docs/coupled.md "Low-rank update of the factor") [1]; left out when 0.
     #[serde(skip_serializing_if = "is_zero")]
     pub updates: u64,
     /// CG iterations (stale-factor or AMG preconditioned) [1].
