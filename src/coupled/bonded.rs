@@ -37,6 +37,10 @@ pub struct MechanicsStage {
 pub struct MechProfile {
     /// Topology analyses (bond set changed) [1].
     pub topology_changes: u64,
+    /// Bond-set changes served by the low-rank update of the kept factor (`update_rank`,
+    /// docs/coupled.md "Low-rank update of the factor") [1]; left out when 0.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub updates: u64,
     /// CG iterations (stale-factor or AMG preconditioned) [1].
     pub cg_iterations: u64,
     /// Wall times [s]: topology analysis, symbolic factorisation, assembly, numeric factorisation,
@@ -48,6 +52,10 @@ pub struct MechProfile {
     pub solve_s: f64,
     /// Whole mechanics steps [s].
     pub total_s: f64,
+}
+
+fn is_zero(v: &u64) -> bool {
+    *v == 0
 }
 
 impl MechanicsStage {
@@ -84,6 +92,7 @@ impl MechanicsStage {
             warm_start: self.settings.warm_start,
             warm_start_depth: self.settings.warm_start_depth,
             amg_keep_on_new_bonds: self.settings.amg_keep_on_new_bonds,
+            update_rank: self.settings.update_rank,
             ..Default::default()
         };
         self.sys = Some(BondedSystem::new(p.len(), params, cons)?);
@@ -296,6 +305,7 @@ impl MechanicsStage {
         let (pr, i) = (&mut self.profile, out_info);
         pr.topology_changes += i.topology_rebuilt as u64;
         pr.cg_iterations += i.pcg_iterations as u64;
+        pr.updates += i.updates as u64;
         pr.analysis_s += i.analysis_seconds;
         pr.symbolic_s += i.symbolic_seconds;
         pr.assemble_s += i.assemble_seconds;

@@ -192,6 +192,8 @@ pub struct MechanicsSettings {
     pub warm_start_depth: usize,
     /// Keep the AMG hierarchy across new contacts [flag].
     pub amg_keep_on_new_bonds: bool,
+    /// Largest rank of the low-rank update of the kept Cholesky factor for new bonds [1]; 0: off.
+    pub update_rank: usize,
     /// The periodic cell's controls (`boundary = "periodic"`); None: walls.
     pub cell: Option<super::cell::CellSettings>,
     /// Viscous grain-boundary sliding (docs/mechanics.md (B24)–(B30)): the factor f of (B24)
@@ -213,6 +215,12 @@ impl MechanicsSettings {
         let depth = config::check("mechanics.warm_start_depth", m.warm_start_depth)?;
         if depth.fract() != 0.0 {
             return Err(ConfigError::invalid(format!("mechanics.warm_start_depth = {depth}: expected an integer in [1, 8] (earlier solutions)")));
+        }
+        let update_rank = config::check("mechanics.update_rank", m.update_rank)?;
+        if update_rank.fract() != 0.0 {
+            return Err(ConfigError::invalid(format!(
+                "mechanics.update_rank = {update_rank}: expected an integer in [0, 2000] (largest rank of the low-rank factor update; 0: off)"
+            )));
         }
         let sliding = match m.sliding.as_str() {
             "none" => {
@@ -240,6 +248,7 @@ impl MechanicsSettings {
             warm_start: m.warm_start,
             warm_start_depth: depth as usize,
             amg_keep_on_new_bonds: m.amg_keep_on_new_bonds,
+            update_rank: update_rank as usize,
             cell: super::cell::CellSettings::from_spec(&m.boundary, m.cell.as_ref())?,
         })
     }

@@ -28,6 +28,7 @@ pub mod cg;
 pub mod cholesky;
 pub mod constraints;
 pub mod fixtures;
+pub mod lowrank;
 mod newton;
 pub mod periodic;
 pub mod sliding;
@@ -102,6 +103,14 @@ impl MechStep {
             *t += d;
         }
     }
+}
+
+/// Per bond, what the low-rank update of a new bond needs: its geometry, its links and r̄ [m].
+#[derive(Clone, Copy)]
+struct Links<'a> {
+    geom: &'a [BondGeometry],
+    k: &'a [[f64; 6]],
+    r_scale: f64,
 }
 
 /// The bonded packing: topology, constraints, reusable pattern and factor.
@@ -318,6 +327,11 @@ impl BondedSystem {
         if let Some(w) = seen.windows(2).find(|w| w[0] == w[1]) {
             return Err(ConfigError::invalid(format!("mechanics: particles ({}, {}) are bonded twice", w[0].0, w[0].1)).into());
         }
+        // with `update_rank`, a factor of bonds that the new list extends survives with a low-rank
+        // update of the added bonds (made at the next step, when their geometry is known)
+        let old_bonds = self.pairs.len();
+        let extends = pairs.len() >= old_bonds && pairs[..old_bonds] == self.pairs[..];
+        let update = self.params.reuse_factor && self.params.update_rank > 0 && extends;
         self.pairs = pairs.to_vec();
         self.inc = Incidence::new(self.n, pairs);
         self.report = None;
@@ -325,6 +339,11 @@ impl BondedSystem {
         // stiffness (a few new bonds are a low-rank change); otherwise it is dropped
         let keep = self.params.reuse_factor && self.params.stale_factor_cg;
         self.kept = match std::mem::replace(&mut self.kept, Kept::Nothing) {
+            Kept::Cholesky { chol, eq, current: true } if update && chol.is_factored() => {
+                let n_eq = eq.iter().filter(|&&e| e != u32::MAX).count();
+                Kept::Updated { chol, eq, update: Box::new(lowrank::LowRank::new(old_bonds, n_eq)) }
+            }
+            Kept::Updated { chol, eq, update: u } if update => Kept::Updated { chol, eq, update: u },
             Kept::Cholesky { chol, eq, .. } if keep && chol.is_factored() => Kept::Cholesky { chol, eq, current: false },
             // the hierarchy serves the new stiffness while the free DOF stay the same (checked at the solve)
             Kept::Amg(h) if self.params.amg_keep_on_new_bonds => Kept::Amg(h),
@@ -356,7 +375,7 @@ impl BondedSystem {
     /// Stored values of the current Cholesky factor (None before the first Cholesky step of a topology).
     pub fn factor_nnz(&self) -> Option<usize> {
         match &self.kept {
-            Kept::Cholesky { chol, .. } => Some(chol.nnz_l()),
+            Kept::Cholesky { chol, .. } | Kept::Updated { chol, .. } => Some(chol.nnz_l()),
             _ => None,
         }
     }
@@ -428,8 +447,9 @@ impl BondedSystem {
 
     /// [`Self::step`] with the topology analysis `rep`.
     fn step_with(&mut self, rep: &TopologyReport, inp: &StepInput, mut info: MechInfo, t_start: Instant) -> Result<MechStep, Error> {
-        let (geom, blocks, rhs, r_scale) = self.prepare(rep, inp, None, &mut info)?;
-        let x = self.solve_rhs(rep, inp.positions, r_scale, &blocks, &rhs, Some(0), &mut info)?;
+        let (geom, blocks, rhs, r_scale, k) = self.prepare(rep, inp, None, &mut info)?;
+        let links = Links { geom: &geom, k: &k, r_scale };
+        let x = self.solve_rhs(rep, inp.positions, links, &blocks, &rhs, Some(0), &mut info)?;
         let du: Vec<Vector3<f64>> = x.chunks(6).map(|c| Vector3::new(c[0], c[1], c[2])).collect();
         let dtheta: Vec<Vector3<f64>> = x.chunks(6).map(|c| Vector3::new(c[3], c[4], c[5]) / r_scale).collect();
         let xi: Vec<f64> = self.pairs.iter().zip(&geom).map(|(&[a, b], g)| (du[a as usize] - du[b as usize]).dot(&g.e3)).collect();
@@ -460,12 +480,13 @@ impl BondedSystem {
         &mut self,
         rep: &TopologyReport,
         positions: &[Vector3<f64>],
-        r_scale: f64,
+        links: Links,
         blocks: &BlockMatrix,
         rhs: &[f64],
         slot: Option<usize>,
         info: &mut MechInfo,
     ) -> Result<Vec<f64>, Error> {
+        let r_scale = links.r_scale;
         let b_norm = cg::dot(rhs, rhs).sqrt();
         let mut x = vec![0.0; 6 * self.n];
         let above = match (self.params.reuse_factor, self.params.warm_start) {
@@ -500,7 +521,7 @@ impl BondedSystem {
             match solver {
                 LinearSolver::Pcg => self.newton_pcg(rep, blocks, rhs, b_norm, &mut x, r0, info)?,
                 LinearSolver::Amg => self.newton_amg(rep, positions, r_scale, blocks, rhs, b_norm, &mut x, r0, info)?,
-                _ => self.newton_cholesky(rep, positions, blocks, rhs, b_norm, &mut x, info)?,
+                _ => self.newton_cholesky(rep, positions, links, blocks, rhs, b_norm, &mut x, info)?,
             }
         }
         if warm && b_norm > 0.0 {
@@ -514,7 +535,7 @@ impl BondedSystem {
     }
 
     /// Geometry, assembly and the scaled load vector with the topology analysis `rep`:
-    /// `(geometry per bond, blocks, rhs, r̄)`. `branch`: the branch vector `x_B − x_A` of each bond
+    /// `(geometry per bond, blocks, rhs, r̄, link stiffnesses per bond)`. `branch`: the branch vector `x_B − x_A` of each bond
     /// (a periodic cell's minimum image, docs/mechanics.md (B13)); None: the difference of the centres.
     fn prepare(
         &self,
@@ -522,7 +543,7 @@ impl BondedSystem {
         inp: &StepInput,
         branch: Option<&[Vector3<f64>]>,
         info: &mut MechInfo,
-    ) -> Result<(Vec<BondGeometry>, BlockMatrix, Vec<f64>, f64), Error> {
+    ) -> Result<(Vec<BondGeometry>, BlockMatrix, Vec<f64>, f64, Vec<[f64; 6]>), Error> {
         let n = self.n;
         info.equations = rep.n_eq;
         info.components = rep.components;
@@ -581,7 +602,7 @@ impl BondedSystem {
         });
         info.assemble_seconds = t0.elapsed().as_secs_f64();
 
-        Ok((geom, blocks, rhs, r_scale))
+        Ok((geom, blocks, rhs, r_scale, k))
     }
 
     /// The assembled scaled system of `inp` (tests and experiments): blocks, right-hand side, r̄,
@@ -592,14 +613,16 @@ impl BondedSystem {
         let rep = self.analysis(inp.positions, &mut info)?;
         let prepared = self.prepare(&rep, inp, None, &mut info);
         self.report = Some(rep.clone());
-        let (_, blocks, rhs, r_scale) = prepared?;
+        let (_, blocks, rhs, r_scale, _) = prepared?;
         Ok((blocks, rhs, r_scale, rep, self.inc.clone()))
     }
 
+    #[allow(clippy::too_many_arguments)]
     fn newton_cholesky(
         &mut self,
         rep: &TopologyReport,
         positions: &[Vector3<f64>],
+        links: Links,
         blocks: &BlockMatrix,
         b: &[f64],
         b_norm: f64,
@@ -628,6 +651,41 @@ impl BondedSystem {
                 x.iter_mut().for_each(|v| *v = 0.0);
             }
             self.refresh = true;
+        }
+        // a factor of fewer bonds with the low-rank update of the added ones (same equations)
+        if let Kept::Updated { eq: chol_eq, update, .. } = &self.kept
+            && (!stale_usable || *chol_eq != rep.eq || update.rank() + 6 * (self.pairs.len() - update.bonds) > self.params.update_rank)
+        {
+            self.kept = Kept::Nothing;
+        }
+        if let Kept::Updated { chol, update, .. } = &mut self.kept {
+            let mut outcome: Result<bool, Error> = Ok(true);
+            if update.bonds < self.pairs.len() {
+                let t0 = Instant::now();
+                let mut cols = Vec::new();
+                for c in update.bonds..self.pairs.len() {
+                    let [a, b] = self.pairs[c];
+                    cols.extend(lowrank::LowRank::bond_columns(a, b, &links.geom[c], &links.k[c], links.r_scale, &rep.eq));
+                }
+                outcome = update.extend(chol, cols, self.pairs.len()).map(|_| true).map_err(Error::from);
+                info.factor_seconds += t0.elapsed().as_secs_f64();
+                info.updates += 1;
+            }
+            if let Ok(true) = outcome {
+                outcome = newton::newton_on_update(&self.params, rep, &op, chol, update, b, b_norm, x, info);
+            }
+            info.update_rank = update.rank();
+            match outcome {
+                Ok(true) => return Ok(()),
+                // slow (or a capacitance that lost definiteness): a fresh analysis and factor,
+                // Newton from where it stopped
+                _ => {
+                    self.kept = Kept::Nothing;
+                    if !x.iter().all(|v| v.is_finite()) {
+                        x.iter_mut().for_each(|v| *v = 0.0);
+                    }
+                }
+            }
         }
         // the factor of the current topology: the kept one, or a new symbolic factorisation
         let mut chol = match std::mem::replace(&mut self.kept, Kept::Nothing) {

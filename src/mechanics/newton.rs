@@ -4,6 +4,7 @@
 
 use super::cholesky::BondCholesky;
 use super::constraints::TopologyReport;
+use super::lowrank::LowRank;
 use super::solve::{self, MechParams};
 use super::{BlockMatrix, MechInfo, amg, cg};
 use crate::error::{Error, SolveError};
@@ -73,6 +74,66 @@ pub(super) fn newton_on_factor(
         rel = new_rel;
     }
     Err(solve::not_converged(info, params.rtol, "Cholesky").into())
+}
+
+/// Newton with the kept factor `chol` of an earlier bond set and the low-rank update `update` of
+/// the bonds added since ([`super::lowrank`]), never refactorising (the factor's pattern is not
+/// the current one). `Ok(true)`: converged; `Ok(false)`: an iteration reduced the residual by
+/// less than 10× (the rule of [`newton_on_factor`] for a stale factor; an iterate that does not
+/// reduce it at all is not taken) or the iterations ran out, and the caller continues from `x`
+/// with a fresh analysis and factor.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn newton_on_update(
+    params: &MechParams,
+    rep: &TopologyReport,
+    op: &amg::FineOp,
+    chol: &mut BondCholesky,
+    update: &LowRank,
+    b: &[f64],
+    b_norm: f64,
+    x: &mut [f64],
+    info: &mut MechInfo,
+) -> Result<bool, Error> {
+    let (mut r, mut rel) = initial_residual(op, b, b_norm, x, None);
+    let mut red = vec![0.0; rep.n_eq];
+    while info.newton_iterations < params.max_newton {
+        for (d, &e) in rep.eq.iter().enumerate() {
+            if e != u32::MAX {
+                red[e as usize] = r[d];
+            }
+        }
+        info.solve_seconds += chol.solve_in_place(&mut red)?;
+        let t0 = Instant::now();
+        update.correct(&mut red);
+        info.solve_seconds += t0.elapsed().as_secs_f64();
+        if !red.iter().all(|v| v.is_finite()) {
+            return Ok(false);
+        }
+        let mut trial = x.to_vec();
+        for (d, &e) in rep.eq.iter().enumerate() {
+            if e != u32::MAX {
+                trial[d] += red[e as usize];
+            }
+        }
+        let mut r_trial = vec![0.0; r.len()];
+        let new_rel = op.residual(b, b_norm, &trial, &mut r_trial);
+        if !(new_rel.is_finite() && new_rel < rel) {
+            // not taken: the fresh factor starts from the last good iterate
+            return Ok(false);
+        }
+        x.copy_from_slice(&trial);
+        r = r_trial;
+        info.newton_iterations += 1;
+        info.residuals.push(new_rel);
+        if new_rel <= params.rtol {
+            return Ok(true);
+        }
+        if new_rel > 0.1 * rel {
+            return Ok(false);
+        }
+        rel = new_rel;
+    }
+    Ok(false)
 }
 
 /// CG iterations at most with a stale factor before a fresh factorisation takes over [1].

@@ -366,20 +366,21 @@ impl BondedSystem {
         let n = self.n;
         let nc = cell.controls.len();
         let volume = cell.cell.determinant();
-        let (geom, blocks, rhs, r_scale) = self.prepare(rep, inp, Some(branch), &mut info)?;
+        let (geom, blocks, rhs, r_scale, k) = self.prepare(rep, inp, Some(branch), &mut info)?;
+        let links = super::Links { geom: &geom, k: &k, r_scale };
         let release = self.release_loads(&geom, inp.radii);
         let cp = self.coupling(rep, inp, &geom, branch, r_scale, nc, release.as_deref());
         // (B17): K_uu X0 = f_u and K_uu Y_m = K_ue[:, m]
         // each right-hand side is its own solve with its own counters (the stale-hierarchy and
         // Newton limits are per solve) and its own warm-start history (B12)
         let mut sub = MechInfo::default();
-        let x0 = self.solve_rhs(rep, inp.positions, r_scale, &blocks, &rhs, Some(0), &mut sub);
+        let x0 = self.solve_rhs(rep, inp.positions, links, &blocks, &rhs, Some(0), &mut sub);
         info.absorb(sub);
         let x0 = x0?;
         let mut y = Vec::with_capacity(nc);
         for (m, col) in cp.columns.iter().enumerate() {
             let mut sub = MechInfo::default();
-            let ym = self.solve_rhs(rep, inp.positions, r_scale, &blocks, col, Some(1 + m), &mut sub);
+            let ym = self.solve_rhs(rep, inp.positions, links, &blocks, col, Some(1 + m), &mut sub);
             info.absorb(sub);
             y.push(ym?);
         }

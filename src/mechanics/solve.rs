@@ -101,7 +101,15 @@ pub struct MechParams {
     /// the fine level (smoother, residual) is the new stiffness, the coarse levels those of the
     /// last build, rebuilt by the rule of `amg.reuse` [flag] (docs/coupled.md "Scaling", 2026-12-04).
     pub amg_keep_on_new_bonds: bool,
+    /// With `reuse_factor` and the Cholesky solver: serve a change of the bond set that only adds
+    /// bonds (same equations) by a low-rank (Woodbury) update of the kept factor
+    /// ([`super::lowrank`]) while its rank stays at most this [1]; 0: a new symbolic analysis and
+    /// factorisation at every change (docs/coupled.md "Low-rank update of the factor").
+    pub update_rank: usize,
 }
+
+/// Largest `update_rank` accepted [1] (the capacitance factor grows as its square).
+pub const MAX_UPDATE_RANK: usize = 2000;
 
 /// Solutions of earlier steps kept for the warm start by default [1].
 pub const WARM_START_DEPTH: usize = 2;
@@ -122,6 +130,7 @@ impl Default for MechParams {
             warm_start: false,
             warm_start_depth: WARM_START_DEPTH,
             amg_keep_on_new_bonds: false,
+            update_rank: 0,
         }
     }
 }
@@ -146,6 +155,9 @@ impl MechParams {
         }
         if !(1..=8).contains(&self.warm_start_depth) {
             return bad("warm_start_depth", self.warm_start_depth as f64, "[1, 8]", "1");
+        }
+        if self.update_rank > MAX_UPDATE_RANK {
+            return bad("update_rank", self.update_rank as f64, "[0, 2000]", "1");
         }
         if self.pcg_max_iter == 0 {
             return bad("pcg_max_iter", 0.0, "[1, ∞)", "1");
@@ -198,6 +210,12 @@ pub struct MechInfo {
     pub pinned: usize,
     /// Relative residual ‖b − K x₀‖₂/‖b‖₂ of the warm start (B12) [1]; 0 without one.
     pub warm_start: f64,
+    /// Changes of the bond set served by the low-rank update of the kept factor in this step [1],
+    /// and the update's rank after the step [1] (0 without one).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub updates: usize,
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub update_rank: usize,
     /// True when the topology analysis (components, pattern, symbolic factorisation) ran in this step.
     pub topology_rebuilt: bool,
     /// Wall times [s]: topology analysis, symbolic factorisation, assembly (geometry, element
@@ -223,6 +241,8 @@ impl MechInfo {
         self.residuals.extend(sub.residuals);
         self.pcg_iterations += sub.pcg_iterations;
         self.factorizations += sub.factorizations;
+        self.updates += sub.updates;
+        self.update_rank = self.update_rank.max(sub.update_rank);
         self.amg_builds += sub.amg_builds;
         if sub.amg.is_some() {
             self.amg_levels = sub.amg_levels;
@@ -233,6 +253,10 @@ impl MechInfo {
         self.factor_seconds += sub.factor_seconds;
         self.solve_seconds += sub.solve_seconds;
     }
+}
+
+fn is_zero(v: &usize) -> bool {
+    *v == 0
 }
 
 /// Checks a Newton residual history against `rtol`; the error carries the history.
@@ -254,6 +278,9 @@ pub(super) enum Kept {
     /// change as the preconditioner of CG on the new stiffness (`stale_factor_cg`), and `eq`
     /// differs from the current map.
     Cholesky { chol: Box<super::cholesky::BondCholesky>, eq: Vec<u32>, current: bool },
+    /// A sparse Cholesky factor of an earlier bond set with the equation map `eq`, and the
+    /// low-rank update of the bonds added since (`update_rank`, [`super::lowrank`]).
+    Updated { chol: Box<super::cholesky::BondCholesky>, eq: Vec<u32>, update: Box<super::lowrank::LowRank> },
     /// An AMG hierarchy of the current topology (possibly marked stale, rebuilt at the next step).
     Amg(Box<super::amg::Amg>),
 }

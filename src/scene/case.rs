@@ -164,6 +164,11 @@ pub struct MechanicsSpec {
     /// false; docs/coupled.md "Scaling", 2026-12-04).
     #[serde(default)]
     pub amg_keep_on_new_bonds: bool,
+    /// Low-rank (Woodbury) update of the kept Cholesky factor for new bonds while its rank stays
+    /// at most this [1], an integer in [0, 2000]; 0 (default): a new analysis and factorisation at
+    /// every new contact (docs/coupled.md "Low-rank update of the factor").
+    #[serde(default)]
+    pub update_rank: f64,
     /// "walls" (default: the principal planes of docs/mechanics.md "Constraints") or "periodic"
     /// (a periodic cell on `particles.periodic_box`, docs/mechanics.md "Periodic cell").
     #[serde(default = "walls")]
@@ -246,6 +251,7 @@ impl Default for MechanicsSpec {
             warm_start: true,
             warm_start_depth: warm_depth(),
             amg_keep_on_new_bonds: false,
+            update_rank: 0.0,
             boundary: walls(),
             cell: None,
             sliding: no_sliding(),

@@ -56,6 +56,10 @@ pub struct Checkpoint {
     /// run's summary equals the uninterrupted one's; absent in older checkpoints: zero).
     #[serde(default)]
     pub mechanics_profile_counts: (u64, u64),
+    /// `mechanics_profile.updates`: changes of the bond set served by the low-rank factor update
+    /// (`mechanics.update_rank`); left out when zero (absent in older checkpoints: zero).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub mechanics_updates: u64,
     pub pairs: Vec<[u32; 2]>,
     pub contacts: Vec<Contact7>,
     pub dl_bar: Vec<f64>,
@@ -112,6 +116,7 @@ impl Simulation {
             rotation: self.mechanics.rotation.iter().map(|x| [x.x, x.y, x.z]).collect(),
             mechanics_counters: (self.mechanics.newton_iterations, self.mechanics.factorizations, self.mechanics.max_residual),
             mechanics_profile_counts: (self.mechanics.profile.topology_changes, self.mechanics.profile.cg_iterations),
+            mechanics_updates: self.mechanics.profile.updates,
             pairs: self.contacts.pairs.clone(),
             contacts: self.contacts.state.clone(),
             dl_bar: self.contacts.dl_bar.clone(),
@@ -145,6 +150,7 @@ impl Simulation {
         sim.mechanics.moment = ck.sliding_moment.iter().map(|x| Vector3::new(x[0], x[1], x[2])).collect();
         (sim.mechanics.newton_iterations, sim.mechanics.factorizations, sim.mechanics.max_residual) = ck.mechanics_counters;
         (sim.mechanics.profile.topology_changes, sim.mechanics.profile.cg_iterations) = ck.mechanics_profile_counts;
+        sim.mechanics.profile.updates = ck.mechanics_updates;
         let mut dose = ck.dose.clone();
         dose.resize(ck.pairs.len(), Default::default());
         sim.contacts = Contacts { pairs: ck.pairs.clone(), state: ck.contacts.clone(), dl_bar: ck.dl_bar.clone(), substeps: ck.substeps.clone(), dose };
@@ -232,4 +238,8 @@ pub fn resume(dir: &Path, progress: bool, log: &mut dyn FnMut(&str)) -> Result<s
     let ck = read_checkpoint(dir)?;
     let (sim, out_state) = Simulation::from_checkpoint(&ck, log)?;
     run_from(sim, dir, progress, log, Some(out_state), None)
+}
+
+fn is_zero(v: &u64) -> bool {
+    *v == 0
 }
