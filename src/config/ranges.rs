@@ -101,7 +101,7 @@ pub static TABLE: &[Range] = &[
         1e-3,
         10.0,
         "1",
-        "sliding = \"viscous\": factor f of the tangential neck viscosity f (R*/a)^2 / M_c, M_c the contact's normal mobility (docs/mechanics.md (B24); default 0.01, MUSEN's)",
+        "sliding = \"viscous\": factor f of the tangential neck viscosity f (R*/a)^2 / M_c, M_c the contact's normal mobility (docs/mechanics.md (B24); default 0.03, docs/decisions-mechanics.md \"Sliding\")",
     ),
     c("load.stress", 0.0, 1e9, "Pa", "compact runs: applied compressive stress (also every stress of load.stress_table; docs/pressure.md)"),
     p(
