@@ -25,6 +25,9 @@ pub enum LinearSolver {
     Pcg,
     /// Conjugate gradients with the smoothed-aggregation multigrid preconditioner ([`super::amg`]).
     Amg,
+    /// hypre's PCG with BoomerAMG (nodal coarsening, rigid-body interpolation vectors;
+    /// [`super::hypre`]); only in builds with the cargo feature `hypre`.
+    Hypre,
 }
 
 /// Automatic choice with `reuse_factor`: AMG-preconditioned CG above this many equations, Cholesky
@@ -62,6 +65,7 @@ pub enum SolverUsed {
     Cholesky,
     Pcg,
     Amg,
+    Hypre,
 }
 
 /// Parameters of the mechanical solve.
@@ -146,6 +150,9 @@ impl MechParams {
         }
         if !(1..=8).contains(&self.warm_start_depth) {
             return bad("warm_start_depth", self.warm_start_depth as f64, "[1, 8]", "1");
+        }
+        if self.solver == LinearSolver::Hypre {
+            super::hypre::check_available("mechanics.solver")?;
         }
         if self.pcg_max_iter == 0 {
             return bad("pcg_max_iter", 0.0, "[1, ∞)", "1");
