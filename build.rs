@@ -1,5 +1,5 @@
 //! Build script: with the `hypre` feature, finds and links the system hypre library (libHYPRE)
-//! and the MPI library it was built against (docs/coupled.md "hypre"). Without the feature it
+//! and the MPI library it was built against (docs/coupled.md "hypre's BoomerAMG against our AMG"). Without the feature it
 //! does nothing.
 //!
 //! Search order: `HYPRE_DIR` (a prefix with lib/ and include/) or `HYPRE_LIB_DIR`; pkg-config
@@ -56,11 +56,11 @@ fn main() {
         panic!(
             "the `hypre` feature needs the hypre library (libHYPRE.so), which was not found: install it \
              (Debian/Ubuntu: `apt-get install libhypre-dev`) or set HYPRE_DIR (a prefix with lib/) or HYPRE_LIB_DIR; \
-             or build without `--features hypre` (docs/coupled.md \"hypre\")"
+             or build without `--features hypre` (docs/coupled.md \"hypre's BoomerAMG against our AMG\")"
         );
     };
     let mpi_env = std::env::var_os("MPI_LIB_DIR").map(PathBuf::from);
-    let Some(mpi) = find("mpi", mpi_env, &["ompi-c", "mpich"], &[hypre.clone()]) else {
+    let Some(mpi) = find("mpi", mpi_env, &["ompi-c", "mpich"], std::slice::from_ref(&hypre)) else {
         panic!(
             "the `hypre` feature needs the MPI library hypre was built with (libmpi.so), which was not found in \
              {} or the system folders: install it (Debian: `apt-get install libopenmpi-dev`, pulled in by libhypre-dev) \

@@ -60,7 +60,7 @@ cargo test --release --no-fail-fast $features 2>&1 | tee /tmp/sinterdem-cargo-te
 rust_status=${PIPESTATUS[0]}
 set -e
 # hypre's BoomerAMG solver (`mechanics.solver = "hypre"`, the `hypre` feature): its tests only,
-# one more build of the crate with the feature (docs/coupled.md "hypre")
+# one more build of the crate with the feature (docs/coupled.md "hypre's BoomerAMG against our AMG")
 hypre_features="--features hypre"
 [ -n "$features" ] && hypre_features="${features},hypre"
 echo "== hypre solver tests (cargo test --release $hypre_features --test hypre)"

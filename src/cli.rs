@@ -325,7 +325,7 @@ enum Bench {
         #[arg(long = "cholesky-max", default_value_t = usize::MAX)]
         cholesky_max: usize,
         /// One solver alone (cholesky, cg, amg or hypre): setup, iterations and solve of a first
-        /// and a second step, for comparisons and `/usr/bin/time -v` (docs/coupled.md "hypre").
+        /// and a second step, for comparisons and `/usr/bin/time -v` (docs/coupled.md "hypre's BoomerAMG against our AMG").
         #[arg(long)]
         solver: Option<String>,
     },

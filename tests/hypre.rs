@@ -1,5 +1,5 @@
 //! hypre's BoomerAMG-preconditioned PCG (`mechanics.solver = "hypre"`, cargo feature `hypre`,
-//! docs/coupled.md "hypre") against the sparse Cholesky and our AMG: the same displacements to the
+//! docs/coupled.md "hypre's BoomerAMG against our AMG") against the sparse Cholesky and our AMG: the same displacements to the
 //! solver tolerance on a walled bonded packing, and the same copper compact end to end.
 //! Compiled only with the feature: `cargo test --release --features h5,hypre --test hypre`
 //! (scripts/test-all.sh runs it where libhypre-dev is installed or installable).

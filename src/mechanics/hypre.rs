@@ -1,5 +1,5 @@
 //! hypre's BoomerAMG as the preconditioner of hypre's PCG on the bonded stiffness
-//! (`mechanics.solver = "hypre"`, cargo feature `hypre`; docs/coupled.md "hypre").
+//! (`mechanics.solver = "hypre"`, cargo feature `hypre`; docs/coupled.md "hypre's BoomerAMG against our AMG").
 //!
 //! The system handed to hypre keeps **six unknowns per node** so that BoomerAMG's nodal (systems)
 //! coarsening applies (`HYPRE_BoomerAMGSetNumFunctions(6)`, `SetNodal`): the nodes are the
@@ -44,7 +44,7 @@ pub fn feature_missing(key: &str) -> ConfigError {
     ConfigError::invalid(format!(
         "{key} = \"hypre\": this sinterdem was built without hypre; allowed here: auto, cholesky, cg, amg. \
          Build with the `hypre` cargo feature (it needs the system hypre library, Debian: `apt-get install libhypre-dev`): \
-         `cargo build --release --features h5,hypre` (docs/coupled.md \"hypre\")"
+         `cargo build --release --features h5,hypre` (docs/coupled.md \"hypre's BoomerAMG against our AMG\")"
     ))
 }
 
