@@ -24,3 +24,33 @@ sinterdem_features() {
         echo "--features h5"
     fi
 }
+
+# hypre's BoomerAMG for `mechanics.solver = "hypre"` (the `hypre` cargo feature, docs/coupled.md
+# "hypre") needs libhypre-dev (Debian; it pulls in Open MPI). Installed like libhdf5-dev when
+# missing and we are root with apt-get. Returns 0 when the library is present; otherwise prints
+# why not (SINTERDEM_HYPRE_SKIP holds the reason) and returns 1.
+sinterdem_hypre() {
+    SINTERDEM_HYPRE_SKIP=""
+    local lib
+    lib_present() { ls /usr/lib/*/libHYPRE.so /usr/lib/libHYPRE.so /usr/lib64/libHYPRE.so /usr/local/lib/libHYPRE.so 2>/dev/null | head -n 1; }
+    lib=$(lib_present)
+    if [ -z "$lib" ] && [ -n "${HYPRE_DIR:-}${HYPRE_LIB_DIR:-}" ]; then
+        lib="${HYPRE_LIB_DIR:-${HYPRE_DIR:-}/lib}"
+    fi
+    if [ -z "$lib" ]; then
+        if [ "$(id -u)" = "0" ] && command -v apt-get >/dev/null 2>&1; then
+            echo "setup: installing libhypre-dev for the hypre solver tests (apt-get) ..." >&2
+            if ! { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libhypre-dev; } >/tmp/sinterdem-apt-hypre.log 2>&1; then
+                SINTERDEM_HYPRE_SKIP="apt-get install libhypre-dev failed (see /tmp/sinterdem-apt-hypre.log)"
+            fi
+            lib=$(lib_present)
+        else
+            SINTERDEM_HYPRE_SKIP="libhypre-dev is not installed and cannot be installed here (not root or no apt-get; set HYPRE_DIR to use another hypre build)"
+        fi
+    fi
+    if [ -z "$lib" ]; then
+        SINTERDEM_HYPRE_SKIP="${SINTERDEM_HYPRE_SKIP:-libHYPRE.so not found after installing libhypre-dev}"
+        return 1
+    fi
+    return 0
+}

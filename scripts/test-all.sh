@@ -59,6 +59,21 @@ set +e
 cargo test --release --no-fail-fast $features 2>&1 | tee /tmp/sinterdem-cargo-test.log
 rust_status=${PIPESTATUS[0]}
 set -e
+# hypre's BoomerAMG solver (`mechanics.solver = "hypre"`, the `hypre` feature): its tests only,
+# one more build of the crate with the feature (docs/coupled.md "hypre's BoomerAMG against our AMG")
+hypre_features="--features hypre"
+[ -n "$features" ] && hypre_features="${features},hypre"
+echo "== hypre solver tests (cargo test --release $hypre_features --test hypre)"
+if sinterdem_hypre; then
+    set +e
+    # shellcheck disable=SC2086
+    cargo test --release --no-fail-fast $hypre_features --test hypre 2>&1 | tee /tmp/sinterdem-hypre-test.log | tee -a /tmp/sinterdem-cargo-test.log
+    hypre_status=${PIPESTATUS[0]}
+    set -e
+    [ "$hypre_status" = "0" ] || rust_status=$hypre_status
+else
+    echo "hypre solver tests SKIPPED: $SINTERDEM_HYPRE_SKIP"
+fi
 python_status=0
 echo "== Python FE validation (validation/)"
 if [ -x validation/run_tests.sh ] || [ -f validation/run_tests.sh ]; then

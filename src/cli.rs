@@ -324,6 +324,10 @@ enum Bench {
         /// Skip the Cholesky columns above this many particles (its factor needs ≈ 14 GB at 10⁵).
         #[arg(long = "cholesky-max", default_value_t = usize::MAX)]
         cholesky_max: usize,
+        /// One solver alone (cholesky, cg, amg or hypre): setup, iterations and solve of a first
+        /// and a second step, for comparisons and `/usr/bin/time -v` (docs/coupled.md "hypre's BoomerAMG against our AMG").
+        #[arg(long)]
+        solver: Option<String>,
     },
     /// The 7-DOF sweep: copper contacts integrated one at a time and in lanes of four, right-hand sides per second
     Sweep {
@@ -651,8 +655,19 @@ fn run_bench(which: Bench) -> Result<(), Error> {
         }
         Bench::Heat { particles, repeat } => crate::bench::heat::bench_heat(&particles, repeat.max(1)),
         Bench::HeatStep { out, cells, end } => crate::bench::heat::bench_heat_step(&out, [cells[0], cells[1], cells[2]], end).map(|_| ()),
-        Bench::Mechanics { particles, cholesky_max } => {
+        Bench::Mechanics { particles, cholesky_max, solver: None } => {
             say!("{}", crate::bench::mechanics::bench_mechanics_with(&particles, cholesky_max)?);
+            Ok(())
+        }
+        Bench::Mechanics { particles, solver: Some(s), .. } => {
+            let solver = match s.as_str() {
+                "cholesky" => crate::mechanics::LinearSolver::Cholesky,
+                "cg" => crate::mechanics::LinearSolver::Pcg,
+                "amg" => crate::mechanics::LinearSolver::Amg,
+                "hypre" => crate::mechanics::LinearSolver::Hypre,
+                o => return Err(crate::error::ConfigError::invalid(format!("bench mechanics --solver {o}: expected cholesky, cg, amg or hypre")).into()),
+            };
+            say!("{}", crate::bench::mechanics::bench_solver(&particles, solver)?);
             Ok(())
         }
         Bench::Coupled { case, particles, packing, steps, set } => {

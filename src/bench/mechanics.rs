@@ -242,3 +242,61 @@ fn cholesky_columns(
         fourth.info.pcg_iterations
     ))
 }
+
+/// `sinterdem bench mechanics --solver S`: one solver alone on the packings of [`bench_mechanics`]
+/// (so that `/usr/bin/time -v` gives its peak memory): a first step (setup: AMG hierarchy, hypre
+/// BoomerAMG setup or Cholesky analysis and factorisation; iterations; solve) and a second step on
+/// the moved packing (1e-3·R noise, same bonds: our AMG keeps its hierarchy, hypre sets up afresh,
+/// Cholesky refactorises), at the tolerance of [`MechParams::default`] (rtol 1e-10, (B10)).
+pub fn bench_solver(sizes: &[usize], solver: LinearSolver) -> Result<String, Error> {
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "# one bonded quasi-static step with solver {solver:?} alone (rtol 1e-10), {} rayon threads; setup = AMG build / BoomerAMG setup / factorisation [s]",
+        rayon::current_num_threads()
+    );
+    let _ = writeln!(
+        out,
+        "{:>7} {:>7} {:>7} {:>8} {:>6} {:>8} {:>8} {:>8} {:>9} | {:>8} {:>6} {:>8} {:>8}",
+        "nodes", "bonds", "eqs", "setup", "its", "solve", "s/it", "step", "res", "setup2", "its2", "solve2", "step2"
+    );
+    for &n in sizes {
+        let (pos, rad, pairs, y) = fcc_packing(n, 7 + n as u64);
+        let params = MechParams { young_modulus: 110e9, poisson_ratio: 0.34, amg: amg_params_from_env()?, solver, ..Default::default() };
+        let mut s = 99u64;
+        let load: Vec<f64> = pairs
+            .iter()
+            .map(|&[i, j]| {
+                let rm = 0.5 * (rad[i as usize] + rad[j as usize]);
+                crate::models::diffusion7::load_increment(0.5e-4 * rm, 0.5e-4 * rm * (0.5 + rng(&mut s)), rm, params.young_modulus)
+            })
+            .collect();
+        let cons = Constraints::principal_planes(&pos, &rad, 0.01)?;
+        let inp = StepInput { positions: &pos, radii: &rad, y4_y7: &y, load: &load, external: None };
+        let noise: Vec<f64> = (0..pos.len()).map(|_| rng(&mut s)).collect();
+        let mut sys = BondedSystem::new(pos.len(), params, cons)?;
+        sys.set_topology(&pairs)?;
+        let first = sys.step(&inp)?;
+        let pos2: Vec<Vector3<f64>> = pos.iter().zip(&first.du).zip(&noise).map(|((x, d), e)| x + d * 10.0 + Vector3::repeat(1e-3 * rad[0] * e)).collect();
+        let second = sys.step(&StepInput { positions: &pos2, ..inp })?;
+        let (a, b) = (&first.info, &second.info);
+        let _ = writeln!(
+            out,
+            "{:>7} {:>7} {:>7} {:>8.4} {:>6} {:>8.4} {:>8.5} {:>8.4} {:>9.2e} | {:>8.4} {:>6} {:>8.4} {:>8.4}",
+            pos.len(),
+            pairs.len(),
+            a.equations,
+            a.factor_seconds + a.symbolic_seconds,
+            a.pcg_iterations,
+            a.solve_seconds,
+            a.solve_seconds / a.pcg_iterations.max(1) as f64,
+            a.total_seconds,
+            a.residuals.last().copied().unwrap_or(0.0),
+            b.factor_seconds + b.symbolic_seconds,
+            b.pcg_iterations,
+            b.solve_seconds,
+            b.total_seconds
+        );
+    }
+    Ok(out)
+}

@@ -209,7 +209,16 @@ impl MechanicsSettings {
             "cholesky" => LinearSolver::Cholesky,
             "cg" => LinearSolver::Pcg,
             "amg" => LinearSolver::Amg,
-            o => return Err(ConfigError::invalid(format!("mechanics.solver = \"{o}\": expected auto, cholesky, cg or amg"))),
+            "hypre" if crate::mechanics::hypre::AVAILABLE => LinearSolver::Hypre,
+            "hypre" => return Err(crate::mechanics::hypre::feature_missing("mechanics.solver")),
+            o if crate::mechanics::hypre::AVAILABLE => {
+                return Err(ConfigError::invalid(format!("mechanics.solver = \"{o}\": expected auto, cholesky, cg, amg or hypre")));
+            }
+            o => {
+                return Err(ConfigError::invalid(format!(
+                    "mechanics.solver = \"{o}\": expected auto, cholesky, cg or amg (hypre: build with the `hypre` feature)"
+                )));
+            }
         };
         let rtol = config::check("mechanics.rtol", m.rtol)?;
         let depth = config::check("mechanics.warm_start_depth", m.warm_start_depth)?;

@@ -28,6 +28,7 @@ pub mod cg;
 pub mod cholesky;
 pub mod constraints;
 pub mod fixtures;
+pub mod hypre;
 pub mod lowrank;
 mod newton;
 pub mod periodic;
@@ -502,7 +503,7 @@ impl BondedSystem {
         // the warm start (B12) serves the CG-based solvers; a Cholesky step is a direct solve (with
         // a reused factor, it saved 17 % of the Newton iterations of the copper compact and cost as
         // much time as it saved, docs/mechanics.md)
-        let warm = slot.is_some() && self.params.warm_start && matches!(solver, LinearSolver::Amg | LinearSolver::Pcg);
+        let warm = slot.is_some() && self.params.warm_start && matches!(solver, LinearSolver::Amg | LinearSolver::Pcg | LinearSolver::Hypre);
         let slot = slot.unwrap_or(0);
         if warm && self.history.len() <= slot {
             self.history.resize(slot + 1, Vec::new());
@@ -521,6 +522,7 @@ impl BondedSystem {
             match solver {
                 LinearSolver::Pcg => self.newton_pcg(rep, blocks, rhs, b_norm, &mut x, r0, info)?,
                 LinearSolver::Amg => self.newton_amg(rep, positions, r_scale, blocks, rhs, b_norm, &mut x, r0, info)?,
+                LinearSolver::Hypre => self.newton_hypre(rep, positions, r_scale, blocks, rhs, b_norm, &mut x, r0, info)?,
                 _ => self.newton_cholesky(rep, positions, links, blocks, rhs, b_norm, &mut x, info)?,
             }
         }

@@ -25,6 +25,9 @@ pub enum LinearSolver {
     Pcg,
     /// Conjugate gradients with the smoothed-aggregation multigrid preconditioner ([`super::amg`]).
     Amg,
+    /// hypre's PCG with BoomerAMG (nodal coarsening, rigid-body interpolation vectors;
+    /// [`super::hypre`]); only in builds with the cargo feature `hypre`.
+    Hypre,
 }
 
 /// Automatic choice with `reuse_factor`: AMG-preconditioned CG above this many equations, Cholesky
@@ -62,6 +65,7 @@ pub enum SolverUsed {
     Cholesky,
     Pcg,
     Amg,
+    Hypre,
 }
 
 /// Parameters of the mechanical solve.
@@ -158,6 +162,9 @@ impl MechParams {
         }
         if self.update_rank > MAX_UPDATE_RANK {
             return bad("update_rank", self.update_rank as f64, "[0, 2000]", "1");
+        }
+        if self.solver == LinearSolver::Hypre {
+            super::hypre::check_available("mechanics.solver")?;
         }
         if self.pcg_max_iter == 0 {
             return bad("pcg_max_iter", 0.0, "[1, ∞)", "1");

@@ -141,7 +141,9 @@ pub struct MechanicsSpec {
     /// A particle touches a plane when its centre is within `plane_margin·r` of it (default 1.01).
     #[serde(default = "margin")]
     pub plane_margin: f64,
-    /// Linear solver: "auto" (default), "cholesky", "cg" (block-Jacobi) or "amg" (aggregation-multigrid CG).
+    /// Linear solver: "auto" (default), "cholesky", "cg" (block-Jacobi), "amg" (aggregation-multigrid
+    /// CG) or "hypre" (hypre's BoomerAMG-PCG; only in builds with the `hypre` cargo feature,
+    /// otherwise a configuration error that says how to build it; docs/coupled.md).
     #[serde(default = "auto")]
     pub solver: String,
     /// Reuse the last Cholesky factor as the Newton operator while the contacts are unchanged,
