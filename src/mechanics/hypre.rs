@@ -564,17 +564,13 @@ mod imp {
     }
 }
 
-#[cfg(test)]
+/// The hypre solve itself is tested in tests/hypre.rs (built with the feature).
+#[cfg(all(test, not(feature = "hypre")))]
 mod tests {
-    #[cfg(feature = "hypre")]
-    use crate::mechanics::StepInput;
-    #[cfg(feature = "hypre")]
-    use crate::mechanics::fixtures::{fcc_packing, rng};
     use crate::mechanics::{BondedSystem, Constraints, LinearSolver, MechParams};
 
     /// `mechanics.solver = "hypre"` without the feature: a configuration error that names the key,
     /// the value, the allowed values and how to build with it.
-    #[cfg(not(feature = "hypre"))]
     #[test]
     fn hypre_without_the_feature_is_a_clear_error() {
         let p = MechParams { solver: LinearSolver::Hypre, ..Default::default() };
@@ -582,49 +578,5 @@ mod tests {
         for want in ["mechanics.solver = \"hypre\"", "auto, cholesky, cg, amg", "--features h5,hypre", "libhypre-dev"] {
             assert!(msg.contains(want), "{want:?} missing from: {msg}");
         }
-    }
-
-    /// BoomerAMG-PCG gives the Cholesky displacements on a walled bonded packing (FCC, radii ±5 %,
-    /// plane constraints, rattlers and pinned floating clusters): the residual test (B10) with
-    /// rtol 1e-10 bounds the difference by cond(K)·1e-10 (our AMG test asserts 1e-8 of max |Δu|).
-    #[cfg(feature = "hypre")]
-    #[test]
-    fn hypre_pcg_equals_cholesky_on_a_walled_packing() {
-        let (pos, rad, pairs, y) = fcc_packing(2000, 11);
-        let mut s = 11u64;
-        let load: Vec<f64> = pairs.iter().map(|_| 1e-3 * (0.5 + rng(&mut s))).collect();
-        let cons = Constraints::principal_planes(&pos, &rad, 0.01).unwrap();
-        let inp = StepInput { positions: &pos, radii: &rad, y4_y7: &y, load: &load, external: None };
-        let solve = |solver| {
-            let p = MechParams { young_modulus: 110e9, poisson_ratio: 0.34, solver, ..Default::default() };
-            let mut sys = BondedSystem::new(pos.len(), p, cons.clone()).unwrap();
-            sys.set_topology(&pairs).unwrap();
-            let out = sys.step(&inp).unwrap();
-            (out, sys.report().unwrap().fixed.clone())
-        };
-        let (chol, _) = solve(LinearSolver::Cholesky);
-        let (h, fixed) = solve(LinearSolver::Hypre);
-        assert_eq!(h.info.solver, crate::mechanics::SolverUsed::Hypre);
-        assert!(chol.info.rattlers > 0, "the packing has rattlers");
-        let res = *h.info.residuals.last().unwrap();
-        assert!(res <= 1e-10, "hypre residual {res:.2e}");
-        let scale = chol.du.iter().map(|v| v.norm()).fold(0.0, f64::max);
-        let diff = chol.du.iter().zip(&h.du).map(|(p, q)| (p - q).norm()).fold(0.0, f64::max);
-        assert!(diff <= 1e-8 * scale, "max |Δu| difference {diff:.2e} of {scale:.2e}");
-        let dth = chol.dtheta.iter().zip(&h.dtheta).map(|(p, q)| (p - q).norm()).fold(0.0, f64::max);
-        let th = chol.dtheta.iter().map(|v| v.norm()).fold(0.0, f64::max);
-        assert!(dth <= 1e-8 * th.max(scale / 50e-6), "max |Δθ| difference {dth:.2e} of {th:.2e}");
-        // fixed DOF (planes, rattlers, pins) stay exactly zero
-        for (i, &m) in fixed.iter().enumerate() {
-            for k in 0..3 {
-                if m & (1 << k) != 0 {
-                    assert_eq!(h.du[i][k], 0.0, "particle {i} DOF {k}");
-                }
-                if m & (8 << k) != 0 {
-                    assert_eq!(h.dtheta[i][k], 0.0, "particle {i} DOF {}", 3 + k);
-                }
-            }
-        }
-        eprintln!("hypre: {} PCG iterations, {} Newton iteration(s)", h.info.pcg_iterations, h.info.newton_iterations);
     }
 }
