@@ -368,7 +368,7 @@ fn low_rank_update_is_exact_thread_safe_and_resumable() {
     let dir = common::tmp_dir("lowrank");
     let csv = small_packing(&dir, 0.2e-3);
     let sets = ["time.end=200.0", "output.checkpoint_every=40", "mechanics.update_rank=60"];
-    let (s_off, _) = run_case(compact_case(&csv, &["time.end=200.0", "output.checkpoint_every=40"]), &dir.join("off"));
+    let (s_off, _) = run_case(compact_case(&csv, &["time.end=200.0", "output.checkpoint_every=40", "mechanics.update_rank=0"]), &dir.join("off"));
     let mut series = Vec::new();
     let mut summaries = Vec::new();
     for threads in [1, 2] {

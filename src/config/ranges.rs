@@ -94,7 +94,13 @@ pub static TABLE: &[Range] = &[
     o("contacts.eta", 0.0, 1.0, "1", "initial cone parameter eta of a new contact (I2)"),
     c("mechanics.rtol", 1e-15, 1e-2, "1", "Newton tolerance of the bonded solve: scaled residual relative to the scaled load"),
     c("mechanics.warm_start_depth", 1.0, 8.0, "1", "earlier solutions spanning the warm start of the bonded solve (an integer)"),
-    c("mechanics.update_rank", 0.0, 2000.0, "1", "largest rank of the low-rank update of the kept Cholesky factor for new bonds (an integer; 0: off)"),
+    c(
+        "mechanics.update_rank",
+        0.0,
+        2000.0,
+        "1",
+        "largest rank of the low-rank update of the kept Cholesky factor for new bonds (an integer; default 90; 0: off)",
+    ),
     c("mechanics.plane_margin", 1.0, 2.0, "1", "a particle touches a principal plane when its centre is within margin * r"),
     c(
         "mechanics.sliding_factor",
