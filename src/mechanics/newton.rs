@@ -11,6 +11,25 @@ use crate::error::{Error, SolveError};
 use rayon::prelude::*;
 use std::time::Instant;
 
+/// `red[eq[d]] = full[d]` for every free DOF `d` (`eq[d] ≠ u32::MAX`): a full-length vector on
+/// the reduced equations.
+fn gather_free(eq: &[u32], full: &[f64], red: &mut [f64]) {
+    for (d, &e) in eq.iter().enumerate() {
+        if e != u32::MAX {
+            red[e as usize] = full[d];
+        }
+    }
+}
+
+/// `full[d] += red[eq[d]]` for every free DOF `d`: a reduced increment added to a full vector.
+fn add_free(eq: &[u32], red: &[f64], full: &mut [f64]) {
+    for (d, &e) in eq.iter().enumerate() {
+        if e != u32::MAX {
+            full[d] += red[e as usize];
+        }
+    }
+}
+
 /// Newton with the factor `chol` of the current topology, refactorised when it is not
 /// factored, not to be reused or slow (stale).
 pub(super) fn newton_on_factor(
@@ -44,17 +63,9 @@ pub(super) fn newton_on_factor(
     let (mut r, mut rel) = initial_residual(op, b, b_norm, x, None);
     let mut red = vec![0.0; rep.n_eq];
     while info.newton_iterations < params.max_newton {
-        for (d, &e) in rep.eq.iter().enumerate() {
-            if e != u32::MAX {
-                red[e as usize] = r[d];
-            }
-        }
+        gather_free(&rep.eq, &r, &mut red);
         info.solve_seconds += chol.solve_in_place(&mut red)?;
-        for (d, &e) in rep.eq.iter().enumerate() {
-            if e != u32::MAX {
-                x[d] += red[e as usize];
-            }
-        }
+        add_free(&rep.eq, &red, x);
         info.newton_iterations += 1;
         let new_rel = op.residual(b, b_norm, x, &mut r);
         info.residuals.push(new_rel);
@@ -97,11 +108,7 @@ pub(super) fn newton_on_update(
     let (mut r, mut rel) = initial_residual(op, b, b_norm, x, None);
     let mut red = vec![0.0; rep.n_eq];
     while info.newton_iterations < params.max_newton {
-        for (d, &e) in rep.eq.iter().enumerate() {
-            if e != u32::MAX {
-                red[e as usize] = r[d];
-            }
-        }
+        gather_free(&rep.eq, &r, &mut red);
         info.solve_seconds += chol.solve_in_place(&mut red)?;
         let t0 = Instant::now();
         update.correct(&mut red);
@@ -110,11 +117,7 @@ pub(super) fn newton_on_update(
             return Ok(false);
         }
         let mut trial = x.to_vec();
-        for (d, &e) in rep.eq.iter().enumerate() {
-            if e != u32::MAX {
-                trial[d] += red[e as usize];
-            }
-        }
+        add_free(&rep.eq, &red, &mut trial);
         let mut r_trial = vec![0.0; r.len()];
         let new_rel = op.residual(b, b_norm, &trial, &mut r_trial);
         if !(new_rel.is_finite() && new_rel < rel) {
@@ -184,11 +187,7 @@ pub(super) fn stale_factor_cg(
     let mut solve_s = 0.0;
     let res = {
         let mut prec = |r: &[f64], z: &mut [f64]| -> Result<(), SolveError> {
-            for (d, &e) in chol_eq.iter().enumerate() {
-                if e != u32::MAX {
-                    red[e as usize] = r[d];
-                }
-            }
+            gather_free(chol_eq, r, &mut red);
             solve_s += chol.solve_in_place(&mut red)?;
             for d in 0..z.len() {
                 z[d] = if eq[d] != u32::MAX && chol_eq[d] != u32::MAX { red[chol_eq[d] as usize] } else { 0.0 };
