@@ -15,7 +15,7 @@
 //! path repeats its integration from the unchanged state and reports the error with its full
 //! context.
 
-use super::advance::{PairMaterials, SolverOptions, TemperaturePath, advance, split_times};
+use super::advance::{PairMaterials, SolverOptions, TemperaturePath, advance, smooth_inside};
 use super::contact::Contact7;
 use super::kinetics::rates_with;
 use super::material::{Coeffs, ContactParams};
@@ -339,7 +339,7 @@ fn lane_setup<'a>(
     if !(opts.rtol > 0.0 && opts.rtol < 1.0) {
         return None;
     }
-    if !split_times(temp, t0, t1, &mats.transitions()).is_empty() {
+    if !smooth_inside(temp, mats, t0, t1) {
         return None;
     }
     let tc = c.t_created;
