@@ -405,3 +405,50 @@ fn low_rank_update_is_exact_thread_safe_and_resumable() {
         assert!(err.contains("mechanics.update_rank"), "{bad}: {err}");
     }
 }
+
+/// Contacts kept unchanged by docs/diffusion7.md (T2) on a cooling branch: kept ones are counted,
+/// the kept share makes the run no less exact than the integrated one within the tolerance, and
+/// the decisions are the same on one and two threads and after a resume (their test reads the
+/// checkpointed `Contact7::change_rate`).
+#[test]
+fn contacts_kept_by_t2_are_thread_and_resume_identical() {
+    let dir = common::tmp_dir("kept");
+    let csv = small_packing(&dir, 0.2e-3);
+    let text = common::compact_text(
+        &common::time_to(150.0),
+        &[common::COPPER],
+        &common::file_particles(&csv),
+        "{ schedule = \"start 1293 K, hold 20 s, cool 600 K/min to 600 K\" }",
+    );
+    let case = |sets: &[&str]| common::case_value(&text, sets);
+    let mut runs = Vec::new();
+    for threads in [1, 2] {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        let out = dir.join(format!("t{threads}"));
+        let (s, _) = pool.install(|| run_case(case(&["output.checkpoint_every=40"]), &out));
+        runs.push((s, std::fs::read_to_string(out.join("series.csv")).unwrap()));
+    }
+    assert_eq!(runs[0].1, runs[1].1, "series differ between 1 and 2 threads");
+    let s = &runs[0].0;
+    let kept = s["contact_steps_skipped"].as_u64().unwrap();
+    let contacts = s["contacts"].as_u64().unwrap();
+    // below about 900 K (docs/diffusion7.md §7) every contact is kept: the last steps at 600 K
+    assert!(kept >= 3 * contacts, "{kept} contact-steps kept of {contacts} contacts");
+    // against every contact integrated: the same result within the tolerance's effect
+    let (all, _) = run_case(case(&["solver.skip_unchanged=false"]), &dir.join("all"));
+    assert_eq!(all["contact_steps_skipped"].as_u64(), Some(0));
+    assert!(all["rhs_evaluations"].as_u64().unwrap() > s["rhs_evaluations"].as_u64().unwrap());
+    for key in ["shrinkage_x", "shrinkage_y", "shrinkage_z", "relative_density", "neck_ratio"] {
+        let (a, b) = (s[key].as_f64().unwrap(), all[key].as_f64().unwrap());
+        assert!((a / b - 1.0).abs() < 1e-4, "{key}: kept {a}, all integrated {b}");
+    }
+    // killed after its checkpoint at step 80, resumed: the same run
+    let part = dir.join("part");
+    let sim = coupled::prepare(case(&["output.checkpoint_every=40"]), Path::new("."), &mut |_| {}).unwrap();
+    assert!(sinterdem::kinds::compact::run_from(sim, &part, false, &mut |_| {}, None, Some(80)).unwrap().is_null());
+    let s_res = sinterdem::kinds::compact::resume(&part, false, &mut |_| {}).unwrap();
+    for key in ["steps", "shrinkage_x", "relative_density", "neck_ratio", "rhs_evaluations", "contact_steps_skipped"] {
+        assert_eq!(s[key], s_res[key], "{key}");
+    }
+    assert_eq!(runs[0].1, std::fs::read_to_string(part.join("series.csv")).unwrap(), "series.csv of the resumed run differs");
+}

@@ -58,6 +58,8 @@ pub struct Simulation {
     /// Contact steps integrated in lanes (docs/diffusion7.md §7) since this process started (not
     /// checkpointed: a diagnostic of the sweep, not part of the result).
     pub contacts_in_lanes: u64,
+    /// Contacts the last sweep kept unchanged by docs/diffusion7.md (T2) (status line).
+    pub skipped_last: usize,
     pub timing: Timing,
     pub heat_in: f64,
     pub heat_stored: f64,
@@ -148,6 +150,7 @@ impl Simulation {
             extent0: Vector3::zeros(),
             ode: OdeStats::default(),
             contacts_in_lanes: 0,
+            skipped_last: 0,
             timing: Timing::default(),
             heat_in: 0.0,
             heat_stored: 0.0,

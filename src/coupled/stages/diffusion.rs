@@ -5,7 +5,7 @@ use super::Window;
 use crate::coupled::Simulation;
 use crate::error::{Error, ModelError};
 use crate::models::diffusion7::lanes::{LANES, advance_lanes, work_order};
-use crate::models::diffusion7::{Contact7, PairMaterials, TemperaturePath};
+use crate::models::diffusion7::{Contact7, PairMaterials, TemperaturePath, skip};
 use crate::models::ode::OdeStats;
 use rayon::prelude::*;
 
@@ -47,11 +47,53 @@ pub(in crate::coupled) fn diffusion(sim: &mut Simulation, w: &Window, temps_old:
     let factors = sim.settings.factors;
     let harmonic = sim.settings.harmonic;
     let ct = |a: f64, b: f64| contact_temperature(harmonic, a, b);
+    let pair_materials = |[i, j]: [u32; 2]| PairMaterials { a: &mats[p.material[i as usize] as usize], b: &mats[p.material[j as usize] as usize], factors };
+    let path_of = |[i, j]: [u32; 2]| {
+        let (i, j) = (i as usize, j as usize);
+        match iso {
+            Some(prof) => TemperaturePath::Profile(prof),
+            None => TemperaturePath::Linear { t0, temp0: ct(temps_old[i], temps_old[j]), t1, temp1: ct(temps_new[i], temps_new[j]) },
+        }
+    };
+    // contacts that cannot change within the tolerance over the step keep their state
+    // (docs/diffusion7.md (T2)); decided per contact from its own state and temperature path,
+    // so the same on any number of threads; not in a strategy-1 trial, whose growth test reads
+    // every contact's proposed substep
+    // per contact: 0 not measured, 1 measured and integrated, 2 skipped; tested only when its
+    // last change rate makes it a candidate (`skip::TEST_BELOW`, a matter of cost only)
+    let skip_on = solver.skip_unchanged && !strategy1;
+    let skipped: Vec<u8> = if skip_on {
+        sim.contacts
+            .state
+            .par_iter_mut()
+            .zip(sim.contacts.pairs.par_iter())
+            .map(|(c, &pair)| {
+                if c.change_rate * dt > skip::TEST_BELOW {
+                    return 0;
+                }
+                match skip::skippable(c, &pair_materials(pair), &path_of(pair), t0, t1, &solver) {
+                    (true, Some(s)) => {
+                        c.change_rate = s / dt;
+                        2
+                    }
+                    (_, Some(_)) => 1,
+                    (_, None) => 0,
+                }
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let n_skipped = skipped.iter().filter(|&&k| k == 2).count();
     // contacts four at a time side by side (docs/diffusion7.md §7 "The sweep in lanes"),
     // each ending bit for bit where the scalar integration would; lanes run in lockstep, so
     // contacts of alike work share a chunk: the order by last step's substeps, new contacts
-    // together (the result does not depend on it)
-    let order = work_order(&sim.contacts.state, &sim.contacts.substeps);
+    // together (the result does not depend on it); skipped contacts left out
+    let mut order = work_order(&sim.contacts.state, &sim.contacts.substeps);
+    if n_skipped > 0 {
+        let all = order.take().unwrap_or_else(|| (0..sim.contacts.len() as u32).collect());
+        order = Some(all.into_iter().filter(|&k| skipped[k as usize] != 2).collect());
+    }
     let (mut work, work_pairs) = match &order {
         Some(o) => (o.iter().map(|&k| sim.contacts.state[k as usize]).collect(), o.iter().map(|&k| sim.contacts.pairs[k as usize]).collect()),
         None => (Vec::new(), Vec::new()),
@@ -63,20 +105,8 @@ pub(in crate::coupled) fn diffusion(sim: &mut Simulation, w: &Window, temps_old:
         .zip(pairs_in_order.par_chunks(LANES))
         .enumerate()
         .map(|(ch, (cs, ps))| {
-            let pms: Vec<PairMaterials> = ps
-                .iter()
-                .map(|&[i, j]| PairMaterials { a: &mats[p.material[i as usize] as usize], b: &mats[p.material[j as usize] as usize], factors })
-                .collect();
-            let paths: Vec<TemperaturePath> = ps
-                .iter()
-                .map(|&[i, j]| {
-                    let (i, j) = (i as usize, j as usize);
-                    match iso {
-                        Some(prof) => TemperaturePath::Profile(prof),
-                        None => TemperaturePath::Linear { t0, temp0: ct(temps_old[i], temps_old[j]), t1, temp1: ct(temps_new[i], temps_new[j]) },
-                    }
-                })
-                .collect();
+            let pms: Vec<PairMaterials> = ps.iter().map(|&pair| pair_materials(pair)).collect();
+            let paths: Vec<TemperaturePath> = ps.iter().map(|&pair| path_of(pair)).collect();
             let (res, n) = advance_lanes(cs, &pms, &paths, t0, t1, &solver);
             let res = res
                 .into_iter()
@@ -96,13 +126,32 @@ pub(in crate::coupled) fn diffusion(sim: &mut Simulation, w: &Window, temps_old:
         sim.contacts_in_lanes += n as u64;
     }
     if let Some(o) = &order {
-        // back to contact order (`o` is a permutation: every slot is written)
-        let mut back: Vec<Result<OdeStats, ModelError>> = (0..o.len()).map(|_| Ok(OdeStats::default())).collect();
+        // back to contact order (`o` holds every contact not skipped: their slots are written,
+        // a skipped contact keeps its state and counts its one evaluation of (T2))
+        let skip_stats = OdeStats { rhs: 1, skipped: 1, ..Default::default() };
+        let mut back: Vec<Result<OdeStats, ModelError>> = (0..sim.contacts.len()).map(|_| Ok(skip_stats)).collect();
         for ((&k, r), c) in o.iter().zip(results).zip(&work) {
             sim.contacts.state[k as usize] = *c;
             back[k as usize] = r;
         }
         results = back;
+    }
+    if !skipped.is_empty() {
+        // the evaluation of (T2) of a contact integrated after all
+        for (r, &k) in results.iter_mut().zip(&skipped) {
+            if let (Ok(s), 1) = (r, k) {
+                s.rhs += 1;
+            }
+        }
+    }
+    sim.skipped_last = n_skipped;
+    if skip_on {
+        // the change rate of every integrated contact, for the next sweep's test
+        sim.contacts.state.par_iter_mut().zip(skipped.par_iter()).for_each(|(c, &k)| {
+            if k != 2 {
+                c.change_rate = skip::change_rate(c, &c.y_prev, dt, &solver);
+            }
+        });
     }
     let mut stats = Vec::with_capacity(results.len());
     let mut trial_rejected = 0usize;

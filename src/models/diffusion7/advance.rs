@@ -29,6 +29,10 @@ pub struct SolverOptions {
     pub min_step_rel: f64,
     /// ModelError after this many substeps in one call [1].
     pub max_substeps: f64,
+    /// Compact runs: a contact whose change over a global step is bounded below the tolerance
+    /// by (T2) (docs/diffusion7.md §7) keeps its state instead of being integrated (`true`,
+    /// default); `false` integrates every contact every step.
+    pub skip_unchanged: bool,
     /// Strategy-1 trial (not a case key): the first rejected step ends [`advance`] with the
     /// ModelError `ode::STEP_REJECTED` (docs/coupled.md (S1)).
     #[serde(skip)]
@@ -37,7 +41,16 @@ pub struct SolverOptions {
 
 impl Default for SolverOptions {
     fn default() -> Self {
-        SolverOptions { method: Method::Dopri5, rtol: 1e-6, norm_floor: 1e-4, max_substep: 1e9, min_step_rel: 1e-12, max_substeps: 2e6, stop_on_reject: false }
+        SolverOptions {
+            method: Method::Dopri5,
+            rtol: 1e-6,
+            norm_floor: 1e-4,
+            max_substep: 1e9,
+            min_step_rel: 1e-12,
+            max_substeps: 2e6,
+            skip_unchanged: true,
+            stop_on_reject: false,
+        }
     }
 }
 
@@ -150,6 +163,24 @@ pub fn split_times(temp: &TemperaturePath, t0: f64, t1: f64, transitions: &[f64]
     out.sort_by(f64::total_cmp);
     out.dedup();
     out
+}
+
+/// Whether `split_times(temp, t0, t1, &mats.transitions())` is empty — no kink of the path and no
+/// phase transition crossed inside `(t0, t1)` — without building the lists (the sweep asks this
+/// of every contact in every step).
+pub fn smooth_inside(temp: &TemperaturePath, mats: &PairMaterials, t0: f64, t1: f64) -> bool {
+    if !temp.kinks(t0, t1).is_empty() {
+        return false;
+    }
+    let (ta, tb) = (temp.at(t0), temp.at(t1));
+    !mats.a.transitions().chain(mats.b.transitions()).any(|tc| {
+        if (ta - tc) * (tb - tc) < 0.0 {
+            let s = t0 + (tc - ta) / (tb - ta) * (t1 - t0);
+            s > t0 && s < t1
+        } else {
+            false
+        }
+    })
 }
 
 /// Advances `contact` from global time `t0` to `t1` [s] (docs/coupled.md (S3), strategy 2: as many adaptive substeps as

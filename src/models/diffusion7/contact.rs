@@ -32,6 +32,12 @@ pub struct Contact7 {
     /// (M11). 0 without a load (then the model is exactly the unloaded one).
     #[serde(default)]
     pub normal_force: f64,
+    /// The contact's change per second in units of the tolerance in the last sweep of a compact
+    /// run, `max_i |Δy_i|/(rtol·max(|y_i|, f·R_min))/Δt` [1/s] (its measure (T2b) over Δt when
+    /// it was kept): which contacts the next sweep tests by (T2) (docs/diffusion7.md §7); 0 before
+    /// the first sweep.
+    #[serde(default)]
+    pub change_rate: f64,
 }
 
 impl Contact7 {
@@ -39,14 +45,14 @@ impl Contact7 {
     /// created at `t_c` [s], with (I1)–(I4) and the given ε, η.
     pub fn new(r_a: f64, r_b: f64, d_ab: f64, t_c: f64, eps: f64, eta: f64) -> Result<Contact7, ModelError> {
         let y = initial_state(r_a, r_b, d_ab, eps, eta)?;
-        Ok(Contact7 { y, y_prev: y, l0: y[3] + y[6], r0: [r_a, r_b], t_created: t_c, h_last: 0.0, e3: [0.0, 0.0, 1.0], normal_force: 0.0 })
+        Ok(Contact7 { y, y_prev: y, l0: y[3] + y[6], r0: [r_a, r_b], t_created: t_c, h_last: 0.0, e3: [0.0, 0.0, 1.0], normal_force: 0.0, change_rate: 0.0 })
     }
 
     /// A new contact as [`Contact7::new`] but with the initial neck radius `a0` [m] given instead of
     /// (I2)'s `r_c + ε·min(R_A, R_B)` ((I1), (I3), (I4) unchanged; [`initial_state_with_neck`]).
     pub fn with_neck(r_a: f64, r_b: f64, d_ab: f64, t_c: f64, a0: f64, eta: f64) -> Result<Contact7, ModelError> {
         let y = initial_state_with_neck(r_a, r_b, d_ab, a0, eta)?;
-        Ok(Contact7 { y, y_prev: y, l0: y[3] + y[6], r0: [r_a, r_b], t_created: t_c, h_last: 0.0, e3: [0.0, 0.0, 1.0], normal_force: 0.0 })
+        Ok(Contact7 { y, y_prev: y, l0: y[3] + y[6], r0: [r_a, r_b], t_created: t_c, h_last: 0.0, e3: [0.0, 0.0, 1.0], normal_force: 0.0, change_rate: 0.0 })
     }
 
     /// Mean radius R_m = (R_A + R_B)/2 of the initial radii (F3) [m].

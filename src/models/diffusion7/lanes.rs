@@ -15,7 +15,7 @@
 //! path repeats its integration from the unchanged state and reports the error with its full
 //! context.
 
-use super::advance::{PairMaterials, SolverOptions, TemperaturePath, advance, split_times};
+use super::advance::{PairMaterials, SolverOptions, TemperaturePath, advance, smooth_inside};
 use super::contact::Contact7;
 use super::kinetics::rates_with;
 use super::material::{Coeffs, ContactParams};
@@ -325,13 +325,14 @@ struct Lane<'a> {
 
 /// Whether [`advance_lanes`] integrates `c` in a lane over `[t0, t1]`, and with which
 /// coefficients: `None` sends it to the scalar path.
-fn lane_setup<'a>(
+fn lane_setup<'a, 'm>(
     c: &Contact7,
-    mats: &PairMaterials,
+    mats: &PairMaterials<'m>,
     temp: &TemperaturePath<'a>,
     t0: f64,
     t1: f64,
     opts: &SolverOptions,
+    cache: &mut Option<(PairMaterials<'m>, f64, f64, Coeffs)>,
 ) -> Option<(Lane<'a>, Option<Coeffs>)> {
     if opts.method != Method::Dopri5 || opts.stop_on_reject || !(t1 > t0) {
         return None;
@@ -339,7 +340,7 @@ fn lane_setup<'a>(
     if !(opts.rtol > 0.0 && opts.rtol < 1.0) {
         return None;
     }
-    if !split_times(temp, t0, t1, &mats.transitions()).is_empty() {
+    if !smooth_inside(temp, mats, t0, t1) {
         return None;
     }
     let tc = c.t_created;
@@ -348,13 +349,25 @@ fn lane_setup<'a>(
         return None;
     }
     let (ta, tb) = (temp.at(t0), temp.at(t1));
-    let params = mats.params_at(temp.at(0.5 * (t0 + t1)));
+    let tmid = temp.at(0.5 * (t0 + t1));
     let (coeffs, fixed) = if ta == tb {
-        let mut k = params.at(ta).ok()?;
+        // the coefficients of the lane before when it has the same materials and temperatures
+        // (the same function of the same inputs: an isothermal chunk computes them once)
+        let same = cache.as_ref().is_some_and(|(m, tm, t, _)| {
+            std::ptr::eq(m.a, mats.a) && std::ptr::eq(m.b, mats.b) && m.factors == mats.factors && tm.to_bits() == tmid.to_bits() && t.to_bits() == ta.to_bits()
+        });
+        let mut k = match cache {
+            Some((_, _, _, k)) if same => *k,
+            _ => {
+                let k = mats.params_at(tmid).at(ta).ok()?;
+                *cache = Some((*mats, tmid, ta, k));
+                k
+            }
+        };
         k.normal_force = c.normal_force;
         (LaneCoeffs::Fixed, Some(k))
     } else {
-        (LaneCoeffs::Varying { params, temp: *temp, tc, force: c.normal_force }, None)
+        (LaneCoeffs::Varying { params: mats.params_at(tmid), temp: *temp, tc, force: c.normal_force }, None)
     };
     let ctl = opts.control(c.r_min());
     let mut stats = OdeStats::default();
@@ -382,9 +395,9 @@ fn lane_of(y: &StateL, l: usize) -> [f64; 7] {
 /// result, same counters, bit for bit), the eligible ones side by side. `mats(l)` and `temp(l)`
 /// give contact `l`'s materials and temperature path. Returns one result per contact and how many
 /// of them went through the lanes to the end.
-pub fn advance_lanes<'a>(
+pub fn advance_lanes<'a, 'm>(
     contacts: &mut [Contact7],
-    mats: &[PairMaterials],
+    mats: &[PairMaterials<'m>],
     temps: &[TemperaturePath<'a>],
     t0: f64,
     t1: f64,
@@ -395,8 +408,9 @@ pub fn advance_lanes<'a>(
     let mut lanes: [Option<Lane<'a>>; LANES] = [None; LANES];
     let mut fixed = CoeffsL::default();
     let mut y = [F4::splat(0.0); 7];
+    let mut cache = None;
     for l in 0..n {
-        if let Some((lane, k)) = lane_setup(&contacts[l], &mats[l], &temps[l], t0, t1, opts) {
+        if let Some((lane, k)) = lane_setup(&contacts[l], &mats[l], &temps[l], t0, t1, opts, &mut cache) {
             if let Some(k) = k {
                 fixed.set(l, &k);
             }

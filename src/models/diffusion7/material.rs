@@ -304,6 +304,15 @@ impl ContactParams {
         ContactParams::new(m, phase, m, phase, factors)
     }
 
+    /// Whether every transport coefficient (M9), each a sum of terms `D0·exp(−Q/(R T))/(k_B T)`,
+    /// rises with the temperature up to `t` [K]: a term does for `T < Q/R` (its logarithm's
+    /// derivative is `(Q/R − T)/T²`), so every mechanism with `D0 ≠ 0` needs `Q ≥ R·t` (a term with
+    /// `Q = 0` falls as `1/T`). Then the coefficients over a temperature interval below `t` are
+    /// at most those at `t` (docs/diffusion7.md (T2)).
+    pub fn coefficients_rise_up_to(&self, t: f64) -> bool {
+        self.sides.iter().all(|sd| [sd.surface, sd.lattice, sd.gb].iter().all(|m| m.d0 == 0.0 || m.q >= crate::units::GAS_CONSTANT * t))
+    }
+
     /// The transport coefficients at contact temperature `t` [K] (M4), (M9).
     pub fn at(&self, t: f64) -> Result<Coeffs, ModelError> {
         if !(t > 0.0 && t.is_finite()) {

@@ -9,6 +9,7 @@
 //! - [`material`]: material data (§9), phases, resolution per contact (§3), coefficients (M9);
 //! - [`contact`]: per-contact state, initial state (I1)–(I4), force (F4), (F5), correction (C1)–(C4);
 //! - [`advance`]: adaptive per-contact integration over an interval, split at kinks and phase changes;
+//! - [`skip`]: the bound (T2) on a contact's change over an interval (contacts the sweep need not integrate);
 
 pub mod advance;
 pub mod contact;
@@ -18,6 +19,7 @@ pub mod lanes;
 pub mod library;
 pub mod material;
 pub mod ranges;
+pub mod skip;
 
 pub use advance::{PairMaterials, SolverOptions, TemperaturePath, advance};
 pub use contact::{Contact7, Correction, correct_y4_y7, initial_state, initial_state_with_neck, load_increment, sintering_force};
