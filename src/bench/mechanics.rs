@@ -48,6 +48,45 @@ pub fn amg_params_from_env() -> Result<crate::mechanics::amg::AmgParams, Error> 
     Ok(a)
 }
 
+/// The bonded problem of the mechanics benches: an FCC packing of about `n` particles, its bonds,
+/// load increments ((F5) with Δy4 = 0.5e-4·r̄ and a random Δy7) [N], the principal-plane
+/// constraints, the parameters (E = 110 GPa, ν = 0.34, the AMG of `MECH_AMG`, `solver`) and a
+/// noise in [0, 1) per particle for the moved second step.
+struct Problem {
+    pos: Vec<Vector3<f64>>,
+    rad: Vec<f64>,
+    pairs: Vec<[u32; 2]>,
+    y: Vec<[f64; 2]>,
+    params: MechParams,
+    load: Vec<f64>,
+    cons: Constraints,
+    noise: Vec<f64>,
+}
+
+impl Problem {
+    fn fcc(n: usize, solver: LinearSolver) -> Result<Self, Error> {
+        let (pos, rad, pairs, y) = fcc_packing(n, 7 + n as u64);
+        let params = MechParams { young_modulus: 110e9, poisson_ratio: 0.34, amg: amg_params_from_env()?, solver, ..Default::default() };
+        let mut s = 99u64;
+        let load: Vec<f64> = pairs
+            .iter()
+            .map(|&[i, j]| {
+                let rm = 0.5 * (rad[i as usize] + rad[j as usize]);
+                crate::models::diffusion7::load_increment(0.5e-4 * rm, 0.5e-4 * rm * (0.5 + rng(&mut s)), rm, params.young_modulus)
+            })
+            .collect();
+        let cons = Constraints::principal_planes(&pos, &rad, 0.01)?;
+        let noise: Vec<f64> = (0..pos.len()).map(|_| rng(&mut s)).collect();
+        Ok(Problem { pos, rad, pairs, y, params, load, cons, noise })
+    }
+}
+
+/// The packing of the second bench step: each particle moved by 10 × its first-step increment
+/// `du` plus `1e-3·r₀·noise` along (1, 1, 1) [m].
+fn moved(pos: &[Vector3<f64>], du: &[Vector3<f64>], noise: &[f64], r0: f64) -> Vec<Vector3<f64>> {
+    pos.iter().zip(du).zip(noise).map(|((x, d), e)| x + d * 10.0 + Vector3::repeat(1e-3 * r0 * e)).collect()
+}
+
 /// Runs the benchmark for packings of about `sizes[k]` particles and returns the table.
 pub fn bench_mechanics(sizes: &[usize]) -> Result<String, Error> {
     bench_mechanics_with(sizes, usize::MAX)
@@ -95,26 +134,15 @@ pub fn bench_mechanics_with(sizes: &[usize], cholesky_max: usize) -> Result<Stri
     );
     let mut notes = String::new();
     for &n in sizes {
-        let (pos, rad, pairs, y) = fcc_packing(n, 7 + n as u64);
-        let params = MechParams { young_modulus: 110e9, poisson_ratio: 0.34, amg: amg_params_from_env()?, ..Default::default() };
-        let mut s = 99u64;
-        let load: Vec<f64> = pairs
-            .iter()
-            .map(|&[i, j]| {
-                let rm = 0.5 * (rad[i as usize] + rad[j as usize]);
-                crate::models::diffusion7::load_increment(0.5e-4 * rm, 0.5e-4 * rm * (0.5 + rng(&mut s)), rm, params.young_modulus)
-            })
-            .collect();
-        let cons = Constraints::principal_planes(&pos, &rad, 0.01)?;
+        let Problem { pos, rad, pairs, y, params, load, cons, noise } = Problem::fcc(n, LinearSolver::Auto)?;
         let inp = StepInput { positions: &pos, radii: &rad, y4_y7: &y, load: &load, external: None };
-        let noise: Vec<f64> = (0..pos.len()).map(|_| rng(&mut s)).collect();
         // AMG first (fresh hierarchy), then a step with the stale hierarchy
         let mut sys_a = BondedSystem::new(pos.len(), MechParams { solver: LinearSolver::Amg, ..params }, cons.clone())?;
         sys_a.set_topology(&pairs)?;
         let (t0, c0) = (Instant::now(), cpu_seconds());
         let amg = sys_a.step(&inp)?;
         let (t_amg, c_amg) = (t0.elapsed().as_secs_f64(), cpu_seconds() - c0);
-        let pos2: Vec<Vector3<f64>> = pos.iter().zip(&amg.du).zip(&noise).map(|((x, d), e)| x + d * 10.0 + Vector3::repeat(1e-3 * rad[0] * e)).collect();
+        let pos2 = moved(&pos, &amg.du, &noise, rad[0]);
         let amg_stale = sys_a.step(&StepInput { positions: &pos2, ..inp })?;
         drop(sys_a);
         // PCG (MECH_BENCH_NO_PCG=1 skips it, for experiments)
@@ -261,23 +289,12 @@ pub fn bench_solver(sizes: &[usize], solver: LinearSolver) -> Result<String, Err
         "nodes", "bonds", "eqs", "setup", "its", "solve", "s/it", "step", "res", "setup2", "its2", "solve2", "step2"
     );
     for &n in sizes {
-        let (pos, rad, pairs, y) = fcc_packing(n, 7 + n as u64);
-        let params = MechParams { young_modulus: 110e9, poisson_ratio: 0.34, amg: amg_params_from_env()?, solver, ..Default::default() };
-        let mut s = 99u64;
-        let load: Vec<f64> = pairs
-            .iter()
-            .map(|&[i, j]| {
-                let rm = 0.5 * (rad[i as usize] + rad[j as usize]);
-                crate::models::diffusion7::load_increment(0.5e-4 * rm, 0.5e-4 * rm * (0.5 + rng(&mut s)), rm, params.young_modulus)
-            })
-            .collect();
-        let cons = Constraints::principal_planes(&pos, &rad, 0.01)?;
+        let Problem { pos, rad, pairs, y, params, load, cons, noise } = Problem::fcc(n, solver)?;
         let inp = StepInput { positions: &pos, radii: &rad, y4_y7: &y, load: &load, external: None };
-        let noise: Vec<f64> = (0..pos.len()).map(|_| rng(&mut s)).collect();
         let mut sys = BondedSystem::new(pos.len(), params, cons)?;
         sys.set_topology(&pairs)?;
         let first = sys.step(&inp)?;
-        let pos2: Vec<Vector3<f64>> = pos.iter().zip(&first.du).zip(&noise).map(|((x, d), e)| x + d * 10.0 + Vector3::repeat(1e-3 * rad[0] * e)).collect();
+        let pos2 = moved(&pos, &first.du, &noise, rad[0]);
         let second = sys.step(&StepInput { positions: &pos2, ..inp })?;
         let (a, b) = (&first.info, &second.info);
         let _ = writeln!(
