@@ -79,35 +79,18 @@ impl BondedSystem {
         }
         #[cfg(feature = "hypre")]
         {
-            use super::newton::{initial_residual, not_finite};
-            use rayon::prelude::*;
             let op = super::amg::FineOp { blocks, pairs: &self.pairs, inc: &self.inc, fixed: &rep.fixed };
-            let p = self.params;
-            let (mut r, mut rel) = initial_residual(&op, b, b_norm, x, r0);
-            if rel <= p.rtol {
-                return Ok(());
-            }
-            let mut dx = vec![0.0; x.len()];
-            while info.newton_iterations < p.max_newton {
-                let inner = (0.5 * p.rtol / rel).min(0.1);
-                let s = imp::solve(&op, positions, r_scale, &r, &mut dx, inner, p.pcg_max_iter)?;
+            let max_iter = self.params.pcg_max_iter;
+            // a fresh BoomerAMG hierarchy per Newton iteration (hypre's solve starts from dx = 0)
+            super::newton::newton_inexact(&self.params, &op, b, b_norm, x, r0, info, "hypre BoomerAMG-PCG", |r, dx, tol, info| {
+                let s = imp::solve(&op, positions, r_scale, r, dx, tol, max_iter)?;
                 info.assemble_seconds += s.assemble_seconds;
                 info.factor_seconds += s.setup_seconds;
                 info.solve_seconds += s.solve_seconds;
                 info.pcg_iterations += s.iterations;
                 info.amg_builds += 1;
-                x.par_iter_mut().zip(dx.par_iter()).for_each(|(xi, d)| *xi += d);
-                info.newton_iterations += 1;
-                rel = op.residual(b, b_norm, x, &mut r);
-                info.residuals.push(rel);
-                if !rel.is_finite() {
-                    return Err(not_finite(info).into());
-                }
-                if rel <= p.rtol {
-                    return Ok(());
-                }
-            }
-            Err(super::solve::not_converged(info, p.rtol, "hypre BoomerAMG-PCG").into())
+                Ok(())
+            })
         }
     }
 }

@@ -735,31 +735,14 @@ impl BondedSystem {
         let t0 = Instant::now();
         let prec = cg::BlockJacobi::new(&blocks.diag, &rep.fixed)?;
         info.factor_seconds += t0.elapsed().as_secs_f64();
-        let (mut r, mut rel) = initial_residual(&op, b, b_norm, x, r0);
-        if rel <= self.params.rtol {
-            return Ok(());
-        }
-        let mut dx = vec![0.0; x.len()];
-        while info.newton_iterations < self.params.max_newton {
-            // inner tolerance so that the outer residual lands below rtol·‖b‖ with a margin
-            let inner = (0.5 * self.params.rtol / rel).min(0.1);
-            dx.iter_mut().for_each(|v| *v = 0.0);
+        let max_iter = self.params.pcg_max_iter;
+        newton::newton_inexact(&self.params, &op, b, b_norm, x, r0, info, "PCG", |r, dx, tol, info| {
             let t1 = Instant::now();
-            let pi = cg::pcg(|v, out| op.matvec(v, out), &prec, &r, &mut dx, inner, self.params.pcg_max_iter)?;
+            let pi = cg::pcg(|v, out| op.matvec(v, out), &prec, r, dx, tol, max_iter)?;
             info.solve_seconds += t1.elapsed().as_secs_f64();
             info.pcg_iterations += pi.iterations;
-            x.par_iter_mut().zip(dx.par_iter()).for_each(|(xi, d)| *xi += d);
-            info.newton_iterations += 1;
-            rel = op.residual(b, b_norm, x, &mut r);
-            info.residuals.push(rel);
-            if !rel.is_finite() {
-                return Err(not_finite(info).into());
-            }
-            if rel <= self.params.rtol {
-                return Ok(());
-            }
-        }
-        Err(solve::not_converged(info, self.params.rtol, "PCG").into())
+            Ok(())
+        })
     }
 }
 

@@ -222,6 +222,48 @@ pub(super) fn stale_factor_cg(
     Ok(None)
 }
 
+/// Inexact Newton on the current stiffness (B10) from `x` (whose residual is `r0` when known):
+/// each iteration solves `K·dx = r` from `dx = 0` to the relative tolerance min(0.1, 0.5·rtol/rel)
+/// with `inner(r, dx, tol, info)`, so that the outer scaled residual lands below rtol with a
+/// margin, adds `dx` and tests the residual; `what` names the solver in the error.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn newton_inexact<S>(
+    params: &MechParams,
+    op: &amg::FineOp,
+    b: &[f64],
+    b_norm: f64,
+    x: &mut [f64],
+    r0: Option<Vec<f64>>,
+    info: &mut MechInfo,
+    what: &str,
+    mut inner: S,
+) -> Result<(), Error>
+where
+    S: FnMut(&[f64], &mut [f64], f64, &mut MechInfo) -> Result<(), Error>,
+{
+    let (mut r, mut rel) = initial_residual(op, b, b_norm, x, r0);
+    if rel <= params.rtol {
+        return Ok(());
+    }
+    let mut dx = vec![0.0; x.len()];
+    while info.newton_iterations < params.max_newton {
+        let tol = (0.5 * params.rtol / rel).min(0.1);
+        dx.iter_mut().for_each(|v| *v = 0.0);
+        inner(&r, &mut dx, tol, info)?;
+        x.par_iter_mut().zip(dx.par_iter()).for_each(|(xi, d)| *xi += d);
+        info.newton_iterations += 1;
+        rel = op.residual(b, b_norm, x, &mut r);
+        info.residuals.push(rel);
+        if !rel.is_finite() {
+            return Err(not_finite(info).into());
+        }
+        if rel <= params.rtol {
+            return Ok(());
+        }
+    }
+    Err(solve::not_converged(info, params.rtol, what).into())
+}
+
 /// `(b − K x, ‖b − K x‖₂/‖b‖₂)`: `known` when the warm start computed it, no product when `x`
 /// is zero.
 pub(super) fn initial_residual(op: &amg::FineOp, b: &[f64], b_norm: f64, x: &[f64], known: Option<Vec<f64>>) -> (Vec<f64>, f64) {
