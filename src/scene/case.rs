@@ -236,7 +236,7 @@ pub struct CellSpec {
     pub contact_stress_limit: Option<f64>,
 }
 
-/// Default `mechanics.update_rank` [1]: the measured optimum of the copper compact, flat between
+/// Default `mechanics.update_rank` [1] (r_max of docs/mechanics.md (B31)): the measured optimum of the copper compact, flat between
 /// 90 and 120 (docs/coupled.md "Low-rank update of the factor", docs/decisions.md).
 pub const UPDATE_RANK_DEFAULT: f64 = 90.0;
 
